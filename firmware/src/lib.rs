@@ -1,0 +1,16 @@
+//! Firmware of the dither-control and readout board for mechanically dithered ring laser gyros.
+//!
+//! Architecture (sans-IO): interrupt handlers copy peripheral registers into the plain structs of
+//! [`sample`] and call the pure functions of the signal chain. Everything outside `rt` (the MCU
+//! glue) is ordinary `no_std` logic that also builds and is tested on x86, where `hal-sim`
+//! drives it with a simulated gyro.
+//!
+//! Signal chain, one room each:
+//! fringe counting -> turnaround sampling -> P1/P2 -> compensation -> output.
+#![cfg_attr(not(test), no_std)]
+
+pub mod sample;
+pub mod signal;
+
+#[cfg(target_os = "none")]
+pub mod rt;

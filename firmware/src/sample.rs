@@ -1,0 +1,33 @@
+//! The hardware/logic boundary: plain data that interrupt handlers copy out of the peripherals.
+//!
+//! Raw codes only (encoder register, 12-bit ADC codes, timer ticks); conversion to physical
+//! units happens in the signal chain. `hal-sim` builds exactly these structs from the simulated
+//! gyro, so the logic downstream is the same code on the board and on the host.
+
+/// Which way the lock-in-free rate crosses zero at a dither turnaround (PHYSICS.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TurnaroundKind {
+    /// Rate goes from negative to positive: beat phase at a minimum.
+    Plus,
+    /// Rate goes from positive to negative: beat phase at a maximum.
+    Minus,
+}
+
+/// Full-scale code of the 12-bit photodiode ADC.
+pub const ADC_FULL_SCALE_CODE: u16 = 4095;
+
+/// What the turnaround interrupt latches: counter, both photodiode levels, and the time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TurnaroundSample {
+    pub kind: TurnaroundKind,
+    /// Raw x4 up/down encoder register (16- or 32-bit timer; wraps).
+    pub encoder_count: u32,
+    /// Photodiode channel A (~cos psi_H), 12-bit ADC code.
+    pub adc_a_code: u16,
+    /// Photodiode channel B (~sin psi_H), 12-bit ADC code.
+    pub adc_b_code: u16,
+    /// Capture timer value at the turnaround instant (free-running, wraps).
+    pub timestamp_ticks: u32,
+}

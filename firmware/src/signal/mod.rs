@@ -1,0 +1,1 @@
+//! The signal chain: fringe counting -> turnaround sampling -> P1/P2 -> compensation -> output.
