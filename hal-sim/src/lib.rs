@@ -1,1 +1,21 @@
 //! A simulated ring laser gyro and readout board, so the firmware's logic runs on x86.
+//!
+//! Two rooms:
+//! - the gyro ([`params`], [`units`], [`input`], [`dither`], [`noise`], [`phase`], [`gyro`]):
+//!   the phase equation (PHYSICS.md Eq. 6) integrated with the dither phase known analytically;
+//! - the board ([`photodiode`], [`counter`], [`clock`], [`flash`], [`serial`]): the peripherals
+//!   the firmware reads, producing exactly the plain structs of `firmware::sample`.
+
+pub mod units;
+pub mod params;
+pub mod input;
+pub mod dither;
+pub mod noise;
+pub mod phase;
+pub mod gyro;
+
+pub mod photodiode;
+pub mod counter;
+pub mod clock;
+pub mod flash;
+pub mod serial;

@@ -1,1 +1,6 @@
 //! The signal chain: fringe counting -> turnaround sampling -> P1/P2 -> compensation -> output.
+
+pub mod fringe_count;
+pub mod quadrature;
+pub mod lissajous;
+pub mod fractional_fringe;
