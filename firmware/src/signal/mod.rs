@@ -4,3 +4,6 @@ pub mod fringe_count;
 pub mod quadrature;
 pub mod lissajous;
 pub mod fractional_fringe;
+pub mod lockin_terms;
+pub mod compensation;
+pub mod output;

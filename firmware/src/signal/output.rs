@@ -1,0 +1,312 @@
+//! Output: per-cycle compensated increments, and the rate averaged over a window.
+//!
+//! Each dither cycle yields a [`CycleOutput`]: the compensated phase increment in Q32 fringes
+//! (`i64`, 2^32 per fringe), the cycle's duration in capture-timer ticks, and [`CycleFlags`].
+//! The [`RateAverager`] turns them into a rate:
+//!
+//! - [`AveragingMode::FixedWindow`]: total phase over total time of a window of N cycles.
+//! - [`AveragingMode::WholePeriods`] (PHYSICS.md pitfall 6): near the dead-band edge the output
+//!   advances in slips with a period of many seconds, and a fixed window cuts a slip in two. This
+//!   mode times the crossings of whole-fringe boundaries by the accumulated phase (interpolated
+//!   inside the cycle) and reports (fringes crossed) / (time between the first and last crossing
+//!   in the window), an average over whole output periods. With fewer than two crossings in the
+//!   window (a rate below one fringe per window) it falls back to the fixed-window estimate and
+//!   sets [`RateReading::whole_periods`] false.
+//!
+//! The rate is reported in fringes/s and in deg/h (1 fringe/s = SF arcsec/s = SF deg/h). The
+//! division runs once per window in f64 (software floating point on the M4F, IEEE-exact like
+//! the host's, so both report the same bits).
+
+/// Flags raised during a cycle (bit set; OR-ed over an averaging window).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CycleFlags(pub u8);
+
+impl CycleFlags {
+    /// Photodiode amplitude too small to normalise (fractional fringe unavailable).
+    pub const SIGNAL_LOST: Self = Self(1 << 0);
+    /// The encoder count jumped by more than physically possible, or disagreed with the levels.
+    pub const COUNTER_GLITCH: Self = Self(1 << 1);
+    /// A turnaround was not seen when expected (the cycle spans more than one dither period).
+    pub const TURNAROUND_MISSED: Self = Self(1 << 2);
+    /// No compensation time constant could be formed (no dither, or an implausible one).
+    pub const DITHER_INVALID: Self = Self(1 << 3);
+
+    pub const fn empty() -> Self {
+        Self(0)
+    }
+    pub const fn union(self, other: Self) -> Self {
+        Self(self.0 | other.0)
+    }
+    pub const fn contains(self, other: Self) -> bool {
+        self.0 & other.0 == other.0
+    }
+    pub const fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+}
+
+/// One dither cycle's output.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CycleOutput {
+    /// Compensated beat-phase increment over the cycle, Q32 fringes.
+    pub increment_q32: i64,
+    /// The lock-in correction subtracted from it, Q32 fringes (0 with compensation off).
+    pub correction_q32: i64,
+    /// Cycle duration in capture-timer ticks.
+    pub duration_ticks: u32,
+    pub flags: CycleFlags,
+}
+
+/// How the averager forms a rate.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum AveragingMode {
+    FixedWindow,
+    WholePeriods,
+}
+
+/// Averager settings (immutable).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AveragerConfig {
+    /// Cycles per reading (389 = one second at the paper's dither frequency).
+    pub window_cycles: u32,
+    pub mode: AveragingMode,
+    /// Capture-timer frequency, Hz.
+    pub timer_hz: f64,
+    /// Scale factor, arcsec per fringe (pulse).
+    pub scale_factor_arcsec: f64,
+}
+
+/// An averaged rate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RateReading {
+    pub rate_fringes_per_s: f64,
+    pub rate_deg_per_h: f64,
+    /// Seconds of data the rate spans.
+    pub span_s: f64,
+    /// True when the rate is an average over whole output periods.
+    pub whole_periods: bool,
+    /// Flags OR-ed over the window.
+    pub flags: CycleFlags,
+    pub cycles: u32,
+}
+
+/// Running state of the averager.
+#[derive(Clone, Debug, Default)]
+pub struct RateAverager {
+    /// Accumulated phase since start, Q32 fringes; time since start, ticks.
+    phase_q32: i64,
+    time_ticks: u64,
+    window_start_phase_q32: i64,
+    window_start_ticks: u64,
+    /// First and last whole-fringe crossing in the window: (fringe index, time in ticks as f64).
+    first_crossing: Option<(i64, f64)>,
+    last_crossing: Option<(i64, f64)>,
+    cycles: u32,
+    flags: CycleFlags,
+}
+
+impl RateAverager {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds one cycle; returns a reading when the window is complete.
+    pub fn push(&mut self, config: &AveragerConfig, cycle: CycleOutput) -> Option<RateReading> {
+        let start_phase = self.phase_q32;
+        let start_ticks = self.time_ticks;
+        self.phase_q32 = self.phase_q32.wrapping_add(cycle.increment_q32);
+        self.time_ticks = self.time_ticks.wrapping_add(cycle.duration_ticks as u64);
+        self.note_crossing(start_phase, start_ticks, cycle.duration_ticks);
+        self.cycles = self.cycles.saturating_add(1);
+        self.flags = self.flags.union(cycle.flags);
+        if self.cycles < config.window_cycles.max(1) {
+            return None;
+        }
+        let reading = self.reading(config);
+        self.restart_window();
+        Some(reading)
+    }
+
+    /// Records the last whole-fringe boundary crossed during a cycle, timed by linear
+    /// interpolation of the phase inside the cycle.
+    fn note_crossing(&mut self, start_phase: i64, start_ticks: u64, duration_ticks: u32) {
+        let before = start_phase >> 32;
+        let after = self.phase_q32 >> 32;
+        if before == after {
+            return;
+        }
+        // The boundary crossed last: the upper one going up, the lower one going down.
+        let (index, boundary_q32) = if after > before {
+            (after, after << 32)
+        } else {
+            (after + 1, (after + 1) << 32)
+        };
+        let rise = (self.phase_q32 - start_phase) as f64;
+        let fraction = (boundary_q32 - start_phase) as f64 / rise;
+        let time = start_ticks as f64 + fraction * duration_ticks as f64;
+        if self.first_crossing.is_none() {
+            // The first crossing's index counts as the boundary reached by then.
+            self.first_crossing = Some((index, time));
+        }
+        self.last_crossing = Some((index, time));
+    }
+
+    fn reading(&self, config: &AveragerConfig) -> RateReading {
+        let ticks_per_s = config.timer_hz;
+        let crossing_rate = match (config.mode, self.first_crossing, self.last_crossing) {
+            (AveragingMode::WholePeriods, Some((i0, t0)), Some((i1, t1)))
+                if i1 != i0 && t1 > t0 =>
+            {
+                Some((
+                    (i1 - i0) as f64 / ((t1 - t0) / ticks_per_s),
+                    (t1 - t0) / ticks_per_s,
+                ))
+            }
+            _ => None,
+        };
+        let (rate_fringes_per_s, span_s, whole_periods) = match crossing_rate {
+            Some((rate, span)) => (rate, span, true),
+            None => {
+                let span = (self.time_ticks - self.window_start_ticks) as f64 / ticks_per_s;
+                let phase = (self.phase_q32 - self.window_start_phase_q32) as f64 / 4_294_967_296.0;
+                let rate = if span > 0.0 { phase / span } else { 0.0 };
+                (rate, span, false)
+            }
+        };
+        RateReading {
+            rate_fringes_per_s,
+            rate_deg_per_h: rate_fringes_per_s * config.scale_factor_arcsec,
+            span_s,
+            whole_periods,
+            flags: self.flags,
+            cycles: self.cycles,
+        }
+    }
+
+    fn restart_window(&mut self) {
+        self.window_start_phase_q32 = self.phase_q32;
+        self.window_start_ticks = self.time_ticks;
+        self.first_crossing = None;
+        self.last_crossing = None;
+        self.cycles = 0;
+        self.flags = CycleFlags::empty();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const Q32: f64 = 4_294_967_296.0;
+
+    fn config(mode: AveragingMode, window_cycles: u32) -> AveragerConfig {
+        AveragerConfig {
+            window_cycles,
+            mode,
+            timer_hz: 84e6,
+            scale_factor_arcsec: 1.8655,
+        }
+    }
+
+    fn cycle(increment_fringes: f64, ticks: u32) -> CycleOutput {
+        CycleOutput {
+            increment_q32: (increment_fringes * Q32).round() as i64,
+            correction_q32: 0,
+            duration_ticks: ticks,
+            flags: CycleFlags::empty(),
+        }
+    }
+
+    /// A steady rate is reported exactly by both modes (to f64 rounding of the Q32 increments:
+    /// 1e-9 relative).
+    #[test]
+    fn steady_rate_both_modes() {
+        let ticks = 215_938; // 84 MHz / 389 Hz
+        let per_cycle = 7.44 / 389.0; // 13.888 deg/h at SF 1.8655 ~ 7.44 fringes/s
+        for mode in [AveragingMode::FixedWindow, AveragingMode::WholePeriods] {
+            let cfg = config(mode, 389 * 4);
+            let mut avg = RateAverager::new();
+            let mut reading = None;
+            for _ in 0..389 * 4 {
+                reading = avg.push(&cfg, cycle(per_cycle, ticks)).or(reading);
+            }
+            let r = reading.expect("a reading after one window");
+            let want = per_cycle * 84e6 / ticks as f64;
+            assert!(
+                (r.rate_fringes_per_s / want - 1.0).abs() < 1e-6,
+                "{mode:?} {r:?}"
+            );
+            assert!((r.rate_deg_per_h - want * 1.8655).abs() < 1e-5);
+            assert_eq!(r.whole_periods, mode == AveragingMode::WholePeriods);
+        }
+    }
+
+    /// Slips: one whole fringe every 10 cycles, nothing in between. A fixed window of 25 cycles
+    /// sees 2 or 3 slips depending on where it starts; whole-period averaging reports the true
+    /// slip rate, 0.1 fringe per cycle, every time.
+    #[test]
+    fn whole_periods_remove_the_window_phase_error() {
+        let ticks = 1000;
+        let cfg_whole = config(AveragingMode::WholePeriods, 25);
+        let cfg_fixed = config(AveragingMode::FixedWindow, 25);
+        let (mut whole, mut fixed) = (RateAverager::new(), RateAverager::new());
+        let (mut whole_rates, mut fixed_rates) = (vec![], vec![]);
+        for i in 0..500 {
+            let c = cycle(if i % 10 == 3 { 1.0 } else { 0.0 }, ticks);
+            whole_rates.extend(whole.push(&cfg_whole, c));
+            fixed_rates.extend(fixed.push(&cfg_fixed, c));
+        }
+        let true_rate = 0.1 * 84e6 / ticks as f64;
+        for r in &whole_rates {
+            assert!(r.whole_periods);
+            assert!(
+                (r.rate_fringes_per_s / true_rate - 1.0).abs() < 1e-9,
+                "{r:?}"
+            );
+        }
+        let worst_fixed = fixed_rates
+            .iter()
+            .map(|r| (r.rate_fringes_per_s / true_rate - 1.0).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            worst_fixed > 0.1,
+            "the fixed window shows the slip beat: {worst_fixed}"
+        );
+    }
+
+    #[test]
+    fn flags_are_collected_over_the_window_and_cleared() {
+        let cfg = config(AveragingMode::FixedWindow, 3);
+        let mut avg = RateAverager::new();
+        let mut glitchy = cycle(0.01, 1000);
+        glitchy.flags = CycleFlags::COUNTER_GLITCH;
+        assert!(avg.push(&cfg, cycle(0.01, 1000)).is_none());
+        assert!(avg.push(&cfg, glitchy).is_none());
+        let r = avg.push(&cfg, cycle(0.01, 1000)).unwrap();
+        assert!(r.flags.contains(CycleFlags::COUNTER_GLITCH));
+        for _ in 0..2 {
+            assert!(avg.push(&cfg, cycle(0.01, 1000)).is_none());
+        }
+        assert!(avg.push(&cfg, cycle(0.01, 1000)).unwrap().flags.is_empty());
+    }
+
+    /// Negative rates cross boundaries downwards; the estimate keeps its sign.
+    #[test]
+    fn negative_rates() {
+        let cfg = config(AveragingMode::WholePeriods, 200);
+        let mut avg = RateAverager::new();
+        let mut last = None;
+        for _ in 0..200 {
+            last = avg.push(&cfg, cycle(-0.37, 1000)).or(last);
+        }
+        let r = last.unwrap();
+        assert!(r.whole_periods);
+        assert!(
+            (r.rate_fringes_per_s / (-0.37 * 84e3) - 1.0).abs() < 1e-6,
+            "{r:?}"
+        );
+    }
+}
