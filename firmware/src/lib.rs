@@ -9,6 +9,7 @@
 //! fringe counting -> turnaround sampling -> P1/P2 -> compensation -> output.
 #![cfg_attr(not(test), no_std)]
 
+pub mod calibration;
 pub mod sample;
 pub mod signal;
 

@@ -1,0 +1,3 @@
+//! Calibration: the least-squares fit of the compensation coefficients a and b.
+
+pub mod fit;
