@@ -7,3 +7,4 @@ pub mod fractional_fringe;
 pub mod lockin_terms;
 pub mod compensation;
 pub mod output;
+pub mod cycle;

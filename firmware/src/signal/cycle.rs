@@ -1,0 +1,451 @@
+//! Cycle assembly: the readings at alternating turnarounds become one record per dither cycle.
+//!
+//! A dither cycle runs from one "+" turnaround to the next. Its raw increment is the difference of
+//! the total beat phase (count plus fractional fringe) latched at the two. The latch sits in the
+//! middle of a traversal of the lock-in zone, so the phase latched at a "+" turnaround holds half
+//! of that traversal's error (exactly half in the parabolic approximation: the error integral is
+//! symmetric about the turnaround). The cycle therefore holds half of the traversal at its start,
+//! the whole "-" traversal, and half of the traversal at its end, and P1/P2 are formed with the
+//! same weights 1/2, 1, 1/2 (PHYSICS.md pitfall 5, the latch split).
+//!
+//! k = sqrt(2 pi / |psi_ddot|) comes from the measured dither, not a constant: the amplitude is a
+//! quarter of the sum of the last two half-cycle excursions (the input rate adds to one and takes
+//! from the other, so it cancels), the half period is half the time between the turnarounds two
+//! apart. It is causal (from the half-cycles before the turnaround), which the slowly changing
+//! amplitude of a high-Q dither resonator allows.
+//!
+//! A reading out of sequence (two turnarounds of one kind in a row, or a half period far from
+//! the dither's) means a turnaround was missed or a spurious one seen: the cycle in progress is
+//! dropped, assembly restarts, and the next cycle carries [`CycleFlags::TURNAROUND_MISSED`].
+
+use super::compensation::Compensator;
+use super::lockin_terms::{
+    sine_dither_accel_rad_per_s2, traversal_terms, traversal_time_s, LevelPair, LockinTerms,
+};
+use super::output::{CycleFlags, CycleOutput};
+use crate::sample::TurnaroundKind;
+
+/// 2^32 as f64: Q32 fringes per fringe.
+const Q32_PER_FRINGE: f64 = 4_294_967_296.0;
+
+/// What the turnaround front end hands over for one turnaround.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TurnaroundReading {
+    pub kind: TurnaroundKind,
+    /// Total beat phase at the turnaround, Q32 fringes, wrapping (differences are exact).
+    pub phase_q32: i64,
+    /// Normalised photodiode levels; `None` when the signal is lost.
+    pub levels: Option<LevelPair>,
+    pub timestamp_ticks: u32,
+    /// Problems the front end saw (counter glitch, signal lost).
+    pub flags: CycleFlags,
+}
+
+/// Settings of the assembly (immutable).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CycleConfig {
+    /// Capture-timer frequency, Hz.
+    pub timer_hz: f32,
+    /// Accepted half-period range, ticks: outside it a turnaround counts as missed or spurious.
+    pub min_half_period_ticks: u32,
+    pub max_half_period_ticks: u32,
+}
+
+impl CycleConfig {
+    /// A window of +-`tolerance` (relative) around the nominal dither frequency.
+    pub fn for_dither(timer_hz: f32, dither_hz: f32, tolerance: f32) -> Self {
+        let half = timer_hz / (2.0 * dither_hz);
+        Self {
+            timer_hz,
+            min_half_period_ticks: (half * (1.0 - tolerance)) as u32,
+            max_half_period_ticks: (half * (1.0 + tolerance)) as u32,
+        }
+    }
+}
+
+/// One dither cycle, everything the output, the calibration and the stream need.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CycleRecord {
+    pub output: CycleOutput,
+    /// Measured increment before compensation, Q32 fringes.
+    pub raw_increment_q32: i64,
+    pub terms: LockinTerms,
+    /// Total phase at the cycle's closing "+" turnaround, Q32 fringes (wrapping).
+    pub end_phase_q32: i64,
+    /// Measured dither amplitude (beat phase, rad) and frequency (Hz) at the closing turnaround.
+    pub dither_amplitude_rad: f32,
+    pub dither_hz: f32,
+}
+
+impl CycleRecord {
+    /// The raw increment in rad of beat phase.
+    pub fn raw_increment_rad(&self) -> f64 {
+        self.raw_increment_q32 as f64 * core::f64::consts::TAU / Q32_PER_FRINGE
+    }
+    /// Cycle duration in seconds.
+    pub fn duration_s(&self, config: &CycleConfig) -> f64 {
+        self.output.duration_ticks as f64 / config.timer_hz as f64
+    }
+}
+
+/// A turnaround remembered for the excursion and the latch split.
+#[derive(Clone, Copy, Debug)]
+struct Seen {
+    kind: TurnaroundKind,
+    phase_q32: i64,
+    timestamp_ticks: u32,
+}
+
+/// The open cycle: its starting "+" turnaround and the shares gathered so far.
+#[derive(Clone, Copy, Debug)]
+struct OpenCycle {
+    start_phase_q32: i64,
+    start_ticks: u32,
+    terms: LockinTerms,
+    have_minus: bool,
+    flags: CycleFlags,
+}
+
+/// State of the assembly.
+#[derive(Clone, Debug, Default)]
+pub struct CycleAssembler {
+    previous: Option<Seen>,
+    before_previous: Option<Seen>,
+    open: Option<OpenCycle>,
+    pending_flags: CycleFlags,
+    dither_amplitude_rad: f32,
+    dither_hz: f32,
+}
+
+impl CycleAssembler {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Measured dither amplitude, beat-phase rad (0 until two half-cycles have been seen).
+    pub fn dither_amplitude_rad(&self) -> f32 {
+        self.dither_amplitude_rad
+    }
+
+    /// Measured dither frequency, Hz (0 until two half-cycles have been seen).
+    pub fn dither_hz(&self) -> f32 {
+        self.dither_hz
+    }
+
+    /// Takes one turnaround; returns the cycle it closes, if any.
+    pub fn on_turnaround(
+        &mut self,
+        config: &CycleConfig,
+        compensator: &mut Compensator,
+        reading: TurnaroundReading,
+    ) -> Option<CycleRecord> {
+        if !self.in_sequence(config, &reading) {
+            self.restart(reading);
+            return None;
+        }
+        let k_s = self.time_constant_s(config, &reading);
+        self.before_previous = self.previous;
+        self.previous = Some(Seen {
+            kind: reading.kind,
+            phase_q32: reading.phase_q32,
+            timestamp_ticks: reading.timestamp_ticks,
+        });
+        let mut flags = reading.flags;
+        let share = match (reading.levels, k_s) {
+            (Some(levels), Some(k)) => traversal_terms(reading.kind, levels, k),
+            (None, _) => {
+                flags = flags.union(CycleFlags::SIGNAL_LOST);
+                LockinTerms::default()
+            }
+            (_, None) => {
+                flags = flags.union(CycleFlags::DITHER_INVALID);
+                LockinTerms::default()
+            }
+        };
+        match reading.kind {
+            TurnaroundKind::Minus => {
+                if let Some(open) = self.open.as_mut() {
+                    open.terms = open.terms.add(share);
+                    open.have_minus = true;
+                    open.flags = open.flags.union(flags);
+                }
+                None
+            }
+            TurnaroundKind::Plus => {
+                let closed = self
+                    .open
+                    .take()
+                    .and_then(|open| self.close(compensator, open, share, flags, &reading));
+                self.open = Some(OpenCycle {
+                    start_phase_q32: reading.phase_q32,
+                    start_ticks: reading.timestamp_ticks,
+                    terms: share.scaled(0.5),
+                    have_minus: false,
+                    flags: flags.union(self.pending_flags),
+                });
+                self.pending_flags = CycleFlags::empty();
+                closed
+            }
+        }
+    }
+
+    fn close(
+        &mut self,
+        compensator: &mut Compensator,
+        open: OpenCycle,
+        share: LockinTerms,
+        flags: CycleFlags,
+        reading: &TurnaroundReading,
+    ) -> Option<CycleRecord> {
+        if !open.have_minus {
+            return None;
+        }
+        let terms = open.terms.add(share.scaled(0.5));
+        let flags = open.flags.union(flags);
+        let raw_increment_q32 = reading.phase_q32.wrapping_sub(open.start_phase_q32);
+        let trusted =
+            !flags.contains(CycleFlags::SIGNAL_LOST) && !flags.contains(CycleFlags::DITHER_INVALID);
+        let correction_q32 = if trusted {
+            compensator.cycle_correction(terms)
+        } else {
+            0
+        };
+        Some(CycleRecord {
+            output: CycleOutput {
+                increment_q32: raw_increment_q32.wrapping_sub(correction_q32),
+                correction_q32,
+                duration_ticks: reading.timestamp_ticks.wrapping_sub(open.start_ticks),
+                flags,
+            },
+            raw_increment_q32,
+            terms,
+            end_phase_q32: reading.phase_q32,
+            dither_amplitude_rad: self.dither_amplitude_rad,
+            dither_hz: self.dither_hz,
+        })
+    }
+
+    /// Kinds must alternate and the half period must be plausible.
+    fn in_sequence(&self, config: &CycleConfig, reading: &TurnaroundReading) -> bool {
+        let Some(previous) = self.previous else {
+            return true;
+        };
+        let half = reading
+            .timestamp_ticks
+            .wrapping_sub(previous.timestamp_ticks);
+        previous.kind != reading.kind
+            && half >= config.min_half_period_ticks
+            && half <= config.max_half_period_ticks
+    }
+
+    fn restart(&mut self, reading: TurnaroundReading) {
+        self.before_previous = None;
+        self.previous = Some(Seen {
+            kind: reading.kind,
+            phase_q32: reading.phase_q32,
+            timestamp_ticks: reading.timestamp_ticks,
+        });
+        self.open = None;
+        self.pending_flags = CycleFlags::TURNAROUND_MISSED;
+    }
+
+    /// k of the traversal at `reading`, from the two half-cycles before it.
+    fn time_constant_s(
+        &mut self,
+        config: &CycleConfig,
+        reading: &TurnaroundReading,
+    ) -> Option<f32> {
+        let (previous, before) = (self.previous?, self.before_previous?);
+        let excursion_q32 = reading
+            .phase_q32
+            .wrapping_sub(previous.phase_q32)
+            .unsigned_abs()
+            + previous
+                .phase_q32
+                .wrapping_sub(before.phase_q32)
+                .unsigned_abs();
+        // Sum of two half-cycle excursions = 4 x amplitude.
+        let amplitude_rad =
+            (excursion_q32 as f64 / Q32_PER_FRINGE * core::f64::consts::TAU / 4.0) as f32;
+        let half_period_s = reading.timestamp_ticks.wrapping_sub(before.timestamp_ticks) as f32
+            / (2.0 * config.timer_hz);
+        self.dither_amplitude_rad = amplitude_rad;
+        self.dither_hz = 0.5 / half_period_s;
+        traversal_time_s(sine_dither_accel_rad_per_s2(
+            2.0 * amplitude_rad,
+            half_period_s,
+        )?)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::signal::compensation::{Coefficients, CompensationSettings};
+
+    const TIMER_HZ: f32 = 84e6;
+    const DITHER_HZ: f64 = 389.0;
+    const Q32: f64 = 4_294_967_296.0;
+
+    /// Readings of an ideal sine dither (amplitude `amp` rad) on a constant rate. Traversal `i`
+    /// adds `err(i, psi0)`, where psi0 is the actual phase latched at its turnaround (all earlier
+    /// errors plus half of its own: an implicit equation, solved by iteration).
+    fn readings(
+        amp: f64,
+        rate: f64,
+        n: usize,
+        err: impl Fn(usize, f64) -> f64,
+    ) -> Vec<TurnaroundReading> {
+        let half = 0.5 / DITHER_HZ;
+        let mut accumulated = 0.0;
+        (0..n)
+            .map(|i| {
+                let t = i as f64 * half;
+                let kind = if i % 2 == 0 {
+                    TurnaroundKind::Plus
+                } else {
+                    TurnaroundKind::Minus
+                };
+                let dither = if i % 2 == 0 { -amp } else { amp };
+                let base = dither + rate * t + accumulated;
+                let mut e = 0.0;
+                for _ in 0..20 {
+                    e = err(i, base + 0.5 * e);
+                }
+                let psi = base + 0.5 * e;
+                accumulated += e;
+                TurnaroundReading {
+                    kind,
+                    phase_q32: (psi / core::f64::consts::TAU * Q32).round() as i64,
+                    levels: Some(LevelPair {
+                        cos_psi_h: psi.cos() as f32,
+                        sin_psi_h: psi.sin() as f32,
+                    }),
+                    timestamp_ticks: (t * TIMER_HZ as f64).round() as u32,
+                    flags: CycleFlags::empty(),
+                }
+            })
+            .collect()
+    }
+
+    fn run(readings: &[TurnaroundReading], comp: &mut Compensator) -> Vec<CycleRecord> {
+        let config = CycleConfig::for_dither(TIMER_HZ, DITHER_HZ as f32, 0.2);
+        let mut asm = CycleAssembler::new();
+        readings
+            .iter()
+            .filter_map(|r| asm.on_turnaround(&config, comp, *r))
+            .collect()
+    }
+
+    /// Each cycle's increment is rate x period plus the errors of half, one, half traversals;
+    /// measured amplitude and frequency match the dither. Tolerances: Q32 rounding of the phase
+    /// (1e-9 fringe) and f32 for amplitude/frequency (1e-5 relative).
+    #[test]
+    fn increments_amplitude_and_frequency() {
+        let amp = core::f64::consts::TAU * 450.0 / 1.8655;
+        let rate = 46.8;
+        let err = |i: usize| 0.01 * ((i as f64) * 0.7).sin();
+        let cycles = run(
+            &readings(amp, rate, 41, |i, _| err(i)),
+            &mut Compensator::default(),
+        );
+        assert_eq!(cycles.len(), 20);
+        for (c, record) in cycles.iter().enumerate() {
+            let start = 2 * c;
+            let want = rate / DITHER_HZ + 0.5 * err(start) + err(start + 1) + 0.5 * err(start + 2);
+            assert!(
+                (record.raw_increment_rad() - want).abs() < 1e-8,
+                "cycle {c}"
+            );
+            assert_eq!(
+                record.output.increment_q32, record.raw_increment_q32,
+                "compensation off"
+            );
+            if c > 0 {
+                assert!(record.output.flags.is_empty(), "{:?}", record.output.flags);
+                assert!((record.dither_amplitude_rad as f64 / amp - 1.0).abs() < 1e-5);
+                assert!((record.dither_hz as f64 / DITHER_HZ - 1.0).abs() < 1e-5);
+            }
+        }
+        // The first cycle has no measured dither for its opening traversal.
+        assert!(cycles[0].output.flags.contains(CycleFlags::DITHER_INVALID));
+    }
+
+    /// With compensation on and the true coefficients, the correction removes the parabolic
+    /// traversal errors the readings carry: the compensated increment is rate x period to
+    /// 1e-5 of the 0.018 rad correction (f32 products and the measured k).
+    #[test]
+    fn compensation_removes_the_traversal_errors() {
+        let amp = core::f64::consts::TAU * 450.0 / 1.8655;
+        let (omega_l, eps) = (673.6_f64, 0.3_f64);
+        let accel = amp * (core::f64::consts::TAU * DITHER_HZ).powi(2);
+        let k = (core::f64::consts::TAU / accel).sqrt();
+        let rate = 46.8;
+        // The parabolic traversal error at the actual turnaround phase psi0.
+        let err = move |i: usize, psi0: f64| {
+            if i % 2 == 0 {
+                omega_l * k * (psi0 + core::f64::consts::FRAC_PI_4).cos()
+            } else {
+                omega_l * k * (psi0 + core::f64::consts::FRAC_PI_4).sin()
+            }
+        };
+        let a = omega_l * (eps + core::f64::consts::FRAC_PI_4).cos();
+        let b = omega_l * (eps + core::f64::consts::FRAC_PI_4).sin();
+        // The photodiodes see psi_H = psi - eps.
+        let mut rs = readings(amp, rate, 61, err);
+        for r in &mut rs {
+            let psi = r.phase_q32 as f64 / Q32 * core::f64::consts::TAU;
+            r.levels = Some(LevelPair {
+                cos_psi_h: (psi - eps).cos() as f32,
+                sin_psi_h: (psi - eps).sin() as f32,
+            });
+        }
+        let mut comp = Compensator::new(CompensationSettings {
+            coefficients: Coefficients::from_rad_per_s(a as f32, b as f32).unwrap(),
+            enabled: true,
+        });
+        let cycles = run(&rs, &mut comp);
+        for record in cycles.iter().skip(1) {
+            let compensated = record.output.increment_q32 as f64 / Q32 * core::f64::consts::TAU;
+            let resid = compensated - rate / DITHER_HZ;
+            // f32 levels and products, the measured k and Q32 phase: 1e-4 of the correction.
+            assert!(resid.abs() < 1e-4 * omega_l * k, "resid {resid}");
+            assert!(record.output.correction_q32 != 0);
+        }
+    }
+
+    /// A missing "-" turnaround: the cycle in progress is dropped and the next one flagged.
+    #[test]
+    fn a_missed_turnaround_is_flagged_not_misread() {
+        let amp = 1500.0;
+        let mut rs = readings(amp, 0.0, 30, |_, _| 0.0);
+        rs.remove(11); // a "-" turnaround
+        let cycles = run(&rs, &mut Compensator::default());
+        assert!(cycles
+            .iter()
+            .any(|c| c.output.flags.contains(CycleFlags::TURNAROUND_MISSED)));
+        for c in &cycles {
+            // No cycle spans the gap: every increment is the (zero-rate) dither-free value.
+            assert!(c.raw_increment_rad().abs() < 1e-6, "{c:?}");
+            let d = c.output.duration_ticks as f64 / TIMER_HZ as f64;
+            assert!((d * DITHER_HZ - 1.0).abs() < 1e-4);
+        }
+    }
+
+    #[test]
+    fn lost_signal_is_flagged_and_not_compensated() {
+        let mut rs = readings(1500.0, 10.0, 20, |_, _| 0.0);
+        rs[9].levels = None;
+        let mut comp = Compensator::new(CompensationSettings {
+            coefficients: Coefficients::from_rad_per_s(300.0, 400.0).unwrap(),
+            enabled: true,
+        });
+        let cycles = run(&rs, &mut comp);
+        let lost: Vec<_> = cycles
+            .iter()
+            .filter(|c| c.output.flags.contains(CycleFlags::SIGNAL_LOST))
+            .collect();
+        assert_eq!(lost.len(), 1);
+        assert_eq!(lost[0].output.correction_q32, 0);
+    }
+}
