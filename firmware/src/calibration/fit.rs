@@ -205,9 +205,10 @@ mod tests {
         let t = 1.0 / 389.0;
         for _ in 0..cycles {
             let (u, v, w) = (rng.uniform(), rng.uniform(), rng.uniform());
-            let (pp, pm) = (u * 6.283, v * 6.283);
-            let p1 = 0.5 * K * (pp.cos() + (w * 6.283).cos()) + K * pm.sin();
-            let p2 = K * pm.cos() - 0.5 * K * (pp.sin() + (w * 6.283).sin());
+            let tau = core::f64::consts::TAU;
+            let (pp, pm) = (u * tau, v * tau);
+            let p1 = 0.5 * K * (pp.cos() + (w * tau).cos()) + K * pm.sin();
+            let p2 = K * pm.cos() - 0.5 * K * (pp.sin() + (w * tau).sin());
             let y = rate * t + A * p1 + B * p2 + noise * rng.normal();
             assert!(acc.push(y, p1, p2, t));
         }

@@ -165,7 +165,7 @@ impl CycleAssembler {
         match reading.kind {
             TurnaroundKind::Minus => {
                 if let Some(open) = self.open.as_mut() {
-                    open.terms = open.terms.add(share);
+                    open.terms = open.terms + share;
                     open.have_minus = true;
                     open.flags = open.flags.union(flags);
                 }
@@ -200,7 +200,7 @@ impl CycleAssembler {
         if !open.have_minus {
             return None;
         }
-        let terms = open.terms.add(share.scaled(0.5));
+        let terms = open.terms + share.scaled(0.5);
         let flags = open.flags.union(flags);
         let raw_increment_q32 = reading.phase_q32.wrapping_sub(open.start_phase_q32);
         let trusted =
@@ -301,12 +301,12 @@ mod tests {
         (0..n)
             .map(|i| {
                 let t = i as f64 * half;
-                let kind = if i % 2 == 0 {
+                let kind = if i.is_multiple_of(2) {
                     TurnaroundKind::Plus
                 } else {
                     TurnaroundKind::Minus
                 };
-                let dither = if i % 2 == 0 { -amp } else { amp };
+                let dither = if i.is_multiple_of(2) { -amp } else { amp };
                 let base = dither + rate * t + accumulated;
                 let mut e = 0.0;
                 for _ in 0..20 {
@@ -383,7 +383,7 @@ mod tests {
         let rate = 46.8;
         // The parabolic traversal error at the actual turnaround phase psi0.
         let err = move |i: usize, psi0: f64| {
-            if i % 2 == 0 {
+            if i.is_multiple_of(2) {
                 omega_l * k * (psi0 + core::f64::consts::FRAC_PI_4).cos()
             } else {
                 omega_l * k * (psi0 + core::f64::consts::FRAC_PI_4).sin()

@@ -43,15 +43,18 @@ pub struct LockinTerms {
     pub p2_s: f32,
 }
 
-impl LockinTerms {
+impl core::ops::Add for LockinTerms {
+    type Output = Self;
     /// Sum of two shares.
-    pub fn add(self, other: Self) -> Self {
+    fn add(self, other: Self) -> Self {
         Self {
             p1_s: self.p1_s + other.p1_s,
             p2_s: self.p2_s + other.p2_s,
         }
     }
+}
 
+impl LockinTerms {
     /// A share scaled by `weight` (the latch split gives the boundary traversals weight 1/2).
     pub fn scaled(self, weight: f32) -> Self {
         Self {
