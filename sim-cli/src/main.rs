@@ -1,8 +1,10 @@
 //! `rlg-sim`: the simulated gyro with the firmware's own signal chain in the loop.
+#![allow(dead_code)] // wired up once the simulator board lands
+mod args;
 mod plot;
+mod report;
 
 fn main() {
-    let _ = plot::nice_ticks(0.0, 1.0, 5);
     eprintln!("rlg-sim: under construction");
     std::process::exit(2);
 }

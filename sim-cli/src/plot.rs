@@ -91,7 +91,9 @@ fn escape(text: &str) -> String {
 fn range(points: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = points
         .filter(|v| v.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| (l.min(v), h.max(v)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+            (l.min(v), h.max(v))
+        });
     if !lo.is_finite() {
         return (-1.0, 1.0);
     }
@@ -126,13 +128,21 @@ impl Figure {
         let (x_lo, x_hi) = range(xs);
         let plot_w = w - MARGIN_LEFT - MARGIN_RIGHT;
         let total_weight: f64 = self.panels.iter().map(|p| p.weight).sum::<f64>().max(1e-9);
-        let available =
-            h - MARGIN_TOP - MARGIN_BOTTOM - PANEL_GAP * (self.panels.len().saturating_sub(1)) as f64;
+        let available = h
+            - MARGIN_TOP
+            - MARGIN_BOTTOM
+            - PANEL_GAP * (self.panels.len().saturating_sub(1)) as f64;
         let mut top = MARGIN_TOP;
         for (i, panel) in self.panels.iter().enumerate() {
             let panel_h = available * panel.weight / total_weight;
             let last = i + 1 == self.panels.len();
-            self.render_panel(&mut svg, panel, (x_lo, x_hi), (MARGIN_LEFT, top, plot_w, panel_h), last);
+            self.render_panel(
+                &mut svg,
+                panel,
+                (x_lo, x_hi),
+                (MARGIN_LEFT, top, plot_w, panel_h),
+                last,
+            );
             top += panel_h + PANEL_GAP;
         }
         svg.push_str("</svg>\n");
@@ -147,7 +157,12 @@ impl Figure {
         (left, top, width, height): (f64, f64, f64, f64),
         last: bool,
     ) {
-        let (y_lo, y_hi) = range(panel.series.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
+        let (y_lo, y_hi) = range(
+            panel
+                .series
+                .iter()
+                .flat_map(|s| s.points.iter().map(|p| p.1)),
+        );
         let px = |x: f64| left + (x - x_lo) / (x_hi - x_lo) * width;
         let py = |y: f64| top + height - (y - y_lo) / (y_hi - y_lo) * height;
         let _ = writeln!(
@@ -222,7 +237,11 @@ impl Figure {
             draw_series(svg, series, &px, &py);
             let ly = top + 16.0 + 18.0 * i as f64;
             let lx = left + 12.0;
-            let dash = if series.style == Style::DashedLine { r#" stroke-dasharray="6 4""# } else { "" };
+            let dash = if series.style == Style::DashedLine {
+                r#" stroke-dasharray="6 4""#
+            } else {
+                ""
+            };
             let _ = writeln!(
                 svg,
                 r#"<line x1="{lx}" y1="{ly}" x2="{}" y2="{ly}" stroke="{}" stroke-width="2"{dash}/><text x="{}" y="{}">{}</text>"#,
@@ -243,12 +262,20 @@ fn draw_series(svg: &mut String, s: &Series, px: &dyn Fn(f64) -> f64, py: &dyn F
         .copied()
         .filter(|(x, y)| x.is_finite() && y.is_finite())
         .collect();
-    if matches!(s.style, Style::Line | Style::DashedLine | Style::LineAndMarkers) && finite.len() > 1 {
+    if matches!(
+        s.style,
+        Style::Line | Style::DashedLine | Style::LineAndMarkers
+    ) && finite.len() > 1
+    {
         let path: Vec<String> = finite
             .iter()
             .map(|&(x, y)| format!("{:.2},{:.2}", px(x), py(y)))
             .collect();
-        let dash = if s.style == Style::DashedLine { r#" stroke-dasharray="6 4""# } else { "" };
+        let dash = if s.style == Style::DashedLine {
+            r#" stroke-dasharray="6 4""#
+        } else {
+            ""
+        };
         let _ = writeln!(
             svg,
             r#"<polyline points="{}" fill="none" stroke="{}" stroke-width="1.8"{dash}/>"#,
@@ -275,7 +302,10 @@ mod tests {
 
     #[test]
     fn ticks_are_nice_and_cover_the_range() {
-        assert_eq!(nice_ticks(-13.9, 13.9, 8), vec![-10.0, -5.0, 0.0, 5.0, 10.0]);
+        assert_eq!(
+            nice_ticks(-13.9, 13.9, 8),
+            vec![-10.0, -5.0, 0.0, 5.0, 10.0]
+        );
         let t = nice_ticks(0.0, 1.0, 5);
         assert_eq!(t.len(), 6);
         assert!((t[1] - 0.2).abs() < 1e-12);

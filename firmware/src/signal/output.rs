@@ -154,6 +154,13 @@ impl RateAverager {
         self.last_crossing = Some((index, time));
     }
 
+    /// The reading of the window so far (a partial window), restarting the window.
+    pub fn flush(&mut self, config: &AveragerConfig) -> RateReading {
+        let reading = self.reading(config);
+        self.restart_window();
+        reading
+    }
+
     fn reading(&self, config: &AveragerConfig) -> RateReading {
         let ticks_per_s = config.timer_hz;
         let crossing_rate = match (config.mode, self.first_crossing, self.last_crossing) {

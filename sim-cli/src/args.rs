@@ -1,0 +1,169 @@
+//! Command-line flags: every physical parameter of the simulated gyro, named with its unit.
+
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+
+/// Earth rate projected on the paper's horizontal axis: 15 deg/h x cos(22.2 deg).
+pub const PAPER_RANGE_DEG_H: f64 = 13.888;
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "rlg-sim",
+    version,
+    about = "Simulated ring laser gyro with the readout firmware's own signal chain in the loop",
+    long_about = "Simulates a mechanically dithered ring laser gyro (the phase equation with lock-in, \
+sine dither, photodiodes, counter) and runs the board firmware's signal chain on it: fringe \
+counting, turnaround sampling, P1/P2, calibration fit and dynamic lock-in compensation.\n\n\
+Exit status: 0 on success, 1 when a run fails (e.g. the calibration fit is refused), 2 on bad \
+arguments."
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// The paper's experiment: calibrate outside the dead band, then sweep the input rate and
+    /// record the uncompensated (Fig. 3) and compensated (Fig. 4) output.
+    Sweep(SweepArgs),
+    /// Measure the simulator's speed: simulated gyro-seconds per wall-second on one core.
+    Speed(SpeedArgs),
+}
+
+/// The gyro and its dither (defaults: the PHYSICS.md parameter set, after the paper).
+#[derive(Args, Debug, Clone)]
+pub struct GyroArgs {
+    /// Scale factor, arcsec of input angle per counter pulse (fringe).
+    #[arg(long, default_value_t = 1.8655)]
+    pub scale_factor_arcsec: f64,
+    /// Dither frequency, Hz.
+    #[arg(long, default_value_t = 389.0)]
+    pub dither_hz: f64,
+    /// Dither peak amplitude, arcsec.
+    #[arg(long, default_value_t = 450.0)]
+    pub dither_amplitude_arcsec: f64,
+    /// Lock-in threshold Omega_L, deg/h.
+    #[arg(long, default_value_t = 200.0)]
+    pub lock_in_deg_h: f64,
+    /// Photodiode phase offset eps, rad.
+    #[arg(long, default_value_t = 0.3)]
+    pub eps_rad: f64,
+    /// Angle random walk, deg/sqrt(h) (0 = no noise).
+    #[arg(long, default_value_t = 0.0)]
+    pub arw_deg_rt_h: f64,
+    /// Relative rms of smooth dither amplitude jitter (0 = steady dither).
+    #[arg(long, default_value_t = 0.0)]
+    pub amplitude_jitter: f64,
+    /// Random seed (same seed, same output).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct SweepArgs {
+    #[command(flatten)]
+    pub gyro: GyroArgs,
+    /// Lowest input rate, deg/h.
+    #[arg(long, default_value_t = -PAPER_RANGE_DEG_H, allow_negative_numbers = true)]
+    pub rate_min_deg_h: f64,
+    /// Highest input rate, deg/h.
+    #[arg(long, default_value_t = PAPER_RANGE_DEG_H, allow_negative_numbers = true)]
+    pub rate_max_deg_h: f64,
+    /// Number of input rates, evenly spaced from min to max.
+    #[arg(long, default_value_t = 41)]
+    pub points: usize,
+    /// Simulated seconds recorded per input rate (after the warm-up).
+    #[arg(long, default_value_t = 10.0)]
+    pub seconds_per_point: f64,
+    /// Simulated seconds discarded before recording (lets the Lissajous fit settle).
+    #[arg(long, default_value_t = 0.5)]
+    pub warmup_seconds: f64,
+    /// Input rates of the calibration runs, deg/h (repeat the flag; default +-13.888, both ends
+    /// of the paper's range, outside the dead band).
+    #[arg(long, allow_negative_numbers = true, num_args = 1)]
+    pub calibration_rate_deg_h: Vec<f64>,
+    /// Simulated seconds per calibration run.
+    #[arg(long, default_value_t = 20.0)]
+    pub calibration_seconds: f64,
+    /// Write the table as CSV (input_deg_h,ideal_hz,uncompensated_hz,compensated_hz).
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// Write the figure (both curves and the residuals) as SVG.
+    #[arg(long)]
+    pub svg: Option<PathBuf>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub jobs: Option<usize>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+impl SweepArgs {
+    /// The input rates of the sweep.
+    pub fn rates_deg_h(&self) -> Vec<f64> {
+        if self.points <= 1 {
+            return vec![0.5 * (self.rate_min_deg_h + self.rate_max_deg_h)];
+        }
+        let step = (self.rate_max_deg_h - self.rate_min_deg_h) / (self.points - 1) as f64;
+        (0..self.points)
+            .map(|i| self.rate_min_deg_h + step * i as f64)
+            .collect()
+    }
+
+    /// The calibration rates, defaulting to both ends of the paper's range.
+    pub fn calibration_rates_deg_h(&self) -> Vec<f64> {
+        if self.calibration_rate_deg_h.is_empty() {
+            vec![-PAPER_RANGE_DEG_H, PAPER_RANGE_DEG_H]
+        } else {
+            self.calibration_rate_deg_h.clone()
+        }
+    }
+
+    /// Checks what clap cannot: ranges and finite values. The message names the flag.
+    pub fn validate(&self) -> Result<(), String> {
+        let finite = [
+            ("--rate-min-deg-h", self.rate_min_deg_h),
+            ("--rate-max-deg-h", self.rate_max_deg_h),
+            ("--seconds-per-point", self.seconds_per_point),
+            ("--warmup-seconds", self.warmup_seconds),
+            ("--calibration-seconds", self.calibration_seconds),
+        ];
+        for (flag, v) in finite {
+            if !v.is_finite() {
+                return Err(format!("{flag} must be a finite number, got {v}"));
+            }
+        }
+        if self.rate_max_deg_h < self.rate_min_deg_h {
+            return Err("--rate-max-deg-h must not be below --rate-min-deg-h".into());
+        }
+        if self.points == 0 {
+            return Err("--points must be at least 1".into());
+        }
+        if self.seconds_per_point <= 0.0 || self.calibration_seconds <= 0.0 {
+            return Err("--seconds-per-point and --calibration-seconds must be positive".into());
+        }
+        if self.warmup_seconds < 0.0 {
+            return Err("--warmup-seconds must not be negative".into());
+        }
+        if let Some(bad) = self.calibration_rate_deg_h.iter().find(|r| !r.is_finite()) {
+            return Err(format!(
+                "--calibration-rate-deg-h must be finite, got {bad}"
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct SpeedArgs {
+    #[command(flatten)]
+    pub gyro: GyroArgs,
+    /// Input rate, deg/h.
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
+    pub rate_deg_h: f64,
+    /// Simulated seconds to time.
+    #[arg(long, default_value_t = 5.0)]
+    pub seconds: f64,
+}
