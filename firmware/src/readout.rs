@@ -1,0 +1,184 @@
+//! The readout: the whole signal chain behind the two interrupts that feed it.
+//!
+//! - The photodiode ADC stream (regular conversions at arbitrary instants, DMA blocks on the
+//!   board) goes to [`Readout::on_lissajous_sample`]: the Heydemann fit learns the offsets, gains
+//!   and quadrature error of the channels from the signal itself.
+//! - The turnaround interrupt latches a [`TurnaroundSample`] and calls
+//!   [`Readout::on_turnaround`]: count extension -> normalisation -> fringe phase (count plus
+//!   fractional fringe) -> cycle assembly (P1/P2, latch split) -> compensation. A completed
+//!   dither cycle comes back as a [`CycleRecord`].
+//!
+//! Coefficients (immutable, `Copy`) live in [`ReadoutConfig`]; the state in [`Readout`]. New
+//! compensation settings are staged with [`Readout::stage_compensation`] and take effect whole
+//! at the next cycle boundary. Everything here is plain data in, data out: the host simulator
+//! calls exactly these functions.
+
+use crate::sample::TurnaroundSample;
+use crate::signal::compensation::{CompensationSettings, Compensator};
+use crate::signal::cycle::{CycleAssembler, CycleConfig, CycleRecord, TurnaroundReading};
+use crate::signal::fringe_count::{CountUpdate, CounterWidth, FringeCountConfig, FringeCounter};
+use crate::signal::fringe_phase::{FringePhaseConfig, FringeResolver};
+use crate::signal::lissajous::{LissajousCoefficients, LissajousConfig, LissajousTracker};
+use crate::signal::lockin_terms::LevelPair;
+use crate::signal::output::CycleFlags;
+
+/// Highest x4 edge rate the count extension accepts between reads, edges/s: above the
+/// 2.4 M edges/s of the PHYSICS.md parameter set with margin.
+pub const MAX_EDGE_RATE_HZ: u32 = 4_000_000;
+
+/// Every setting of the signal chain (immutable).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ReadoutConfig {
+    pub counter: FringeCountConfig,
+    pub lissajous: LissajousConfig,
+    pub fringe_phase: FringePhaseConfig,
+    pub cycle: CycleConfig,
+}
+
+impl ReadoutConfig {
+    /// Settings for a board with a 32-bit encoder timer, a capture timer at `timer_hz` and a
+    /// dither near `dither_hz` (+-20 % accepted). The scale factor is not needed here: the
+    /// chain works in fringes; it enters only the rate output.
+    pub fn for_board(timer_hz: f64, dither_hz: f64, _scale_factor_arcsec: f64) -> Self {
+        let half_period_ticks = (timer_hz / (2.0 * dither_hz)) as u32;
+        Self {
+            counter: FringeCountConfig {
+                width: CounterWidth::Bits32,
+                max_step_counts: FringeCountConfig::max_step_for(
+                    MAX_EDGE_RATE_HZ,
+                    half_period_ticks,
+                    timer_hz as u32,
+                ),
+                resync_after: 3,
+            },
+            lissajous: LissajousConfig::DEFAULT,
+            fringe_phase: FringePhaseConfig::DEFAULT,
+            cycle: CycleConfig::for_dither(timer_hz as f32, dither_hz as f32, 0.2),
+        }
+    }
+}
+
+/// Counters the status command reports.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReadoutCounters {
+    pub turnarounds: u32,
+    pub cycles: u32,
+    pub counter_glitches: u32,
+    pub phase_glitches: u32,
+    pub signal_lost: u32,
+    pub lissajous_fits: u32,
+    pub lissajous_rejections: u32,
+}
+
+/// The state of the whole chain.
+#[derive(Clone, Debug)]
+pub struct Readout {
+    counter: FringeCounter,
+    lissajous: LissajousTracker,
+    resolver: FringeResolver,
+    cycles: CycleAssembler,
+    compensator: Compensator,
+    counters: ReadoutCounters,
+}
+
+impl Readout {
+    pub fn new(_config: &ReadoutConfig, settings: CompensationSettings) -> Self {
+        Self {
+            counter: FringeCounter::new(),
+            lissajous: LissajousTracker::new(LissajousCoefficients::NOMINAL),
+            resolver: FringeResolver::new(),
+            cycles: CycleAssembler::new(),
+            compensator: Compensator::new(settings),
+            counters: ReadoutCounters::default(),
+        }
+    }
+
+    /// One photodiode conversion pair taken at an arbitrary instant.
+    pub fn on_lissajous_sample(&mut self, config: &ReadoutConfig, a_code: u16, b_code: u16) {
+        match self.lissajous.add(&config.lissajous, a_code, b_code) {
+            Some(Ok(_)) => {
+                self.counters.lissajous_fits = self.counters.lissajous_fits.saturating_add(1)
+            }
+            Some(Err(_)) => {
+                self.counters.lissajous_rejections =
+                    self.counters.lissajous_rejections.saturating_add(1)
+            }
+            None => {}
+        }
+    }
+
+    /// One turnaround latch; returns the dither cycle it completes, if any.
+    pub fn on_turnaround(
+        &mut self,
+        config: &ReadoutConfig,
+        sample: TurnaroundSample,
+    ) -> Option<CycleRecord> {
+        self.counters.turnarounds = self.counters.turnarounds.wrapping_add(1);
+        let mut flags = CycleFlags::empty();
+        match self.counter.update(&config.counter, sample.encoder_count) {
+            CountUpdate::Glitch(_) => flags = flags.union(CycleFlags::COUNTER_GLITCH),
+            CountUpdate::Resynced(_) => {
+                flags = flags.union(CycleFlags::COUNTER_GLITCH);
+                // The register moved under us: the count-to-phase relation must be learned anew.
+                self.resolver.realign();
+            }
+            CountUpdate::Initialised | CountUpdate::Step(_) => {}
+        }
+        if flags.contains(CycleFlags::COUNTER_GLITCH) {
+            self.counters.counter_glitches = self.counters.counter_glitches.saturating_add(1);
+        }
+        let levels = self
+            .lissajous
+            .normalise(sample.adc_a_code, sample.adc_b_code);
+        let reading = self
+            .resolver
+            .resolve(&config.fringe_phase, self.counter.count(), levels);
+        if reading.glitch {
+            flags = flags.union(CycleFlags::COUNTER_GLITCH);
+            self.counters.phase_glitches = self.counters.phase_glitches.saturating_add(1);
+        }
+        if reading.signal_lost {
+            self.counters.signal_lost = self.counters.signal_lost.saturating_add(1);
+        }
+        let turnaround = TurnaroundReading {
+            kind: sample.kind,
+            // Wrapping Q32 fringes: cycle increments are exact differences.
+            phase_q32: reading.phase.as_q32_i128() as i64,
+            levels: (!reading.signal_lost).then(|| LevelPair {
+                cos_psi_h: reading.levels.cos_f32(),
+                sin_psi_h: reading.levels.sin_f32(),
+            }),
+            timestamp_ticks: sample.timestamp_ticks,
+            flags,
+        };
+        let record = self
+            .cycles
+            .on_turnaround(&config.cycle, &mut self.compensator, turnaround)?;
+        self.counters.cycles = self.counters.cycles.wrapping_add(1);
+        Some(record)
+    }
+
+    /// Stages compensation settings; they apply whole from the next cycle boundary.
+    pub fn stage_compensation(&mut self, settings: CompensationSettings) {
+        self.compensator.stage(settings);
+    }
+
+    /// The compensation settings in force.
+    pub fn compensation(&self) -> CompensationSettings {
+        self.compensator.active()
+    }
+
+    pub fn counters(&self) -> ReadoutCounters {
+        self.counters
+    }
+
+    /// The measured dither: amplitude (beat-phase rad) and frequency (Hz).
+    pub fn dither(&self) -> (f32, f32) {
+        (self.cycles.dither_amplitude_rad(), self.cycles.dither_hz())
+    }
+
+    /// The Lissajous tracker (fitted ellipse, rejections).
+    pub fn lissajous(&self) -> &LissajousTracker {
+        &self.lissajous
+    }
+}
