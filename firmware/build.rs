@@ -2,6 +2,14 @@
 use std::{env, fs, path::PathBuf};
 
 fn main() {
+    // Shown in the start-up banner.
+    for (var, name) in [
+        ("PROFILE", "FW_BUILD_PROFILE"),
+        ("OPT_LEVEL", "FW_OPT_LEVEL"),
+    ] {
+        let value = env::var(var).unwrap_or_else(|_| "?".into());
+        println!("cargo:rustc-env={name}={value}");
+    }
     if env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("none") {
         return;
     }

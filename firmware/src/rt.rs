@@ -1,24 +1,130 @@
-//! MCU glue (only for `target_os = "none"`): logger, panic and fault handlers.
+//! MCU glue, compiled only for `target_os = "none"`: logger, memory map, panic and fault handlers.
+//!
+//! Two ways out of a fatal error, chosen by feature:
+//!
+//! * `qemu` (emulator, or a board under a debugger): log, then a semihosting exit with a status
+//!   (panic 1, HardFault 2), so QEMU ends and `cargo fw-run`/`fw-test` report the failure.
+//! * `hw` (a board on its own): log over RTT, wait a moment so an attached probe can drain the
+//!   buffer, then reset the MCU. Semihosting is a `BKPT`, which on a board without a debugger
+//!   escalates to a lockup: the instrument would stay dead until power-cycled. After the reset
+//!   the pins return to their reset state (dither drive off) and the firmware starts again.
+//!   A fault that repeats at every boot therefore reset-loops; its message is in the RTT log.
+
 use cortex_m as _; // critical-section implementation
-#[cfg(feature = "qemu")]
-use defmt_semihosting as _;
 #[cfg(feature = "hw")]
 use defmt_rtt as _;
+#[cfg(feature = "qemu")]
+use defmt_semihosting as _;
 pub use stm32f4::stm32f405 as pac; // vector table
+
+#[cfg(all(feature = "qemu", feature = "hw"))]
+compile_error!("features `qemu` and `hw` choose the logger and the fatal-error path: enable one");
+#[cfg(not(any(feature = "qemu", feature = "hw")))]
+compile_error!(
+    "the MCU build needs feature `qemu` (emulator) or `hw` (board): see the cargo aliases"
+);
+
+/// Where the linker put things, read from the symbols of `memory.x` and cortex-m-rt's `link.x`.
+#[derive(Clone, Copy, Debug, defmt::Format)]
+pub struct MemoryMap {
+    pub flash_start: u32,
+    /// First byte after code, read-only data and the initial values of `.data`.
+    pub flash_end: u32,
+    /// Calibration store: the last two 128 KiB sectors (10 and 11), never used for code.
+    pub calibration_start: u32,
+    pub calibration_end: u32,
+    pub ram_start: u32,
+    /// First byte after `.data`, `.bss` and `.uninit`; the stack grows down towards it.
+    pub static_ram_end: u32,
+    pub stack_top: u32,
+}
+
+extern "C" {
+    static __calibration_start: u8;
+    static __calibration_end: u8;
+    static __sidata: u8;
+    static __sdata: u8;
+    static __edata: u8;
+    static _stack_start: u8;
+    static _stack_end: u8;
+    static _ram_start: u8;
+}
+
+/// The address of a linker symbol (its value; the symbol is never read, so no `unsafe`).
+macro_rules! addr {
+    ($sym:ident) => {
+        core::ptr::addr_of!($sym) as u32
+    };
+}
+
+impl MemoryMap {
+    /// Flash sector size of sectors 5 to 11.
+    pub const SECTOR_BYTES: u32 = 128 * 1024;
+
+    pub fn linked() -> Self {
+        Self {
+            flash_start: 0x0800_0000,
+            flash_end: addr!(__sidata) + (addr!(__edata) - addr!(__sdata)),
+            calibration_start: addr!(__calibration_start),
+            calibration_end: addr!(__calibration_end),
+            ram_start: addr!(_ram_start),
+            static_ram_end: addr!(_stack_end),
+            stack_top: addr!(_stack_start),
+        }
+    }
+
+    /// Logs the map at info level (start-up banner).
+    pub fn log(&self) {
+        defmt::info!(
+            "flash  {=u32:#010x}..{=u32:#010x}: {=u32} bytes of code and constants",
+            self.flash_start,
+            self.flash_end,
+            self.flash_end - self.flash_start
+        );
+        defmt::info!(
+            "calib  {=u32:#010x} (sector 10), {=u32:#010x} (sector 11), end {=u32:#010x}",
+            self.calibration_start,
+            self.calibration_start + Self::SECTOR_BYTES,
+            self.calibration_end
+        );
+        defmt::info!(
+            "ram    {=u32:#010x}..{=u32:#010x}: {=u32} bytes static, stack top {=u32:#010x}",
+            self.ram_start,
+            self.static_ram_end,
+            self.static_ram_end - self.ram_start,
+            self.stack_top
+        );
+    }
+}
+
+/// Ends the program after a fatal error (see the module docs for what each feature does).
+fn fatal(code: i32) -> ! {
+    #[cfg(feature = "qemu")]
+    {
+        semihosting::process::exit(code)
+    }
+    #[cfg(not(feature = "qemu"))]
+    {
+        let _ = code;
+        // ~12 ms at 168 MHz, ~125 ms at the 16 MHz reset clock: time for a probe to read RTT.
+        cortex_m::asm::delay(2_000_000);
+        cortex_m::peripheral::SCB::sys_reset()
+    }
+}
 
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
     defmt::error!("{}", defmt::Display2Format(info));
-    semihosting::process::exit(1)
+    fatal(1)
 }
 
 #[defmt::panic_handler]
 fn defmt_panic() -> ! {
-    semihosting::process::exit(1)
+    fatal(1) // defmt::panic!/assert!: the message is already logged
 }
 
 #[cortex_m_rt::exception]
 unsafe fn HardFault(ef: &cortex_m_rt::ExceptionFrame) -> ! {
-    defmt::error!("HardFault at pc={=u32:#x}", ef.pc());
-    semihosting::process::exit(2)
+    defmt::error!("HardFault at pc={=u32:#x} lr={=u32:#x}", ef.pc(), ef.lr());
+    fatal(2)
 }

@@ -1,16 +1,100 @@
-//! On-target tests (QEMU or a board): the firmware's core functions on the Cortex-M4F.
+//! On-target suite: the firmware's core functions on the Cortex-M4F (QEMU's netduinoplus2, or a
+//! board under probe-rs), checked against the golden values that `tests/golden.rs` checks on the
+//! host, so target == host (bit-identical, or within the tolerance a case states).
+//!
+//! Its own tiny harness rather than defmt-test's: every case runs even after one fails, the run
+//! closes with `qemu: N passed, M failed` and exits through semihosting with status 0, or 1 if
+//! any case failed. A panic inside a case ends the run at once with status 1 (the panic handler
+//! of `firmware::rt`), a HardFault with 2; QEMU never hangs (and the runner has a timeout).
+//! Run: `cargo fw-test`. Cases live in `vectors/cases.rs`.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
-#[cfg(target_os = "none")]
-#[defmt_test::tests]
-mod tests {
-    use firmware::rt::pac as _;
+mod vectors;
 
-    #[test]
-    fn boots() {
-        defmt::assert!(true);
+#[cfg(target_os = "none")]
+mod app {
+    use super::vectors::{self, cases::CASES, Check, Failure};
+    use firmware::rt::MemoryMap;
+
+    /// Label of the closing line.
+    const WHERE: &str = if cfg!(feature = "qemu") {
+        "qemu"
+    } else {
+        "board"
+    };
+
+    #[cortex_m_rt::entry]
+    fn main() -> ! {
+        let _ = MemoryMap::linked(); // links the firmware's runtime (vector table, handlers)
+        defmt::info!("{=usize} cases, golden values from the host", CASES.len());
+        let (mut passed, mut failed) = (0u32, 0u32);
+        for case in CASES {
+            match vectors::check(case) {
+                Ok(o) => {
+                    passed += 1;
+                    match case.check {
+                        Check::Exact => defmt::info!(
+                            "ok   {=str}: {=u32} outputs bit-identical (digest {=u64:#018x})",
+                            case.name,
+                            o.words,
+                            o.digest
+                        ),
+                        Check::AbsTol(tol) => defmt::info!(
+                            "ok   {=str}: {=u32} exact + {=u32} f32 outputs, worst |err| {=f32} (tol {=f32})",
+                            case.name,
+                            o.words,
+                            o.f32_count,
+                            o.worst_abs_err,
+                            tol
+                        ),
+                    }
+                }
+                Err(failure) => {
+                    failed += 1;
+                    log_failure(case.name, failure);
+                }
+            }
+        }
+        defmt::println!(
+            "{=str}: {=u32} passed, {=u32} failed",
+            WHERE,
+            passed,
+            failed
+        );
+        semihosting::process::exit(if failed == 0 { 0 } else { 1 })
+    }
+
+    fn log_failure(name: &str, failure: Failure) {
+        match failure {
+            Failure::NoGolden => defmt::error!(
+                "FAIL {=str}: no golden entry: UPDATE_GOLDEN=1 cargo test -p firmware --test golden",
+                name
+            ),
+            Failure::Digest { words, want_words, digest, want_digest } => defmt::error!(
+                "FAIL {=str}: {=u32} outputs, digest {=u64:#018x}; golden: {=u32}, {=u64:#018x}",
+                name,
+                words,
+                digest,
+                want_words,
+                want_digest
+            ),
+            Failure::F32Count { got, want } => {
+                defmt::error!("FAIL {=str}: {=u32} f32 outputs, golden has {=u32}", name, got, want)
+            }
+            Failure::F32OutOfTolerance(bad) => defmt::error!(
+                "FAIL {=str}: f32 output #{=u32} = {=f32} ({=u32:#010x}), golden {=f32} ({=u32:#010x})",
+                name,
+                bad.index,
+                bad.got,
+                bad.got.to_bits(),
+                bad.want,
+                bad.want.to_bits()
+            ),
+        }
     }
 }
 
 #[cfg(not(target_os = "none"))]
-fn main() {}
+fn main() {
+    println!("on_target: runs on the MCU (`cargo fw-test`); its host twin is tests/golden.rs");
+}

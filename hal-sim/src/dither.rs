@@ -1,1 +1,260 @@
-//! TODO(owner: see lib.rs)
+//! The mechanical dither: a sine oscillation of the gyro body whose *angle* is known in
+//! closed form, so the integrator never has to integrate the ~3.7e6 rad/s dither rate.
+//!
+//! Model (all in beat phase: rad, rad/s):
+//!
+//! ```text
+//! theta_d(t) = -A(t) cos(w_d t),        A(t) = A0 (1 + m(t)),
+//! rate_d(t)  = A(t) w_d sin(w_d t) - A'(t) cos(w_d t)
+//! ```
+//!
+//! so the steady dither rate is `Omega_d sin(w_d t)` with `Omega_d = A0 w_d`, as in Eq. 6.
+//! `m(t)` is a seeded sum of low-frequency sinusoids (see
+//! [`crate::params::AmplitudeModulation`]): smooth at every order, so the amplitude of a
+//! high-Q resonator drifts slowly and never jumps from one half-cycle to the next. The
+//! "random-noise dither" is the same process with a much larger depth and bandwidth; both
+//! can be on at once (their modulations add).
+//!
+//! Precision: `w_d t` is reduced with an error-free product (`fma`), so the dither angle
+//! stays exact to ~1e-13 rad after hours of simulated time (a plain `w_d * t` would lose
+//! ~1e-6 rad at t = 1 h).
+//!
+//! The dither pick-off: a piezo strain pick-off reports the spring's deflection, i.e. the
+//! dither angle; the instants where the dither rate is zero (the pick-off's extremes, the
+//! zero crossings of its derivative or of a 90-degree-shifted copy) are the *dither-only*
+//! turnarounds. They differ from the true turnarounds (zeros of dither + input + noise rate)
+//! by about `Omega_i / psi_ddot` (PHYSICS.md pitfall 3), which is why both are offered.
+
+use crate::params::{AmplitudeModulation, Derived, GyroParams};
+use crate::units::beat_rad_to_arcsec;
+use core::f64::consts::{FRAC_PI_2, TAU};
+use firmware::sample::TurnaroundKind;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// Longest derivative jet the dither evaluates (angle and 15 derivatives).
+pub const MAX_JET: usize = 16;
+
+/// One modulation tone: `a sin(nu t + phase)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Tone {
+    a: f64,
+    nu_rad_per_s: f64,
+    phase_rad: f64,
+}
+
+/// The dither of one gyro (immutable).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Dither {
+    freq_hz: f64,
+    w_rad_per_s: f64,
+    amp0_rad: f64,
+    tones: Vec<Tone>,
+    scale_factor_arcsec: f64,
+}
+
+fn draw_tones(m: &AmplitudeModulation, seed: u64, out: &mut Vec<Tone>) {
+    if m.relative_rms <= 0.0 {
+        return;
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let a = m.relative_rms * (2.0 / m.tones as f64).sqrt();
+    for _ in 0..m.tones {
+        let f = m.min_hz + (m.max_hz - m.min_hz) * rng.random::<f64>();
+        out.push(Tone { a, nu_rad_per_s: TAU * f, phase_rad: TAU * rng.random::<f64>() });
+    }
+}
+
+/// `2 pi frac(f t)` computed with an error-free product: the dither phase in [0, 2 pi).
+fn reduced_phase(freq_hz: f64, t_s: f64) -> f64 {
+    let p = freq_hz * t_s;
+    let e = freq_hz.mul_add(t_s, -p);
+    let frac = (p - p.floor()) + e;
+    TAU * frac
+}
+
+fn binomial_row(n: usize) -> [f64; MAX_JET] {
+    let mut row = [0.0; MAX_JET];
+    row[0] = 1.0;
+    for k in 1..=n {
+        row[k] = row[k - 1] * (n + 1 - k) as f64 / k as f64;
+    }
+    row
+}
+
+impl Dither {
+    /// Builds the dither of `params` (no dither: amplitude 0, every value 0).
+    pub fn new(params: &GyroParams, derived: &Derived) -> Self {
+        let mut tones = Vec::new();
+        if params.has_dither() {
+            draw_tones(&params.amplitude_jitter, params.seed ^ 0x6a09_e667_f3bc_c908, &mut tones);
+            draw_tones(&params.random_noise_dither, params.seed ^ 0xbb67_ae85_84ca_a73b, &mut tones);
+        }
+        Self {
+            freq_hz: if params.has_dither() { params.dither_hz } else { 0.0 },
+            w_rad_per_s: derived.dither_w_rad_per_s,
+            amp0_rad: derived.dither_amp_rad,
+            tones,
+            scale_factor_arcsec: derived.scale_factor_arcsec,
+        }
+    }
+
+    /// True if there is a dither.
+    pub fn is_on(&self) -> bool {
+        self.amp0_rad > 0.0
+    }
+
+    /// Dither frequency, Hz (0 if off).
+    pub fn freq_hz(&self) -> f64 {
+        self.freq_hz
+    }
+
+    /// Relative amplitude modulation `m(t)` and its derivatives.
+    fn modulation_jet(&self, t_s: f64, out: &mut [f64]) {
+        out.fill(0.0);
+        for tone in &self.tones {
+            let x = (tone.nu_rad_per_s * t_s + tone.phase_rad) % TAU;
+            crate::input::add_sinusoid_derivs(tone.a, tone.nu_rad_per_s, x, out);
+        }
+    }
+
+    /// Dither amplitude `A(t)`, rad of beat phase.
+    pub fn amplitude_rad(&self, t_s: f64) -> f64 {
+        let mut m = [0.0; 1];
+        self.modulation_jet(t_s, &mut m);
+        self.amp0_rad * (1.0 + m[0])
+    }
+
+    /// Dither angle `theta_d` and its derivatives at `t_s` (`out[1]` = dither rate, rad/s).
+    /// `out.len() <= MAX_JET`.
+    pub fn angle_jet(&self, t_s: f64, out: &mut [f64]) {
+        let n = out.len();
+        out.fill(0.0);
+        if !self.is_on() {
+            return;
+        }
+        // g = -cos(w t) and its derivatives; A = A0 (1 + m).
+        let mut g = [0.0; MAX_JET];
+        crate::input::add_sinusoid_derivs(-1.0, self.w_rad_per_s, reduced_phase(self.freq_hz, t_s) + FRAC_PI_2, &mut g[..n]);
+        if self.tones.is_empty() {
+            for (o, gk) in out.iter_mut().zip(g.iter()) {
+                *o = self.amp0_rad * gk;
+            }
+            return;
+        }
+        let mut a = [0.0; MAX_JET];
+        self.modulation_jet(t_s, &mut a[..n]);
+        a[0] += 1.0;
+        for (j, o) in out.iter_mut().enumerate() {
+            let c = binomial_row(j);
+            let mut s = 0.0;
+            for k in 0..=j {
+                s += c[k] * a[k] * g[j - k];
+            }
+            *o = self.amp0_rad * s;
+        }
+    }
+
+    /// Dither angle, rad of beat phase.
+    pub fn angle_rad(&self, t_s: f64) -> f64 {
+        let mut d = [0.0; 1];
+        self.angle_jet(t_s, &mut d);
+        d[0]
+    }
+
+    /// Dither rate, rad/s of beat phase.
+    pub fn rate_rad_per_s(&self, t_s: f64) -> f64 {
+        let mut d = [0.0; 2];
+        self.angle_jet(t_s, &mut d);
+        d[1]
+    }
+
+    /// What the strain pick-off reports: the dither deflection, arcsec of body angle.
+    pub fn pickoff_angle_arcsec(&self, t_s: f64) -> f64 {
+        beat_rad_to_arcsec(self.angle_rad(t_s), self.scale_factor_arcsec)
+    }
+
+    /// Time of the `n`-th peak of the unmodulated dither rate, `(n + 1/2) / (2 f_d)`:
+    /// the middle of a half cycle, as far from any turnaround as possible.
+    pub fn rate_peak_time_s(&self, n: u64) -> f64 {
+        (n as f64 + 0.5) / (2.0 * self.freq_hz)
+    }
+
+    /// The first zero of the dither-only rate strictly after `t_s` (a pick-off turnaround),
+    /// with its kind. `None` without dither.
+    pub fn pickoff_turnaround_after(&self, t_s: f64) -> Option<(f64, TurnaroundKind)> {
+        if !self.is_on() {
+            return None;
+        }
+        // Unmodulated zeros at n / (2 f); the modulation moves them by ~A'/(A w) (tiny).
+        let mut n = (2.0 * self.freq_hz * t_s).floor() as i64;
+        loop {
+            let mut t = n as f64 / (2.0 * self.freq_hz);
+            for _ in 0..50 {
+                let mut d = [0.0; 3];
+                self.angle_jet(t, &mut d);
+                let dt = d[1] / d[2];
+                t -= dt;
+                if dt.abs() < 1e-16 * (1.0 + t.abs()) {
+                    break;
+                }
+            }
+            if t > t_s {
+                let mut d = [0.0; 3];
+                self.angle_jet(t, &mut d);
+                let kind = if d[2] > 0.0 { TurnaroundKind::Plus } else { TurnaroundKind::Minus };
+                return Some((t, kind));
+            }
+            n += 1;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dither(jitter: f64) -> Dither {
+        let p = GyroParams { amplitude_jitter: AmplitudeModulation::jitter(jitter), ..Default::default() };
+        Dither::new(&p, &p.derive().unwrap())
+    }
+
+    #[test]
+    fn jet_is_consistent_with_finite_differences() {
+        for jitter in [0.0, 0.01] {
+            let d = dither(jitter);
+            let t = 0.123_456;
+            let mut j = [0.0; 6];
+            d.angle_jet(t, &mut j);
+            let h = 1e-7;
+            for k in 0..5 {
+                let mut a = [0.0; 6];
+                let mut b = [0.0; 6];
+                d.angle_jet(t + h, &mut a);
+                d.angle_jet(t - h, &mut b);
+                let fd = (a[k] - b[k]) / (2.0 * h);
+                // Central difference: relative error ~ (w h)^2 / 6 ~ 1e-11, plus rounding.
+                assert!((fd - j[k + 1]).abs() < 1e-6 * j[k + 1].abs().max(1e-3 * d.amp0_rad * d.w_rad_per_s.powi(k as i32 + 1)), "k={k} {fd} {}", j[k + 1]);
+            }
+        }
+    }
+
+    #[test]
+    fn reduced_phase_is_exact_at_late_times() {
+        let d = dither(0.0);
+        // At t = 3600 s + 1/(4 f) the phase is pi/2 (+ 2 pi n), the rate at its peak.
+        let t = 3600.0 + 1.0 / (4.0 * 389.0);
+        let r = d.rate_rad_per_s(t) / (d.amp0_rad * d.w_rad_per_s);
+        assert!((r - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn pickoff_turnarounds_alternate() {
+        let d = dither(0.01);
+        let (t1, k1) = d.pickoff_turnaround_after(0.01).unwrap();
+        let (t2, k2) = d.pickoff_turnaround_after(t1).unwrap();
+        assert_ne!(k1, k2);
+        assert!(((t2 - t1) * 2.0 * 389.0 - 1.0).abs() < 1e-3);
+        assert!(d.rate_rad_per_s(t1).abs() < 1e-6);
+    }
+}

@@ -1,1 +1,255 @@
-//! TODO(owner: see lib.rs)
+//! The gyro's parameter set: physical constants in the units an engineer quotes, plus the
+//! solver settings, with the PHYSICS.md set as `Default`.
+//!
+//! Design: [`GyroParams`] is plain, `Copy` and immutable once a gyro is built (what would live
+//! in a data sheet); [`GyroParams::derive`] validates it and converts everything once into the
+//! beat-phase units the integrator uses ([`Derived`], rad and rad/s of beat phase). Mutable
+//! state lives elsewhere ([`crate::gyro::Gyro`]).
+
+use crate::units::{
+    arcsec_to_beat_rad, arw_deg_per_rt_h_to_beat_rad_per_rt_s, deg_per_h_to_beat_rad_per_s,
+    hz_to_rad_per_s,
+};
+
+/// A smooth, seeded, band-limited modulation of the dither amplitude:
+/// `A(t) = A0 (1 + m(t))`, `m(t) = sum_j a_j sin(2 pi f_j t + phi_j)` with `tones` random
+/// frequencies uniform in `[min_hz, max_hz]`, random phases, and equal `a_j` such that the rms
+/// of `m` is `relative_rms`. A high-Q dither resonator changes its amplitude slowly, so keep
+/// `max_hz` well below the dither frequency.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AmplitudeModulation {
+    /// Rms of the relative amplitude deviation `m(t)` (0 = off).
+    pub relative_rms: f64,
+    /// Lowest modulation frequency, Hz.
+    pub min_hz: f64,
+    /// Highest modulation frequency, Hz.
+    pub max_hz: f64,
+    /// Number of sinusoids summed.
+    pub tones: usize,
+}
+
+impl AmplitudeModulation {
+    /// No modulation.
+    pub const OFF: Self = Self { relative_rms: 0.0, min_hz: 0.1, max_hz: 2.0, tones: 6 };
+
+    /// A slow amplitude jitter of a high-Q resonator (0.1 % rms, 0.1..2 Hz).
+    pub fn jitter(relative_rms: f64) -> Self {
+        Self { relative_rms, ..Self::OFF }
+    }
+
+    /// The industry's random-noise dither: a deliberately large random amplitude modulation
+    /// (e.g. 10..20 % rms) up to a few tens of Hz, which spreads the lock-in error over the
+    /// turnaround phase instead of compensating it.
+    pub fn random_noise_dither(relative_rms: f64) -> Self {
+        Self { relative_rms, min_hz: 1.0, max_hz: 30.0, tones: 12 }
+    }
+
+    fn is_on(&self) -> bool {
+        self.relative_rms > 0.0
+    }
+}
+
+/// Settings of the integrator (see [`crate::phase`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SolverParams {
+    /// Largest beat-phase advance per RK step in near regions, rad. The step is
+    /// `h = dtheta / (|omega| + Omega_L + sqrt(|omega'| dtheta))`.
+    pub step_phase_rad: f64,
+    /// Lock-in-free rate above which the far-field expansion replaces stepping, rad/s.
+    pub far_threshold_rad_per_s: f64,
+    /// Largest adiabatic parameter |omega'|/omega^2 accepted in the far region.
+    pub far_max_adiabatic: f64,
+    /// Length of a smooth piece (and of a noise segment) when there is no dither, s.
+    pub max_piece_s: f64,
+}
+
+impl Default for SolverParams {
+    fn default() -> Self {
+        Self {
+            step_phase_rad: 0.25,
+            far_threshold_rad_per_s: 1.0e6,
+            far_max_adiabatic: 0.012,
+            max_piece_s: 1.0e-3,
+        }
+    }
+}
+
+/// The gyro's parameters in engineering units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GyroParams {
+    /// Scale factor, arcsec of body angle per fringe (counter pulse).
+    pub scale_factor_arcsec: f64,
+    /// Dither frequency, Hz.
+    pub dither_hz: f64,
+    /// Peak dither amplitude, arcsec of body angle (0 = no dither).
+    pub dither_amplitude_arcsec: f64,
+    /// Lock-in threshold Omega_L, deg/h.
+    pub lock_in_deg_per_h: f64,
+    /// Photodiode phase offset eps (psi_H = psi - eps), rad.
+    pub eps_rad: f64,
+    /// Angle random walk, deg/sqrt(h) (0 = no noise).
+    pub arw_deg_per_rt_h: f64,
+    /// Slow amplitude jitter of the dither resonator.
+    pub amplitude_jitter: AmplitudeModulation,
+    /// Random-noise dither (a large deliberate amplitude modulation); adds to the jitter.
+    pub random_noise_dither: AmplitudeModulation,
+    /// Seed of every random process (noise, jitter tones).
+    pub seed: u64,
+    /// Beat phase at t = 0, rad.
+    pub initial_psi_rad: f64,
+    /// Integrator settings.
+    pub solver: SolverParams,
+}
+
+impl Default for GyroParams {
+    /// The PHYSICS.md parameter set, noise and jitter off.
+    fn default() -> Self {
+        Self {
+            scale_factor_arcsec: 1.8655,
+            dither_hz: 389.0,
+            dither_amplitude_arcsec: 450.0,
+            lock_in_deg_per_h: 200.0,
+            eps_rad: 0.3,
+            arw_deg_per_rt_h: 0.0,
+            amplitude_jitter: AmplitudeModulation::OFF,
+            random_noise_dither: AmplitudeModulation::OFF,
+            seed: 1,
+            initial_psi_rad: 0.0,
+            solver: SolverParams::default(),
+        }
+    }
+}
+
+/// Why a parameter set was rejected.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ParamError {
+    /// A field is not finite or out of its range; the text says which and why.
+    OutOfRange(&'static str),
+}
+
+impl core::fmt::Display for ParamError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ParamError::OutOfRange(what) => write!(f, "parameter out of range: {what}"),
+        }
+    }
+}
+
+impl std::error::Error for ParamError {}
+
+/// Parameters converted to beat-phase units (rad, rad/s), validated.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Derived {
+    /// Scale factor, arcsec/pulse (kept for conversions of the input).
+    pub scale_factor_arcsec: f64,
+    /// Lock-in threshold Omega_L, rad/s of beat phase.
+    pub omega_l_rad_per_s: f64,
+    /// Dither angular frequency w_d, rad/s (0 without dither).
+    pub dither_w_rad_per_s: f64,
+    /// Dither amplitude Omega_d / w_d, rad of beat phase.
+    pub dither_amp_rad: f64,
+    /// Peak dither rate Omega_d, rad/s of beat phase.
+    pub dither_peak_rad_per_s: f64,
+    /// Angle random walk, rad of beat phase per sqrt(s).
+    pub arw_rad_per_rt_s: f64,
+}
+
+fn check(ok: bool, what: &'static str) -> Result<(), ParamError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(ParamError::OutOfRange(what))
+    }
+}
+
+fn check_modulation(m: &AmplitudeModulation, what: &'static str) -> Result<(), ParamError> {
+    if !m.is_on() {
+        return check(m.relative_rms == 0.0, what);
+    }
+    check(m.relative_rms.is_finite() && m.relative_rms < 0.3, what)?;
+    check(m.tones >= 1 && m.tones <= 64, what)?;
+    check(m.min_hz > 0.0 && m.max_hz >= m.min_hz && m.max_hz.is_finite(), what)
+}
+
+impl GyroParams {
+    /// True if the dither is on (nonzero amplitude and frequency).
+    pub fn has_dither(&self) -> bool {
+        self.dither_amplitude_arcsec > 0.0 && self.dither_hz > 0.0
+    }
+
+    /// Validates and converts to beat-phase units.
+    pub fn derive(&self) -> Result<Derived, ParamError> {
+        let sf = self.scale_factor_arcsec;
+        check(sf.is_finite() && sf > 0.0, "scale_factor_arcsec must be > 0")?;
+        check(
+            self.dither_hz.is_finite() && self.dither_hz >= 0.0 && self.dither_hz < 1.0e5,
+            "dither_hz must be in [0, 1e5)",
+        )?;
+        check(
+            self.dither_amplitude_arcsec.is_finite() && self.dither_amplitude_arcsec >= 0.0,
+            "dither_amplitude_arcsec must be >= 0",
+        )?;
+        check(
+            self.lock_in_deg_per_h.is_finite() && self.lock_in_deg_per_h >= 0.0,
+            "lock_in_deg_per_h must be >= 0",
+        )?;
+        check(self.eps_rad.is_finite(), "eps_rad must be finite")?;
+        check(self.initial_psi_rad.is_finite(), "initial_psi_rad must be finite")?;
+        check(
+            self.arw_deg_per_rt_h.is_finite() && self.arw_deg_per_rt_h >= 0.0,
+            "arw_deg_per_rt_h must be >= 0",
+        )?;
+        check_modulation(&self.amplitude_jitter, "amplitude_jitter: rms in [0, 0.3), 1..64 tones, 0 < min_hz <= max_hz")?;
+        check_modulation(&self.random_noise_dither, "random_noise_dither: rms in [0, 0.3), 1..64 tones, 0 < min_hz <= max_hz")?;
+        let s = &self.solver;
+        check(
+            s.step_phase_rad > 0.0 && s.step_phase_rad <= 1.0,
+            "solver.step_phase_rad must be in (0, 1]",
+        )?;
+        check(
+            s.far_max_adiabatic > 0.0 && s.far_max_adiabatic <= 0.05,
+            "solver.far_max_adiabatic must be in (0, 0.05]",
+        )?;
+        check(s.max_piece_s > 0.0 && s.max_piece_s <= 1.0, "solver.max_piece_s must be in (0, 1]")?;
+        let omega_l = deg_per_h_to_beat_rad_per_s(self.lock_in_deg_per_h, sf);
+        check(
+            s.far_threshold_rad_per_s.is_finite() && s.far_threshold_rad_per_s >= 500.0 * omega_l,
+            "solver.far_threshold_rad_per_s must be >= 500 Omega_L (far series in Omega_L/omega)",
+        )?;
+        let (w, amp) = if self.has_dither() {
+            (hz_to_rad_per_s(self.dither_hz), arcsec_to_beat_rad(self.dither_amplitude_arcsec, sf))
+        } else {
+            (0.0, 0.0)
+        };
+        Ok(Derived {
+            scale_factor_arcsec: sf,
+            omega_l_rad_per_s: omega_l,
+            dither_w_rad_per_s: w,
+            dither_amp_rad: amp,
+            dither_peak_rad_per_s: w * amp,
+            arw_rad_per_rt_s: arw_deg_per_rt_h_to_beat_rad_per_rt_s(self.arw_deg_per_rt_h, sf),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_derives_paper_numbers() {
+        let d = GyroParams::default().derive().unwrap();
+        assert!((d.omega_l_rad_per_s - 673.6).abs() < 0.05);
+        assert!((d.dither_peak_rad_per_s / 3.70e6 - 1.0).abs() < 0.01);
+    }
+
+    #[test]
+    fn rejects_nonsense() {
+        let p = GyroParams { scale_factor_arcsec: -1.0, ..Default::default() };
+        assert!(p.derive().is_err());
+        let p = GyroParams { lock_in_deg_per_h: f64::NAN, ..Default::default() };
+        assert!(p.derive().is_err());
+        let p = GyroParams { amplitude_jitter: AmplitudeModulation::jitter(0.5), ..Default::default() };
+        assert!(p.derive().is_err());
+    }
+}

@@ -1,0 +1,303 @@
+//! The far region: crossing many fringes at once with a near-identity (averaging)
+//! transformation, instead of stepping them.
+//!
+//! Where the lock-in-free rate is large (`|omega| >= omega_c`), write the lock-in phase
+//! `phi = psi - theta` as a slow part plus an oscillating part,
+//!
+//! ```text
+//! phi = chi + W(t, psi),   W = sum_{n=1..N} w_n(t, psi),   chi' = g(t),
+//! ```
+//!
+//! with `w_n` 2 pi-periodic, zero-mean in `psi`. Inserting into `phi' = Omega_L cos psi`,
+//! `psi' = omega + Omega_L cos psi` and collecting orders in `u = Omega_L / omega` and the
+//! adiabatic parameter `omega' / omega^2` gives the recursion
+//!
+//! ```text
+//! S_1 = Omega_L cos psi,
+//! g_n = mean_psi S_n,       omega dw_n/dpsi = S_n - g_n,
+//! S_{n+1} = -dw_n/dt - Omega_L cos psi dw_n/dpsi,
+//! ```
+//!
+//! so `w_1 = u sin psi`, `w_2 = (u'/omega) cos psi - (u^2/4) sin 2psi`, ..., and
+//! `g = g_2 + g_4 = -Omega_L^2/(2 omega) + (u/2)(u'/omega)' - u^3 Omega_L / 8`
+//! (`g_odd = 0`; `-Omega_L^2/(2 omega) - Omega_L^4/(8 omega^3)` is the expansion of Eq. 5's
+//! `sqrt(omega^2 - Omega_L^2) - omega`). The size of `w_n` is about `(2n-3)!! u delta^(n-1)`
+//! (`delta = |omega'|/omega^2`): at `omega_c = 1e6` rad/s with the PHYSICS.md set,
+//! `u = 6.7e-4`, `delta = 9e-3`, and `w_5 ~ 5e-10` rad, the truncation error at each end.
+//!
+//! [`oscillation`] evaluates `W`'s Fourier coefficients at one instant by running the
+//! recursion on truncated Taylor series in `t` (jets of `omega`), so no derivative is
+//! written out by hand; [`drift_rate`] is the closed form of `g`; [`ChebIntegral`] integrates
+//! `g` over a far segment (and at any time inside it, for dense output).
+
+/// Order of the oscillating series (terms `w_1 .. w_N`); needs `omega` and N-1 derivatives.
+pub const ORDER: usize = 5;
+const H: usize = ORDER + 2;
+
+type Jet = [f64; ORDER];
+
+fn jmul(a: &Jet, b: &Jet) -> Jet {
+    let mut r = [0.0; ORDER];
+    for j in 0..ORDER {
+        let mut s = 0.0;
+        for i in 0..=j {
+            s += a[i] * b[j - i];
+        }
+        r[j] = s;
+    }
+    r
+}
+
+fn jrecip(a: &Jet) -> Jet {
+    let mut r = [0.0; ORDER];
+    r[0] = 1.0 / a[0];
+    for j in 1..ORDER {
+        let mut s = 0.0;
+        for i in 1..=j {
+            s += a[i] * r[j - i];
+        }
+        r[j] = -s * r[0];
+    }
+    r
+}
+
+fn jderiv(a: &Jet) -> Jet {
+    let mut r = [0.0; ORDER];
+    for j in 0..ORDER - 1 {
+        r[j] = (j + 1) as f64 * a[j + 1];
+    }
+    r
+}
+
+fn jscale(a: &Jet, s: f64) -> Jet {
+    a.map(|x| x * s)
+}
+
+fn jadd_to(acc: &mut Jet, a: &Jet, s: f64) {
+    for (x, y) in acc.iter_mut().zip(a) {
+        *x += s * y;
+    }
+}
+
+/// A Fourier series in `psi`: `sum_k c[k] cos(k psi) + s[k] sin(k psi)`, `k >= 1`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Oscillation {
+    pub c: [f64; H],
+    pub s: [f64; H],
+}
+
+impl Oscillation {
+    /// `W(psi)`.
+    pub fn eval(&self, psi: f64) -> f64 {
+        let (s1, c1) = psi.sin_cos();
+        // cos/sin of k psi by the angle-addition recurrence.
+        let (mut ck, mut sk) = (c1, s1);
+        let mut acc = 0.0;
+        for k in 1..H {
+            acc += self.c[k] * ck + self.s[k] * sk;
+            let (cn, sn) = (ck * c1 - sk * s1, sk * c1 + ck * s1);
+            ck = cn;
+            sk = sn;
+        }
+        acc
+    }
+}
+
+/// Fourier coefficients of `W = w_1 + .. + w_ORDER` at one instant, from the Taylor
+/// coefficients `omega_taylor[j] = omega^(j) / j!` there. Also returns the means `g_n`
+/// (index n-1) of the recursion (for checks; the integrator uses [`drift_rate`]).
+pub fn oscillation_with_means(omega_taylor: &Jet, omega_l: f64) -> (Oscillation, [f64; ORDER]) {
+    let inv = jrecip(omega_taylor);
+    let zero = [0.0; ORDER];
+    let mut sc = [zero; H];
+    let mut ss = [zero; H];
+    sc[1][0] = omega_l;
+    let mut out = Oscillation::default();
+    let mut means = [0.0; ORDER];
+    for mean in means.iter_mut() {
+        *mean = sc[0][0];
+        // w_n = antiderivative in psi of the oscillating part, divided by omega.
+        let mut wc = [zero; H];
+        let mut ws = [zero; H];
+        for k in 1..H {
+            let kf = k as f64;
+            wc[k] = jmul(&jscale(&ss[k], -1.0 / kf), &inv);
+            ws[k] = jmul(&jscale(&sc[k], 1.0 / kf), &inv);
+            out.c[k] += wc[k][0];
+            out.s[k] += ws[k][0];
+        }
+        // S_{n+1} = -dw/dt - Omega_L cos psi dw/dpsi.
+        let mut nc = [zero; H];
+        let mut ns = [zero; H];
+        for k in 1..H {
+            jadd_to(&mut nc[k], &jderiv(&wc[k]), -1.0);
+            jadd_to(&mut ns[k], &jderiv(&ws[k]), -1.0);
+            // dw/dpsi: cos part k ws[k], sin part -k wc[k].
+            let dc = jscale(&ws[k], k as f64);
+            let ds = jscale(&wc[k], -(k as f64));
+            let half = 0.5 * omega_l;
+            jadd_to(&mut nc[k - 1], &dc, -half);
+            if k + 1 < H {
+                jadd_to(&mut nc[k + 1], &dc, -half);
+                jadd_to(&mut ns[k + 1], &ds, -half);
+            }
+            if k >= 2 {
+                jadd_to(&mut ns[k - 1], &ds, -half);
+            }
+        }
+        sc = nc;
+        ss = ns;
+    }
+    (out, means)
+}
+
+/// Fourier coefficients of `W` (see [`oscillation_with_means`]).
+pub fn oscillation(omega_taylor: &Jet, omega_l: f64) -> Oscillation {
+    oscillation_with_means(omega_taylor, omega_l).0
+}
+
+/// The slow drift `chi' = g_2 + g_4` from `omega`, `omega'`, `omega''` (rad/s).
+pub fn drift_rate(omega: f64, d1: f64, d2: f64, omega_l: f64) -> f64 {
+    let u = omega_l / omega;
+    let w2 = omega * omega;
+    let dut_over_w = -omega_l * (d2 / (w2 * omega) - 3.0 * d1 * d1 / (w2 * w2));
+    -0.5 * omega_l * u + 0.5 * u * dut_over_w - u * u * u * omega_l / 8.0
+}
+
+/// `phi` at the end of a far stretch: solves `phi = chi + W(theta + phi)` by fixed-point
+/// iteration (contraction factor ~u < 2e-3, so 5 iterations reach rounding level).
+pub fn solve_phi(chi: f64, theta: f64, w: &Oscillation) -> f64 {
+    let mut phi = chi;
+    for _ in 0..6 {
+        phi = chi + w.eval(theta + phi);
+    }
+    phi
+}
+
+/// Nodes per Chebyshev piece of the drift integral.
+pub const CHEB_NODES: usize = 24;
+
+/// `cos(pi j (k + 1/2) / n)`: row 1 holds the nodes.
+fn cheb_table() -> &'static [[f64; CHEB_NODES]; CHEB_NODES] {
+    static TABLE: std::sync::OnceLock<[[f64; CHEB_NODES]; CHEB_NODES]> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        let mut t = [[0.0; CHEB_NODES]; CHEB_NODES];
+        for (j, row) in t.iter_mut().enumerate() {
+            for (k, v) in row.iter_mut().enumerate() {
+                *v = (core::f64::consts::PI * j as f64 * (k as f64 + 0.5) / CHEB_NODES as f64).cos();
+            }
+        }
+        t
+    })
+}
+
+/// `F(t) = integral_{t_a}^{t} f`, from a Chebyshev interpolant of `f` on `[t_a, t_b]`
+/// (exact for polynomials of degree < 24; spectral for smooth `f`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChebIntegral {
+    t_a: f64,
+    t_b: f64,
+    /// Coefficients `C_j`, j = 1..=n, of `F(x) = sum C_j (T_j(x) - T_j(-1))`.
+    coef: [f64; CHEB_NODES + 1],
+    /// Size of the last two interpolation coefficients times the half width (error proxy).
+    pub tail: f64,
+}
+
+impl ChebIntegral {
+    /// Interpolates `f` at Chebyshev points of `[t_a, t_b]` and integrates the series.
+    pub fn new(t_a: f64, t_b: f64, f: impl Fn(f64) -> f64) -> Self {
+        let n = CHEB_NODES;
+        let half = 0.5 * (t_b - t_a);
+        let mid = 0.5 * (t_a + t_b);
+        let table = cheb_table();
+        let mut fv = [0.0; CHEB_NODES];
+        for (k, v) in fv.iter_mut().enumerate() {
+            *v = f(mid + half * table[1][k]);
+        }
+        let mut c = [0.0; CHEB_NODES + 2];
+        for (j, cj) in c.iter_mut().take(n).enumerate() {
+            let mut s = 0.0;
+            for (k, v) in fv.iter().enumerate() {
+                s += v * table[j][k];
+            }
+            *cj = 2.0 * s / n as f64;
+        }
+        let mut coef = [0.0; CHEB_NODES + 1];
+        for (j, cj) in coef.iter_mut().enumerate().skip(1) {
+            *cj = half * (c[j - 1] - c[j + 1]) / (2.0 * j as f64);
+        }
+        let tail = half * (c[n - 1].abs() + c[n - 2].abs());
+        Self { t_a, t_b, coef, tail }
+    }
+
+    /// `integral_{t_a}^{t} f`, for `t` in `[t_a, t_b]`.
+    pub fn eval(&self, t: f64) -> f64 {
+        let x = ((2.0 * t - self.t_a - self.t_b) / (self.t_b - self.t_a)).clamp(-1.0, 1.0);
+        let (mut tm, mut tj) = (1.0, x);
+        let mut sign = -1.0;
+        let mut acc = 0.0;
+        for j in 1..=CHEB_NODES {
+            acc += self.coef[j] * (tj - sign);
+            let tn = 2.0 * x * tj - tm;
+            tm = tj;
+            tj = tn;
+            sign = -sign;
+        }
+        acc
+    }
+
+    /// End of the interval.
+    pub fn t_end(&self) -> f64 {
+        self.t_b
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recursion_matches_hand_derived_terms() {
+        // omega(t0 + tau) = w0 + w1 tau + w2 tau^2 + w3 tau^3 ...
+        let omega_l = 673.6;
+        let tay = [1.2e6, 8.7e9, -3.0e12, 1.0e15, 2.0e17];
+        let (osc, means) = oscillation_with_means(&tay, omega_l);
+        let (w, d1, d2) = (tay[0], tay[1], 2.0 * tay[2]);
+        let u = omega_l / w;
+        let ut = -omega_l * d1 / (w * w);
+        let utw_t = -omega_l * (d2 / w.powi(3) - 3.0 * d1 * d1 / w.powi(4));
+        // w1 + w2 (+ w3's first harmonic)
+        let b = -utw_t + u * u * omega_l / 4.0;
+        assert!((osc.s[2] - (-u * u / 4.0 - u * ut / (2.0 * w) * 0.0)).abs() < 1e-3 * u * u);
+        let c1 = ut / w;
+        assert!((osc.c[1] - c1).abs() < 0.05 * c1.abs(), "{} vs {c1}", osc.c[1]);
+        let s1 = u + b / w;
+        assert!((osc.s[1] - s1).abs() < 1e-2 * (b / w).abs(), "{} vs {s1}", osc.s[1]);
+        assert!((osc.s[3] - u.powi(3) / 12.0).abs() < 1e-3 * u.powi(3));
+        // Means: g1 = 0, g2 = -Omega_L u / 2, g3 = 0, g2 + g4 = drift_rate.
+        assert_eq!(means[0], 0.0);
+        assert!((means[1] + 0.5 * omega_l * u).abs() < 1e-12 * omega_l * u);
+        assert!(means[2].abs() < 1e-6 * means[1].abs());
+        let g = means[1] + means[3];
+        let gd = drift_rate(w, d1, d2, omega_l);
+        assert!((g - gd).abs() < 1e-9 * gd.abs(), "{g} vs {gd}");
+    }
+
+    #[test]
+    fn constant_rate_drift_is_eq5() {
+        let (w, l) = (1.0e6f64, 673.6f64);
+        let exact = -l * l / (w + (w * w - l * l).sqrt());
+        assert!((drift_rate(w, 0.0, 0.0, l) - exact).abs() < 1e-12 * exact.abs());
+    }
+
+    #[test]
+    fn cheb_integral_of_smooth_function() {
+        let f = |t: f64| 1.0 / (0.3 + t);
+        let ci = ChebIntegral::new(0.0, 1.0, f);
+        for t in [0.0, 0.25, 0.7, 1.0] {
+            let exact = ((0.3 + t) / 0.3f64).ln();
+            // Singularity at Bernstein-ellipse parameter rho = 2.85: error ~ rho^-24 ~ 1e-11.
+            assert!((ci.eval(t) - exact).abs() < 1e-10, "{t}: {} vs {exact}", ci.eval(t));
+        }
+    }
+}

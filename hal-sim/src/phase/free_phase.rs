@@ -1,0 +1,116 @@
+//! The free (lock-in-free) phase `theta(t)`: input angle + dither angle + noise angle, in rad
+//! of beat phase, with its rate `omega = theta'` and higher derivatives.
+//!
+//! `theta` is continuous everywhere; `omega` is smooth inside *pieces* and may jump (input
+//! steps, noise segments) or kink (ramps) at breakpoints. Every derivative is evaluated
+//! "with the formula of a piece" ([`PieceId`]), so one-sided values at a breakpoint are
+//! unambiguous and the integrator never differentiates across a jump. Pieces are bounded:
+//! with dither they are at most a half cycle (between peaks of the dither rate), without
+//! dither at most `solver.max_piece_s`.
+
+use crate::dither::{Dither, MAX_JET};
+use crate::input::InputProfile;
+use crate::noise::Noise;
+use crate::params::{Derived, GyroParams};
+use core::f64::consts::TAU;
+
+/// Which formula of each component applies: the smooth piece of the input and the noise
+/// segment.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PieceId {
+    /// Piece index of the input profile.
+    pub input: usize,
+    /// Noise segment index (also the half-cycle / fixed-length structural segment).
+    pub noise: u64,
+}
+
+/// The lock-in-free phase of one gyro (immutable apart from the noise cache).
+#[derive(Clone, Debug)]
+pub struct FreePhase {
+    input: InputProfile,
+    /// rad of beat phase per arcsec of body angle (= rad/s per deg/h): 2 pi / SF.
+    input_scale: f64,
+    dither: Dither,
+    noise: Noise,
+}
+
+impl FreePhase {
+    /// Builds the free phase of `params` driven by `input`.
+    pub fn new(params: &GyroParams, derived: &Derived, input: InputProfile) -> Self {
+        Self {
+            input,
+            input_scale: TAU / derived.scale_factor_arcsec,
+            dither: Dither::new(params, derived),
+            noise: Noise::new(params, derived),
+        }
+    }
+
+    /// The dither model.
+    pub fn dither(&self) -> &Dither {
+        &self.dither
+    }
+
+    /// The input profile.
+    pub fn input(&self) -> &InputProfile {
+        &self.input
+    }
+
+    /// The noise model.
+    pub fn noise(&self) -> &Noise {
+        &self.noise
+    }
+
+    /// The piece containing `t_s`.
+    pub fn piece_at(&self, t_s: f64) -> PieceId {
+        PieceId { input: self.input.piece_index(t_s), noise: self.noise.segment_index(t_s) }
+    }
+
+    /// End of the piece containing `t_s` (the next breakpoint strictly after it).
+    pub fn piece_end_after(&self, t_s: f64) -> f64 {
+        let k = self.noise.segment_index(t_s);
+        let mut end = self.noise.segment_end_s(k);
+        if let Some(b) = self.input.breakpoint_after(t_s) {
+            end = end.min(b);
+        }
+        end
+    }
+
+    /// `theta` and its derivatives at `t_s` with the formulas of `piece`:
+    /// `out[0] = theta` (rad), `out[1] = omega` (rad/s), `out[k] = d^k theta / dt^k`.
+    pub fn angle_jet(&self, t_s: f64, piece: PieceId, out: &mut [f64]) {
+        let n = out.len();
+        debug_assert!(n <= MAX_JET);
+        let mut a = [0.0; MAX_JET];
+        let mut b = [0.0; MAX_JET];
+        self.input.angle_jet(t_s, piece.input, &mut a[..n]);
+        self.dither.angle_jet(t_s, &mut b[..n]);
+        for k in 0..n {
+            out[k] = a[k] * self.input_scale + b[k];
+        }
+        if self.noise.is_on() {
+            self.noise.angle_jet(t_s, piece.noise, &mut a[..n.min(2)]);
+            for k in 0..n.min(2) {
+                out[k] += a[k];
+            }
+        }
+    }
+
+    /// `theta(t)`, rad (continuous; the piece is looked up).
+    pub fn theta_rad(&self, t_s: f64) -> f64 {
+        let mut d = [0.0; 1];
+        self.angle_jet(t_s, self.piece_at(t_s), &mut d);
+        d[0]
+    }
+
+    /// `omega(t)` and `omega'(t)` with the formula of `piece`.
+    pub fn omega_and_slope(&self, t_s: f64, piece: PieceId) -> (f64, f64) {
+        let mut d = [0.0; 3];
+        self.angle_jet(t_s, piece, &mut d);
+        (d[1], d[2])
+    }
+
+    /// True input rate at `t_s`, rad/s of beat phase.
+    pub fn input_rate_rad_per_s(&self, t_s: f64) -> f64 {
+        self.input.rate_deg_per_h(t_s) * self.input_scale
+    }
+}

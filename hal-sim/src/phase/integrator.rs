@@ -1,0 +1,311 @@
+//! The integrator: walks the planned timeline, stepping near segments with RK4 and jumping
+//! over far segments with the near-identity expansion, and reports turnarounds (with the
+//! exact beat phase there) and, per near run, the change of the slow variable `chi`.
+//!
+//! State across a boundary is the lock-in phase `phi = psi - theta` (continuous). Entering a
+//! far segment, `chi = phi - W(t, psi)`; leaving it, `phi` solves `phi = chi + W(t, theta +
+//! phi)` with `chi` advanced by the drift integral. A *near run* is a maximal chain of near
+//! segments between two far segments; its `chi_out - chi_in` is the lock-in phase error of
+//! that traversal with the far-field oscillation `W` removed at both ends.
+//!
+//! Dense output never changes the committed state: in a near segment it is one partial RK4
+//! step from the last committed step, in a far segment the expansion evaluated at that
+//! instant. So the result at any time does not depend on which other times were asked for.
+
+use super::far::{self, ChebIntegral, Oscillation, ORDER};
+use super::free_phase::{FreePhase, PieceId};
+use super::near::{NearPoly, NearStepper};
+use super::plan::{Planner, Segment, TurnaroundTime};
+use crate::params::SolverParams;
+use std::collections::VecDeque;
+
+/// A turnaround as the integration passed it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TurnaroundState {
+    pub at: TurnaroundTime,
+    /// Beat phase at the instant, rad (unwrapped).
+    pub psi_rad: f64,
+    /// Lock-in phase `phi = psi - theta` at the instant, rad.
+    pub phi_rad: f64,
+}
+
+/// A near run that ended in a far segment.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NearRun {
+    pub t_in: f64,
+    pub t_out: f64,
+    /// `chi` entering the run (None if the run began at the start of the simulation).
+    pub chi_in: Option<f64>,
+    pub chi_out: f64,
+}
+
+/// What the integration reports while it advances.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Event {
+    Turnaround(TurnaroundState),
+    NearRunEnd(NearRun),
+}
+
+#[derive(Clone, Debug)]
+struct FarDrift {
+    parts: Vec<(ChebIntegral, f64)>,
+}
+
+impl FarDrift {
+    /// Tolerance on the Chebyshev tail of each part, rad.
+    const TAIL_TOL: f64 = 1e-13;
+
+    fn new(t_a: f64, t_b: f64, f: &impl Fn(f64) -> f64) -> Self {
+        let mut parts = Vec::with_capacity(1);
+        Self::build(t_a, t_b, f, 0, &mut parts);
+        let mut off = 0.0;
+        for p in parts.iter_mut() {
+            p.1 = off;
+            off += p.0.eval(p.0.t_end());
+        }
+        Self { parts }
+    }
+
+    fn build(t_a: f64, t_b: f64, f: &impl Fn(f64) -> f64, depth: u32, out: &mut Vec<(ChebIntegral, f64)>) {
+        let ci = ChebIntegral::new(t_a, t_b, f);
+        if ci.tail <= Self::TAIL_TOL || depth >= 8 {
+            out.push((ci, 0.0));
+        } else {
+            let m = 0.5 * (t_a + t_b);
+            Self::build(t_a, m, f, depth + 1, out);
+            Self::build(m, t_b, f, depth + 1, out);
+        }
+    }
+
+    fn eval(&self, t: f64) -> f64 {
+        let i = self.parts.partition_point(|p| p.0.t_end() < t).min(self.parts.len() - 1);
+        let (ci, off) = &self.parts[i];
+        off + ci.eval(t)
+    }
+}
+
+#[derive(Clone, Debug)]
+enum State {
+    Near { stepper: NearStepper, trial_len: f64 },
+    Far { chi_a: f64, drift: FarDrift },
+}
+
+/// The fast integrator of Eq. 6.
+#[derive(Clone, Debug)]
+pub struct Integrator {
+    fp: FreePhase,
+    omega_l: f64,
+    dtheta: f64,
+    planner: Planner,
+    seg: Segment,
+    state: State,
+    /// Start time and entering `chi` of the near run in progress.
+    run: Option<(f64, Option<f64>)>,
+    events: VecDeque<Event>,
+    /// Latest time asked for (forward-only).
+    t_now: f64,
+}
+
+impl Integrator {
+    /// Starts at t = 0 with beat phase `psi0`.
+    pub fn new(fp: FreePhase, omega_l: f64, solver: &SolverParams, psi0: f64) -> Self {
+        let mut planner = Planner::new(&fp, solver, 0.0);
+        while planner.segments.is_empty() {
+            planner.plan_next_piece(&fp);
+        }
+        let seg = planner.segments.pop_front().expect("planned");
+        let phi0 = psi0 - fp.theta_rad(0.0);
+        let placeholder = State::Far { chi_a: 0.0, drift: FarDrift { parts: Vec::new() } };
+        let mut me = Self {
+            fp,
+            omega_l,
+            dtheta: solver.step_phase_rad,
+            planner,
+            seg,
+            state: placeholder,
+            run: None,
+            events: VecDeque::new(),
+            t_now: 0.0,
+        };
+        me.enter(seg, phi0, None);
+        me
+    }
+
+    /// The free phase.
+    pub fn free_phase(&self) -> &FreePhase {
+        &self.fp
+    }
+
+    /// Lock-in threshold, rad/s.
+    pub fn omega_l(&self) -> f64 {
+        self.omega_l
+    }
+
+    /// Latest time integrated to, s.
+    pub fn t_now(&self) -> f64 {
+        self.t_now
+    }
+
+    /// Drains the events reported so far.
+    pub fn drain_events(&mut self) -> impl Iterator<Item = Event> + '_ {
+        self.events.drain(..)
+    }
+
+    fn theta_jet<const N: usize>(&self, t: f64, piece: PieceId) -> [f64; N] {
+        let mut j = [0.0; N];
+        self.fp.angle_jet(t, piece, &mut j);
+        j
+    }
+
+    /// `W`'s Fourier coefficients at `t` (formulas of `piece`) and `theta(t)`.
+    fn oscillation(&self, t: f64, piece: PieceId) -> (Oscillation, f64) {
+        let j: [f64; ORDER + 1] = self.theta_jet(t, piece);
+        let mut tay = [0.0; ORDER];
+        let mut fact = 1.0;
+        for k in 0..ORDER {
+            if k > 0 {
+                fact *= k as f64;
+            }
+            tay[k] = j[k + 1] / fact;
+        }
+        (far::oscillation(&tay, self.omega_l), j[0])
+    }
+
+    fn enter(&mut self, seg: Segment, phi: f64, chi_prev: Option<f64>) {
+        self.seg = seg;
+        if seg.far {
+            let (osc, theta) = self.oscillation(seg.t_a, seg.piece);
+            let chi_a = phi - osc.eval(theta + phi);
+            if let Some((t_in, chi_in)) = self.run.take() {
+                self.events.push_back(Event::NearRunEnd(NearRun { t_in, t_out: seg.t_a, chi_in, chi_out: chi_a }));
+            }
+            let (fp, l, piece) = (&self.fp, self.omega_l, seg.piece);
+            let g = |t: f64| {
+                let mut j = [0.0; 4];
+                fp.angle_jet(t, piece, &mut j);
+                far::drift_rate(j[1], j[2], j[3], l)
+            };
+            let drift = FarDrift::new(seg.t_a, seg.t_b, &g);
+            self.state = State::Far { chi_a, drift };
+        } else {
+            if self.run.is_none() {
+                self.run = Some((seg.t_a, chi_prev));
+            }
+            let (stepper, len) = self.near_piece(seg.t_a, seg.t_b - seg.t_a, phi);
+            self.state = State::Near { stepper, trial_len: 2.0 * len };
+        }
+    }
+
+    /// The longest polynomial piece from `t_a` (at most `len`) that passes its check.
+    fn near_piece(&self, t_a: f64, len: f64, phi: f64) -> (NearStepper, f64) {
+        let mut len = len.min(self.seg.t_b - t_a);
+        loop {
+            let t_b = if len >= self.seg.t_b - t_a { self.seg.t_b } else { t_a + len };
+            if let Some(poly) = NearPoly::build(&self.fp, self.seg.piece, t_a, t_b) {
+                return (NearStepper::new(poly, phi), len);
+            }
+            assert!(len > 1e-9, "theta has no accurate local polynomial at t = {t_a}");
+            len *= 0.5;
+        }
+    }
+
+    fn next_segment(&mut self) -> Segment {
+        while self.planner.segments.is_empty() {
+            self.planner.plan_next_piece(&self.fp);
+        }
+        self.planner.segments.pop_front().expect("planned")
+    }
+
+    /// Leaves the current segment at its end: `(phi, chi)` there.
+    fn finish(&self) -> (f64, Option<f64>) {
+        match &self.state {
+            State::Near { stepper, .. } => (stepper.phi, None),
+            State::Far { chi_a, drift } => {
+                let chi_b = chi_a + drift.eval(self.seg.t_b);
+                let (osc, theta) = self.oscillation(self.seg.t_b, self.seg.piece);
+                (far::solve_phi(chi_b, theta, &osc), Some(chi_b))
+            }
+        }
+    }
+
+    /// Commits everything up to `t` (segments, whole RK steps).
+    fn commit_until(&mut self, t: f64) {
+        loop {
+            let (l, dth) = (self.omega_l, self.dtheta);
+            let seg_end = self.seg.t_b;
+            match &mut self.state {
+                State::Near { stepper, trial_len } => {
+                    stepper.advance_until(t, l, dth);
+                    if !stepper.done() {
+                        return;
+                    }
+                    if stepper.poly.t_b < seg_end {
+                        let (start, phi, trial) = (stepper.poly.t_b, stepper.phi, *trial_len);
+                        let (s, len) = self.near_piece(start, trial, phi);
+                        self.state = State::Near { stepper: s, trial_len: 2.0 * len };
+                        continue;
+                    }
+                }
+                State::Far { .. } => {
+                    if seg_end > t {
+                        return;
+                    }
+                }
+            }
+            let (phi, chi) = self.finish();
+            let next = self.next_segment();
+            self.enter(next, phi, chi);
+        }
+    }
+
+    /// `psi(t)` from the committed state (t within reach of the current segment).
+    fn psi_from_state(&self, t: f64) -> f64 {
+        match &self.state {
+            State::Near { stepper, .. } => {
+                let p = &stepper.poly;
+                p.theta_c + p.dtheta(t - p.t_c) + stepper.phi_at(t, self.omega_l)
+            }
+            State::Far { chi_a, drift } => {
+                let chi = chi_a + drift.eval(t);
+                let (osc, theta) = self.oscillation(t, self.seg.piece);
+                theta + far::solve_phi(chi, theta, &osc)
+            }
+        }
+    }
+
+    /// Plans at least past `t`.
+    pub fn plan_past(&mut self, t: f64) {
+        while self.planner.planned_until() <= t {
+            self.planner.plan_next_piece(&self.fp);
+        }
+    }
+
+    /// The first planned turnaround not yet passed (plans ahead as needed).
+    pub fn upcoming_turnaround(&mut self) -> TurnaroundTime {
+        loop {
+            if let Some(tt) = self.planner.turnarounds.front() {
+                return *tt;
+            }
+            self.planner.plan_next_piece(&self.fp);
+        }
+    }
+
+    /// Integrates to `t` (forward only) and returns `psi(t)`, rad.
+    pub fn advance_to(&mut self, t: f64) -> f64 {
+        assert!(t >= self.t_now, "time is forward-only: asked {t} after {}", self.t_now);
+        self.plan_past(t);
+        while let Some(&tt) = self.planner.turnarounds.front() {
+            if tt.time_s > t {
+                break;
+            }
+            self.planner.turnarounds.pop_front();
+            self.commit_until(tt.time_s);
+            let psi = self.psi_from_state(tt.time_s);
+            let phi = psi - self.fp.theta_rad(tt.time_s);
+            self.events.push_back(Event::Turnaround(TurnaroundState { at: tt, psi_rad: psi, phi_rad: phi }));
+        }
+        self.commit_until(t);
+        self.t_now = t;
+        self.psi_from_state(t)
+    }
+}

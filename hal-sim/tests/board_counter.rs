@@ -1,0 +1,407 @@
+//! The fringe counter against the analytic quadrant count, and the sampled edge stream.
+
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
+
+use hal_sim::clock::CaptureTimer;
+use hal_sim::counter::{
+    ideal_quadrant_index, latch_turnaround, Channel, CounterConfig, CounterError, CounterWidth,
+    EdgeSampler, Glitch, QuadratureCounter, QuadratureState, StateDecoder,
+};
+use hal_sim::photodiode::{PhotodiodeConfig, Photodiodes};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+fn ideal_counter(psi0: f64, config: CounterConfig) -> QuadratureCounter {
+    QuadratureCounter::new(&PhotodiodeConfig::ideal(), config, psi0).unwrap()
+}
+
+/// Signed register difference for a 32-bit register.
+fn delta32(from: u32, to: u32) -> i64 {
+    i64::from(to.wrapping_sub(from) as i32)
+}
+
+/// Ideal comparators: count - start == floor(psi/(pi/2)) - floor(psi0/(pi/2)) along ramps up and
+/// down (exact: integer comparison; the ramp steps avoid exact edge positions).
+#[test]
+fn count_follows_floor_on_ramps_both_ways() {
+    let psi0 = 0.123;
+    let mut counter = ideal_counter(psi0, CounterConfig::default());
+    let start = counter.count();
+    let mut psi = psi0;
+    for _ in 0..20_000 {
+        psi += 0.0123;
+        counter.advance_to(psi);
+        let expected = ideal_quadrant_index(psi) - ideal_quadrant_index(psi0);
+        assert_eq!(delta32(start, counter.count()), expected, "up at {psi}");
+    }
+    for _ in 0..50_000 {
+        psi -= 0.0131;
+        counter.advance_to(psi);
+        let expected = ideal_quadrant_index(psi) - ideal_quadrant_index(psi0);
+        assert_eq!(delta32(start, counter.count()), expected, "down at {psi}");
+        assert_eq!(counter.edges_since_start(), expected);
+    }
+}
+
+/// Without hysteresis the count depends on the end point only, so even steps of many fringes
+/// give the floor (what the hardware counts if the signal is continuous between updates).
+#[test]
+fn ideal_count_is_path_independent() {
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let mut counter = ideal_counter(0.0, CounterConfig::default());
+    for _ in 0..10_000 {
+        let psi: f64 = rng.random_range(-1.0e4..1.0e4);
+        counter.advance_to(psi);
+        assert_eq!(delta32(0, counter.count()), ideal_quadrant_index(psi));
+    }
+}
+
+/// The comparator states follow the Gray sequence 10, 11, 01, 00 over the four quadrants.
+#[test]
+fn states_follow_gray_sequence() {
+    let mut counter = ideal_counter(-FRAC_PI_2 + 0.1, CounterConfig::default());
+    let expected = [(true, false), (true, true), (false, true), (false, false)];
+    for q in 0..12 {
+        let psi = -FRAC_PI_2 + 0.1 + FRAC_PI_2 * f64::from(q);
+        counter.advance_to(psi);
+        let s = counter.state();
+        assert_eq!((s.a, s.b), expected[q as usize % 4], "quadrant {q}");
+    }
+}
+
+/// 16-bit register wraps at 65536 both ways; 32-bit at 2^32 (exact).
+#[test]
+fn register_wraps_at_16_and_32_bits() {
+    let config16 = CounterConfig {
+        width: CounterWidth::Bits16,
+        initial_count: 65_530,
+        reverse: false,
+    };
+    let mut counter = ideal_counter(0.1, config16);
+    counter.advance_to(0.1 + 10.0 * FRAC_PI_2);
+    assert_eq!(counter.count(), 4);
+    counter.advance_to(0.1 - 7.0 * FRAC_PI_2);
+    assert_eq!(counter.count(), 65_523);
+    let mut counter = ideal_counter(0.1, config16);
+    counter.advance_to(0.1 + 65_536.0 * FRAC_PI_2 + 3.0 * FRAC_PI_2);
+    assert_eq!(counter.count(), 65_533);
+
+    let config32 = CounterConfig {
+        width: CounterWidth::Bits32,
+        initial_count: u32::MAX - 2,
+        reverse: false,
+    };
+    let mut counter = ideal_counter(0.1, config32);
+    counter.advance_to(0.1 + 5.0 * FRAC_PI_2);
+    assert_eq!(counter.count(), 2);
+    counter.advance_to(0.1 - 1.0 * FRAC_PI_2);
+    assert_eq!(counter.count(), u32::MAX - 3);
+}
+
+/// `reverse` counts down for increasing psi_H.
+#[test]
+fn reverse_flips_the_sign() {
+    let config = CounterConfig {
+        reverse: true,
+        ..CounterConfig::default()
+    };
+    let mut counter = ideal_counter(0.1, config);
+    counter.advance_to(0.1 + 9.0 * FRAC_PI_2);
+    assert_eq!(delta32(0, counter.count()), -9);
+}
+
+/// Hysteresis delays each edge by the backlash w in the direction of travel: on a ramp up the
+/// count is floor((psi - w)/(pi/2)), on the way back floor((psi + w)/(pi/2)); a wiggle of less
+/// than 2w around an edge produces no counts (exact integer checks away from edges).
+#[test]
+fn hysteresis_shifts_edges_and_stops_chatter() {
+    let mut config = PhotodiodeConfig::ideal();
+    config.a.comparator.hysteresis_v = 0.2;
+    config.b.comparator.hysteresis_v = 0.2;
+    let w = (0.1f64 / config.a.amplitude_v).asin();
+    let mut counter = QuadratureCounter::new(&config, CounterConfig::default(), 0.3).unwrap();
+    let start_index = ideal_quadrant_index(0.3);
+    let mut psi = 0.3;
+    for _ in 0..5000 {
+        psi += 0.00517;
+        counter.advance_to(psi);
+        let expected = ideal_quadrant_index(psi - w) - start_index;
+        assert_eq!(delta32(0, counter.count()), expected, "up {psi}");
+    }
+    let top = psi;
+    for _ in 0..5000 {
+        psi -= 0.00491;
+        counter.advance_to(psi);
+        let expected = if psi > top - 2.0 * w {
+            ideal_quadrant_index(top - w) - start_index
+        } else {
+            ideal_quadrant_index(psi + w) - start_index
+        };
+        assert_eq!(delta32(0, counter.count()), expected, "down {psi}");
+    }
+    // Wiggle around the ideal edge at 4 pi/2 by +-0.9 w: no counts at all.
+    let edge = 4.0 * FRAC_PI_2;
+    counter.advance_to(edge - 3.0 * w);
+    let before = counter.count();
+    for i in 0..1000 {
+        let psi = edge + 0.9 * w * (0.1 * f64::from(i)).sin();
+        counter.advance_to(psi);
+        assert_eq!(counter.count(), before);
+    }
+    // A wiggle of +-1.1 w crosses the hysteresis band: +1 then -1.
+    counter.advance_to(edge + 1.1 * w);
+    assert_eq!(delta32(before, counter.count()), 1);
+    counter.advance_to(edge - 1.1 * w);
+    assert_eq!(counter.count(), before);
+}
+
+/// Quadrature error, unequal gains and threshold trims move the edges but the count still changes
+/// by exactly 4 per fringe, and the continuous counter's states equal those of Schmitt triggers
+/// fed the noise-free voltages at the same points (exact).
+#[test]
+fn imperfect_channels_agree_with_voltage_comparators() {
+    let mut config = PhotodiodeConfig::ideal();
+    config.quadrature_error_rad = 0.2;
+    config.a.amplitude_v = 1.1;
+    config.b.mid_level_v = 1.7;
+    config.a.comparator.threshold_offset_v = 0.15;
+    config.b.comparator.threshold_offset_v = -0.1;
+    config.a.comparator.hysteresis_v = 0.05;
+    config.b.comparator.hysteresis_v = 0.03;
+    let psi0 = 0.4;
+    let mut counter = QuadratureCounter::new(&config, CounterConfig::default(), psi0).unwrap();
+    let mut sampler = EdgeSampler::new(&config, 1.0, 0.0, psi0, 0);
+    let mut decoder = StateDecoder::new(CounterConfig::default(), 1, counter.state());
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let mut psi = psi0;
+    for _ in 0..200_000 {
+        psi += rng.random_range(-0.3..0.32);
+        counter.advance_to(psi);
+        let s = sampler.next_state(&mut |_| psi);
+        assert_eq!(s, counter.state(), "at {psi}");
+        decoder.push(s);
+        assert_eq!(decoder.count(), counter.count());
+    }
+    assert_eq!(decoder.illegal_transitions(), 0);
+    let start = counter.count();
+    let psi_start = psi;
+    counter.advance_to(psi_start + 25.0 * TAU);
+    assert_eq!(delta32(start, counter.count()), 100);
+}
+
+/// Configurations whose A and B edges do not alternate are refused.
+#[test]
+fn overlapping_edges_are_refused() {
+    let mut config = PhotodiodeConfig::ideal();
+    config.quadrature_error_rad = FRAC_PI_2;
+    assert_eq!(
+        QuadratureCounter::new(&config, CounterConfig::default(), 0.0).unwrap_err(),
+        CounterError::EdgesDoNotAlternate
+    );
+    let mut config = PhotodiodeConfig::ideal();
+    config.quadrature_error_rad = 1.2;
+    config.a.comparator.hysteresis_v = 1.0;
+    assert!(QuadratureCounter::new(&config, CounterConfig::default(), 0.0).is_err());
+}
+
+/// Glitches: injected counts add to the register; a missed edge leaves it one count short.
+#[test]
+fn glitch_injection() {
+    let mut counter = ideal_counter(0.1, CounterConfig::default());
+    counter.inject_counts(3);
+    counter.advance_to(0.1 + 10.0 * FRAC_PI_2);
+    assert_eq!(delta32(0, counter.count()), 13);
+    counter.miss_next_edges(2);
+    counter.advance_to(0.1 + 11.0 * FRAC_PI_2);
+    assert_eq!(delta32(0, counter.count()), 13);
+    counter.advance_to(0.1 + 20.0 * FRAC_PI_2);
+    assert_eq!(delta32(0, counter.count()), 21);
+    assert_eq!(counter.edges_since_start(), 20);
+}
+
+/// Peak beat 590 kHz (2.36 M edges/s). A ramp and a dither-like sine sampled at 10 MHz give no
+/// two-bit jumps, and the decoder's count equals the analytic floor; sampled at 2 MHz the stream
+/// has illegal transitions.
+#[test]
+fn sampled_stream_needs_a_fast_enough_sampler() {
+    let beat_hz = 590e3;
+    let config = PhotodiodeConfig::ideal();
+    let ramp = |t: f64| 0.01 + TAU * beat_hz * t;
+    let run = |rate_hz: f64, psi: &dyn Fn(f64) -> f64, duration_s: f64| {
+        let mut sampler = EdgeSampler::new(&config, rate_hz, 0.0, psi(0.0), 1);
+        let initial = ideal_counter(psi(0.0), CounterConfig::default()).state();
+        let mut decoder = StateDecoder::new(CounterConfig::default(), 1, initial);
+        for s in sampler.states_until(psi, duration_s) {
+            decoder.push(s);
+        }
+        let last_t = sampler.sample_time_s(sampler.next_index() - 1);
+        (decoder, psi(last_t))
+    };
+    let (fast, psi_end) = run(10e6, &ramp, 1e-3);
+    assert_eq!(fast.illegal_transitions(), 0);
+    let expected = ideal_quadrant_index(psi_end) - ideal_quadrant_index(ramp(0.0));
+    assert_eq!(delta32(0, fast.count()), expected);
+    assert!(expected > 2000);
+
+    // Dither: 389 Hz sine with a peak beat rate of 590 kHz, plus a slow drift.
+    let w_d = TAU * 389.0;
+    let dither = move |t: f64| 0.3 + TAU * beat_hz / w_d * (w_d * t).sin() + 50.0 * t;
+    let (fast, psi_end) = run(10e6, &dither, 6e-3);
+    assert_eq!(fast.illegal_transitions(), 0);
+    let expected = ideal_quadrant_index(psi_end) - ideal_quadrant_index(dither(0.0));
+    assert_eq!(delta32(0, fast.count()), expected);
+
+    let (slow, _) = run(2e6, &ramp, 1e-3);
+    assert!(
+        slow.illegal_transitions() > 100,
+        "{}",
+        slow.illegal_transitions()
+    );
+}
+
+/// `fill_bits`, `fill` and `states_until` produce the same stream; same seed same bits, with
+/// noise; another seed differs.
+#[test]
+fn sampled_stream_apis_agree_and_are_deterministic() {
+    let config = PhotodiodeConfig::default();
+    let psi = |t: f64| TAU * 400e3 * t;
+    let collect = |seed: u64| {
+        let mut sampler = EdgeSampler::new(&config, 10e6, 0.0, 0.0, seed);
+        sampler
+            .states_until(psi, 1e-3)
+            .map(|s| s.bits())
+            .collect::<Vec<u8>>()
+    };
+    let a = collect(9);
+    assert_eq!(a.len(), 10_000);
+    assert_eq!(a, collect(9));
+    let mut bits = vec![0u8; 10_000];
+    EdgeSampler::new(&config, 10e6, 0.0, 0.0, 9).fill_bits(&mut psi.clone(), &mut bits);
+    assert_eq!(a, bits);
+    let mut states = vec![QuadratureState::default(); 10_000];
+    EdgeSampler::new(&config, 10e6, 0.0, 0.0, 9).fill(&mut psi.clone(), &mut states);
+    assert!(states.iter().zip(&a).all(|(s, &b)| s.bits() == b));
+    // Near-threshold dwell with big noise makes the seeds differ.
+    let mut noisy = PhotodiodeConfig::default();
+    noisy.noise_rms_v = 0.05;
+    let at_edge = |seed| {
+        let mut s = EdgeSampler::new(&noisy, 10e6, 0.0, 0.0, seed);
+        s.states_until(|_| FRAC_PI_2, 1e-4)
+            .map(|s| s.bits())
+            .collect::<Vec<_>>()
+    };
+    assert_ne!(at_edge(1), at_edge(2));
+}
+
+/// Noise at a threshold: with no hysteresis the comparator chatters (many transitions, net count
+/// within +-1 of the truth); hysteresis of 10 sigma suppresses it (zero transitions in 1e5
+/// samples: a 5-sigma excursion has probability ~3e-7 per sample).
+#[test]
+fn noise_chatter_and_hysteresis() {
+    let mut config = PhotodiodeConfig::ideal();
+    config.noise_rms_v = 2e-3;
+    let psi_at_edge = FRAC_PI_2; // A's threshold crossing.
+    let transitions = |config: &PhotodiodeConfig| {
+        let mut sampler = EdgeSampler::new(config, 10e6, 0.0, psi_at_edge, 4);
+        let mut decoder = StateDecoder::new(
+            CounterConfig::default(),
+            1,
+            QuadratureState { a: false, b: true },
+        );
+        let mut changes = 0;
+        let mut last = None;
+        for s in sampler.states_until(|_| psi_at_edge, 1e-2) {
+            if last.is_some_and(|l| l != s) {
+                changes += 1;
+            }
+            last = Some(s);
+            decoder.push(s);
+        }
+        (changes, delta32(0, decoder.count()))
+    };
+    let (changes, net) = transitions(&config);
+    assert!(changes > 1000, "{changes}");
+    assert!(net.abs() <= 1, "{net}");
+    config.a.comparator.hysteresis_v = 0.04;
+    config.b.comparator.hysteresis_v = 0.04;
+    assert_eq!(transitions(&config).0, 0);
+}
+
+/// Sampled-stream glitches: a 1-sample pulse counts +1 then -1 without a filter; a filter of 3
+/// samples ignores pulses of 2 samples entirely and only delays real edges.
+#[test]
+fn input_filter_ignores_short_pulses() {
+    let config = PhotodiodeConfig::ideal();
+    let psi = |t: f64| 0.2 + TAU * 100e3 * t; // 400 k edges/s: 25 samples per edge at 10 MHz
+    let run = |filter: u32, glitches: &[Glitch]| {
+        let mut sampler = EdgeSampler::new(&config, 10e6, 0.0, psi(0.0), 0);
+        for g in glitches {
+            sampler.inject_glitch(*g);
+        }
+        let initial = ideal_counter(psi(0.0), CounterConfig::default()).state();
+        let mut decoder = StateDecoder::new(CounterConfig::default(), filter, initial);
+        let mut trace = Vec::new();
+        for s in sampler.states_until(psi, 1e-4) {
+            decoder.push(s);
+            trace.push(decoder.count());
+        }
+        (trace, decoder.illegal_transitions())
+    };
+    let glitches = [
+        Glitch {
+            start_index: 110,
+            len_samples: 1,
+            channel: Channel::A,
+        },
+        Glitch {
+            start_index: 300,
+            len_samples: 2,
+            channel: Channel::B,
+        },
+        Glitch {
+            start_index: 612,
+            len_samples: 2,
+            channel: Channel::A,
+        },
+    ];
+    let (clean, _) = run(1, &[]);
+    let (glitched, illegal) = run(1, &glitches);
+    assert_eq!(illegal, 0);
+    assert_ne!(clean, glitched);
+    assert_eq!(clean.last(), glitched.last());
+    assert_eq!(delta32(clean[110], glitched[110]).abs(), 1);
+    assert_eq!(glitched[111], clean[111]);
+    let (clean3, _) = run(3, &[]);
+    let (glitched3, _) = run(3, &glitches);
+    assert_eq!(clean3, glitched3);
+    // The filter delays each accepted edge by 2 samples.
+    let first_edge = clean.iter().position(|&c| c != clean[0]).unwrap();
+    let first_edge3 = clean3.iter().position(|&c| c != clean3[0]).unwrap();
+    assert_eq!(first_edge3, first_edge + 2);
+    assert_eq!(clean.last(), clean3.last());
+}
+
+/// The turnaround latch builds the firmware's sample from the three peripherals.
+#[test]
+fn latch_builds_turnaround_sample() {
+    use firmware::sample::TurnaroundKind;
+    let pd_config = PhotodiodeConfig::ideal();
+    let mut photodiodes = Photodiodes::new(pd_config, 0);
+    let mut counter = QuadratureCounter::new(&pd_config, CounterConfig::default(), 0.1).unwrap();
+    let timer = CaptureTimer::default();
+    let psi = 0.1 + 5.0 * PI + 0.3;
+    let sample = latch_turnaround(
+        TurnaroundKind::Minus,
+        0.5,
+        psi,
+        &mut counter,
+        &mut photodiodes,
+        &timer,
+    );
+    assert_eq!(sample.kind, TurnaroundKind::Minus);
+    assert_eq!(sample.encoder_count, 10);
+    assert_eq!(sample.timestamp_ticks, 42_000_000);
+    let [va, vb] = pd_config.levels_v(psi);
+    assert_eq!(sample.adc_a_code, pd_config.adc.code(va));
+    assert_eq!(sample.adc_b_code, pd_config.adc.code(vb));
+}
