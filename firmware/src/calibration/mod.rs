@@ -3,4 +3,5 @@
 
 pub mod fit;
 pub mod session;
+pub mod tracking;
 pub mod validation;
