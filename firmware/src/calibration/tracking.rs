@@ -133,7 +133,7 @@ impl Tracker {
         p2_s: f64,
         usable: bool,
     ) {
-        if !usable || !(y_rad.is_finite() && p1_s.is_finite() && p2_s.is_finite()) {
+        if !(usable && y_rad.is_finite() && p1_s.is_finite() && p2_s.is_finite()) {
             self.frozen += 1;
             return;
         }
@@ -172,9 +172,9 @@ impl Tracker {
             *t += g * err;
         }
         // P = P - gain px', kept symmetric.
-        for i in 0..3 {
+        for (i, g) in gain.into_iter().enumerate() {
             for j in i..3 {
-                let v = self.p[i][j] - gain[i] * px[j];
+                let v = self.p[i][j] - g * px[j];
                 self.p[i][j] = v;
                 self.p[j][i] = v;
             }
