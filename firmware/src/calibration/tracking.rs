@@ -173,8 +173,8 @@ impl Tracker {
         }
         // P = P - gain px', kept symmetric.
         for (i, g) in gain.into_iter().enumerate() {
-            for j in i..3 {
-                let v = self.p[i][j] - g * px[j];
+            for (j, pxj) in px.iter().enumerate().skip(i) {
+                let v = self.p[i][j] - g * pxj;
                 self.p[i][j] = v;
                 self.p[j][i] = v;
             }
