@@ -10,9 +10,11 @@
 #![cfg_attr(not(test), no_std)]
 
 pub mod calibration;
+pub mod protocol;
 pub mod readout;
 pub mod sample;
 pub mod signal;
+pub mod storage;
 
 #[cfg(target_os = "none")]
 pub mod rt;

@@ -1,0 +1,68 @@
+//! The serial calibration protocol: one human-typeable command per line, one answer each.
+//!
+//! Bytes from the USART go through [`line::LineAssembler`] (bounded, resynchronises on `\n`),
+//! [`parse::strip_checksum`] and [`parse::parse`]; the answer is exactly one line, `OK ...` or
+//! `ERR <code> <text>` ([`respond`]), with a CRC suffix when the request carried one. The
+//! protocol runs in the low-priority serial task: nothing here blocks or touches the turnaround
+//! interrupt, whose state it changes only through staged settings.
+
+pub mod line;
+pub mod parse;
+pub mod respond;
+
+/// Why a command was refused. The discriminant is the number after `ERR`; nothing changes
+/// when a command is refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum ErrorCode {
+    UnknownCommand = 1,
+    /// Missing, extra or malformed words.
+    Syntax = 2,
+    BadNumber = 3,
+    /// NaN or infinite.
+    NotFinite = 4,
+    OutOfRange = 5,
+    BadChecksum = 6,
+    LineTooLong = 7,
+    /// Non-printable bytes in the line.
+    InvalidCharacters = 8,
+    /// The command changes coefficients or flash: `unlock` first.
+    Locked = 9,
+    /// A calibration run is in progress.
+    Busy = 10,
+    /// Not possible in the current state (e.g. `cal accept` without a passing fit).
+    WrongState = 11,
+    /// The calibration fit failed a validity check (the reason code follows).
+    FitRefused = 12,
+    FlashError = 13,
+    /// Too many wrong keys: wait before trying again.
+    RateLimited = 14,
+    WrongKey = 15,
+}
+
+impl ErrorCode {
+    pub const fn code(self) -> u8 {
+        self as u8
+    }
+
+    pub const fn text(self) -> &'static str {
+        match self {
+            Self::UnknownCommand => "unknown command (try help)",
+            Self::Syntax => "syntax error",
+            Self::BadNumber => "not a number",
+            Self::NotFinite => "number not finite",
+            Self::OutOfRange => "value out of range",
+            Self::BadChecksum => "bad checksum",
+            Self::LineTooLong => "line too long",
+            Self::InvalidCharacters => "invalid characters",
+            Self::Locked => "locked (unlock first)",
+            Self::Busy => "calibration in progress",
+            Self::WrongState => "not possible now",
+            Self::FitRefused => "fit refused",
+            Self::FlashError => "flash error",
+            Self::RateLimited => "too many attempts, wait",
+            Self::WrongKey => "wrong key",
+        }
+    }
+}

@@ -1,0 +1,297 @@
+//! Command parsing: a line of text -> a [`Command`], or the [`ErrorCode`] that says why not.
+//!
+//! Grammar: `<command> [<argument>...] [*<crc>]`, words separated by spaces or tabs,
+//! case-insensitive command words. The optional suffix `*XXXX` is the CRC-16/CCITT-FALSE
+//! (poly 0x1021, init 0xFFFF) of every byte before the `*`, in 4 hex digits; the host tool
+//! always sends it, a person typing may leave it out. A wrong CRC rejects the line before it is
+//! parsed. Numbers are decimal (`f32` via `core`'s parser, which also accepts exponents); NaN
+//! and infinities are refused, and so is anything outside the documented range.
+
+use super::ErrorCode;
+
+/// Which coefficient.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Coefficient {
+    A,
+    B,
+}
+
+/// Every command of the protocol (see the README for examples).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Command {
+    Help,
+    Identify,
+    Status,
+    /// `get a` | `get b` | `get coeffs`: one coefficient, or both with Omega_L and eps.
+    Get(Option<Coefficient>),
+    /// `set a <rad/s>` | `set b <rad/s>`.
+    Set(Coefficient, f32),
+    /// `comp on` | `comp off`.
+    Compensation(bool),
+    /// `cal start <cycles> [<warmup cycles>]`: one calibration run (pooled with a completed one).
+    CalStart {
+        cycles: u32,
+        warmup_cycles: u32,
+    },
+    CalStatus,
+    CalAbort,
+    /// `cal result`: solve the pooled runs (once complete) and report the fit.
+    CalResult,
+    /// `cal accept`: apply the passing fit (unsaved until `store`).
+    CalAccept,
+    /// `store`: write the active coefficients to flash (pauses the readout).
+    Store,
+    /// `reload`: load the newest valid record from flash.
+    Reload,
+    /// `defaults`: back to the default coefficients (unsaved until `store`).
+    Defaults,
+    /// `stream on <divider>` (every n-th cycle) | `stream off`.
+    Stream(Option<u16>),
+    /// `unlock <key>`: allow commands that change coefficients or flash.
+    Unlock(u32),
+    Lock,
+}
+
+/// Largest run length `cal start` accepts: one hour at 1 kHz dither.
+pub const MAX_CAL_CYCLES: u32 = 3_600_000;
+/// Largest magnitude `set` accepts, rad/s (the Q15.16 range).
+pub const MAX_COEFFICIENT_RAD_PER_S: f32 = 32_767.0;
+
+/// CRC-16/CCITT-FALSE of `bytes`.
+pub fn crc16(bytes: &[u8]) -> u16 {
+    let mut crc: u16 = 0xFFFF;
+    for &b in bytes {
+        crc ^= (b as u16) << 8;
+        for _ in 0..8 {
+            crc = if crc & 0x8000 != 0 {
+                (crc << 1) ^ 0x1021
+            } else {
+                crc << 1
+            };
+        }
+    }
+    crc
+}
+
+/// Splits off and checks the CRC suffix. Returns the command text and whether a CRC was given.
+pub fn strip_checksum(line: &str) -> Result<(&str, bool), ErrorCode> {
+    let Some(star) = line.rfind('*') else {
+        return Ok((line, false));
+    };
+    let (body, suffix) = (&line[..star], line[star + 1..].trim_end());
+    if suffix.len() != 4 || !suffix.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return Err(ErrorCode::BadChecksum);
+    }
+    let given = u16::from_str_radix(suffix, 16).map_err(|_| ErrorCode::BadChecksum)?;
+    if given != crc16(body.as_bytes()) {
+        return Err(ErrorCode::BadChecksum);
+    }
+    Ok((body, true))
+}
+
+fn number(word: Option<&str>) -> Result<f32, ErrorCode> {
+    let word = word.ok_or(ErrorCode::Syntax)?;
+    let v: f32 = word.parse().map_err(|_| ErrorCode::BadNumber)?;
+    if !v.is_finite() {
+        return Err(ErrorCode::NotFinite);
+    }
+    Ok(v)
+}
+
+fn integer(word: Option<&str>, max: u32) -> Result<u32, ErrorCode> {
+    let word = word.ok_or(ErrorCode::Syntax)?;
+    let v: u32 = word.parse().map_err(|_| ErrorCode::BadNumber)?;
+    if v > max {
+        return Err(ErrorCode::OutOfRange);
+    }
+    Ok(v)
+}
+
+fn coefficient(word: Option<&str>) -> Result<Coefficient, ErrorCode> {
+    match word {
+        Some(w) if w.eq_ignore_ascii_case("a") => Ok(Coefficient::A),
+        Some(w) if w.eq_ignore_ascii_case("b") => Ok(Coefficient::B),
+        _ => Err(ErrorCode::Syntax),
+    }
+}
+
+fn on_off(word: Option<&str>) -> Result<bool, ErrorCode> {
+    match word {
+        Some(w) if w.eq_ignore_ascii_case("on") => Ok(true),
+        Some(w) if w.eq_ignore_ascii_case("off") => Ok(false),
+        _ => Err(ErrorCode::Syntax),
+    }
+}
+
+/// Parses a command text (CRC already stripped).
+pub fn parse(text: &str) -> Result<Command, ErrorCode> {
+    let mut words = text.split([' ', '\t']).filter(|w| !w.is_empty());
+    let head = words.next().ok_or(ErrorCode::Syntax)?;
+    let is = |w: &str| head.eq_ignore_ascii_case(w);
+    let command = if is("help") || is("?") {
+        Command::Help
+    } else if is("id") || is("identify") {
+        Command::Identify
+    } else if is("status") {
+        Command::Status
+    } else if is("get") {
+        match words.next() {
+            Some(w) if w.eq_ignore_ascii_case("coeffs") => Command::Get(None),
+            w => Command::Get(Some(coefficient(w)?)),
+        }
+    } else if is("set") {
+        let which = coefficient(words.next())?;
+        let value = number(words.next())?;
+        if value.abs() > MAX_COEFFICIENT_RAD_PER_S {
+            return Err(ErrorCode::OutOfRange);
+        }
+        Command::Set(which, value)
+    } else if is("comp") {
+        Command::Compensation(on_off(words.next())?)
+    } else if is("cal") {
+        let sub = words.next().ok_or(ErrorCode::Syntax)?;
+        let sub_is = |w: &str| sub.eq_ignore_ascii_case(w);
+        if sub_is("start") {
+            let cycles = integer(words.next(), MAX_CAL_CYCLES)?;
+            if cycles == 0 {
+                return Err(ErrorCode::OutOfRange);
+            }
+            let warmup_cycles = match words.next() {
+                None => 0,
+                w => integer(w, MAX_CAL_CYCLES)?,
+            };
+            Command::CalStart {
+                cycles,
+                warmup_cycles,
+            }
+        } else if sub_is("status") {
+            Command::CalStatus
+        } else if sub_is("abort") {
+            Command::CalAbort
+        } else if sub_is("result") {
+            Command::CalResult
+        } else if sub_is("accept") {
+            Command::CalAccept
+        } else {
+            return Err(ErrorCode::Syntax);
+        }
+    } else if is("store") {
+        Command::Store
+    } else if is("reload") {
+        Command::Reload
+    } else if is("defaults") {
+        Command::Defaults
+    } else if is("stream") {
+        match words.next() {
+            Some(w) if w.eq_ignore_ascii_case("off") => Command::Stream(None),
+            Some(w) if w.eq_ignore_ascii_case("on") => {
+                let divider = match words.next() {
+                    None => 1,
+                    w => integer(w, u16::MAX as u32)?,
+                };
+                if divider == 0 {
+                    return Err(ErrorCode::OutOfRange);
+                }
+                Command::Stream(Some(divider as u16))
+            }
+            _ => return Err(ErrorCode::Syntax),
+        }
+    } else if is("unlock") {
+        let word = words.next().ok_or(ErrorCode::Syntax)?;
+        let key = u32::from_str_radix(word.trim_start_matches("0x"), 16)
+            .map_err(|_| ErrorCode::BadNumber)?;
+        Command::Unlock(key)
+    } else if is("lock") {
+        Command::Lock
+    } else {
+        return Err(ErrorCode::UnknownCommand);
+    };
+    if words.next().is_some() {
+        return Err(ErrorCode::Syntax);
+    }
+    Ok(command)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The check value of CRC-16/CCITT-FALSE ("123456789" -> 0x29B1).
+    #[test]
+    fn crc_check_value() {
+        assert_eq!(crc16(b"123456789"), 0x29B1);
+    }
+
+    #[test]
+    fn checksum_suffix() {
+        let crc = crc16(b"get a");
+        let line = std::format!("get a*{crc:04X}");
+        assert_eq!(strip_checksum(&line), Ok(("get a", true)));
+        assert_eq!(strip_checksum("get a"), Ok(("get a", false)));
+        let wrong = std::format!("get a*{:04X}", crc ^ 1);
+        assert_eq!(strip_checksum(&wrong), Err(ErrorCode::BadChecksum));
+        assert_eq!(strip_checksum("get a*12"), Err(ErrorCode::BadChecksum));
+        assert_eq!(strip_checksum("get a*zzzz"), Err(ErrorCode::BadChecksum));
+    }
+
+    #[test]
+    fn commands() {
+        assert_eq!(parse("help"), Ok(Command::Help));
+        assert_eq!(parse("ID"), Ok(Command::Identify));
+        assert_eq!(parse("get coeffs"), Ok(Command::Get(None)));
+        assert_eq!(parse("get B"), Ok(Command::Get(Some(Coefficient::B))));
+        assert_eq!(
+            parse("set a 344.25"),
+            Ok(Command::Set(Coefficient::A, 344.25))
+        );
+        assert_eq!(
+            parse("set b -5.5e2"),
+            Ok(Command::Set(Coefficient::B, -550.0))
+        );
+        assert_eq!(parse("comp off"), Ok(Command::Compensation(false)));
+        assert_eq!(
+            parse("cal start 4000 400"),
+            Ok(Command::CalStart {
+                cycles: 4000,
+                warmup_cycles: 400
+            })
+        );
+        assert_eq!(
+            parse("cal start 4000"),
+            Ok(Command::CalStart {
+                cycles: 4000,
+                warmup_cycles: 0
+            })
+        );
+        assert_eq!(parse("stream on 10"), Ok(Command::Stream(Some(10))));
+        assert_eq!(parse("stream on"), Ok(Command::Stream(Some(1))));
+        assert_eq!(parse("stream off"), Ok(Command::Stream(None)));
+        assert_eq!(parse("unlock 0xC0FFEE"), Ok(Command::Unlock(0xC0FFEE)));
+        assert_eq!(parse("  status\t"), Ok(Command::Status));
+    }
+
+    /// Every kind of bad input has its own error code.
+    #[test]
+    fn bad_input() {
+        assert_eq!(parse("frobnicate"), Err(ErrorCode::UnknownCommand));
+        assert_eq!(parse("get"), Err(ErrorCode::Syntax));
+        assert_eq!(parse("get c"), Err(ErrorCode::Syntax));
+        assert_eq!(parse("status now"), Err(ErrorCode::Syntax));
+        assert_eq!(parse("set a"), Err(ErrorCode::Syntax));
+        assert_eq!(parse("set a 12x"), Err(ErrorCode::BadNumber));
+        assert_eq!(parse("set a NaN"), Err(ErrorCode::NotFinite));
+        assert_eq!(parse("set a inf"), Err(ErrorCode::NotFinite));
+        assert_eq!(parse("set a -infinity"), Err(ErrorCode::NotFinite));
+        assert_eq!(parse("set a 1e6"), Err(ErrorCode::OutOfRange));
+        assert_eq!(parse("set a 1e39"), Err(ErrorCode::NotFinite));
+        assert_eq!(parse("cal start 0"), Err(ErrorCode::OutOfRange));
+        assert_eq!(parse("cal start -5"), Err(ErrorCode::BadNumber));
+        assert_eq!(parse("cal start 99999999999"), Err(ErrorCode::BadNumber));
+        assert_eq!(parse("cal start 3600001"), Err(ErrorCode::OutOfRange));
+        assert_eq!(parse("stream on 0"), Err(ErrorCode::OutOfRange));
+        assert_eq!(parse("stream sideways"), Err(ErrorCode::Syntax));
+        assert_eq!(parse("unlock"), Err(ErrorCode::Syntax));
+        assert_eq!(parse("unlock xyz"), Err(ErrorCode::BadNumber));
+        assert_eq!(parse(""), Err(ErrorCode::Syntax));
+    }
+}
