@@ -14,10 +14,13 @@
 //! 3. [`CORDIC_ITERATIONS`] vectoring iterations `i = 1..` (the reduced angle is at most 45 deg
 //!    and `sum_{i>=1} atan 2^-i` = 55.8 deg, so iteration 0 is not needed), accumulating the
 //!    table `atan(2^-i)` in Q32 turns.
-//! 4. The octant is undone with exact wrapping integer operations.
+//! 4. The octant is undone with exact wrapping integer operations. The axes and diagonals
+//!    (`y == 0`, `x == 0`, `|x| == |y|`) are returned exactly.
 //!
-//! Only integer adds, shifts and compares: the same bits on the Cortex-M4 and on x86.
-//! About 8 instructions per iteration, so roughly 200 cycles per call on the M4.
+//! Only integer adds, shifts and compares: the same bits on the Cortex-M4 and on x86 (checked:
+//! a digest of 10^5 random calls is identical in QEMU's Cortex-M4 and on x86-64). About 360
+//! instructions per call at `opt-level = "s"` (QEMU `-icount`; 11 per iteration): once per
+//! turnaround, not per sample. Cycles on a board not measured.
 //!
 //! Error: the residual angle after the last iteration is below atan(2^-27) (1.2e-9 turn), the
 //! table entries are rounded to 0.5 LSB each, and the shifts truncate at the 2^-29 level of the

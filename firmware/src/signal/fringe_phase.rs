@@ -44,7 +44,8 @@
 //! (offset) count edge learns an offset one quadrant off, so the learned offset follows the
 //! mean disagreement ([`FringeResolver::mean_disagreement_q32`], an average over about 256
 //! good readings, which estimates the comparator offset delta): when the mean leaves
-//! +-1/8 turn the offset moves by one quadrant (this does not change any reading's value).
+//! +-1/8 turn the offset moves by one quadrant (readings near the mean keep their value: `m`
+//! and `d` change by a quadrant in opposite directions).
 //! After that, `|d| <= 1/8 turn + |delta|` for comparator offsets |delta| < 1/8 turn.
 //!
 //! # Signal lost
@@ -214,11 +215,16 @@ pub struct FringeResolver {
     learned_offset: Option<i64>,
     glitches: u32,
     signal_lost: u32,
-    /// Exponential average of d, Q32 turns * 2^MEAN_SHIFT.
+    /// Average of d, Q32 turns * 2^MEAN_SHIFT.
     mean_disagreement_scaled: i64,
+    /// Good readings averaged so far (saturating): sets the averaging weight.
+    averaged: u32,
 }
 
-/// Time constant of the mean disagreement, in readings: 2^MEAN_SHIFT.
+/// Time constant of the mean disagreement, in readings: 2^MEAN_SHIFT. The first readings after
+/// start or [`FringeResolver::realign`] are averaged with weights 1, 1/2, 1/2, 1/4, ... (the
+/// shift grows with log2 of their number), so a wrongly learned offset is corrected within a
+/// few readings rather than 2^MEAN_SHIFT.
 const MEAN_SHIFT: u32 = 8;
 
 impl FringeResolver {
@@ -229,6 +235,7 @@ impl FringeResolver {
             glitches: 0,
             signal_lost: 0,
             mean_disagreement_scaled: 0,
+            averaged: 0,
         }
     }
 
@@ -261,14 +268,20 @@ impl FringeResolver {
     /// learns it again.
     pub fn realign(&mut self) {
         self.learned_offset = None;
+        self.mean_disagreement_scaled = 0;
+        self.averaged = 0;
     }
 
     /// Updates the mean disagreement; a learned offset whose mean disagreement leaves
-    /// +-1/8 turn is moved by one quadrant towards it (the reading's value is unchanged by
-    /// such a move: `m` and `d` change by a quadrant in opposite directions).
+    /// +-1/8 turn is moved by one quadrant towards it (readings with `d` near the mean keep
+    /// their value: `m` and `d` change by a quadrant in opposite directions).
     fn track_mean(&mut self, config: &FringePhaseConfig, d: i32) {
-        let mean = self.mean_disagreement_scaled;
-        let mean = mean - (mean >> MEAN_SHIFT) + d as i64;
+        self.averaged = self.averaged.saturating_add(1);
+        // log2 of the readings averaged, capped: 0 for the first (mean = d), then 1, 1, 2, ...
+        let shift = (31 - self.averaged.leading_zeros()).min(MEAN_SHIFT);
+        let old = self.mean_disagreement_scaled;
+        // |d| < 2^31, |old| < 2^(31 + MEAN_SHIFT): no overflow.
+        let mean = old + ((((d as i64) << MEAN_SHIFT) - old) >> shift);
         self.mean_disagreement_scaled = mean;
         let limit = (EIGHTH_TURN_Q32 as i64) << MEAN_SHIFT;
         let quadrant = 1i64 << (30 + MEAN_SHIFT);
@@ -417,6 +430,31 @@ mod tests {
                 "{mean} vs {delta}"
             );
         }
+    }
+
+    /// Comparator edges 40 deg late and a first reading between phi's quadrant boundary and
+    /// the edge: the offset is learned one quadrant off, then corrected within a few readings
+    /// (the early average is fast); no glitch at any time, and the value never jumps.
+    #[test]
+    fn wrongly_learned_offset_is_corrected_quickly() {
+        let delta = 40f64.to_radians();
+        let cfg = FringePhaseConfig::DEFAULT;
+        let mut r = FringeResolver::new();
+        let psi0 = 95f64.to_radians();
+        let first = r.resolve(&cfg, count(psi0, delta, 0), levels(psi0));
+        assert_eq!(r.quadrant_offset(&cfg), Some(1), "learned one quadrant off");
+        let mut rng = XorShift(21);
+        for k in 0..2000 {
+            let psi = psi0 + (rng.uniform() - 0.5) * 1e3;
+            let reading = r.resolve(&cfg, count(psi, delta, 0), levels(psi));
+            assert!(!reading.glitch, "reading {k}");
+            let got = reading.phase.delta_fringes_f64(&first.phase) * TAU;
+            assert!((got - (psi - psi0)).abs() < 1e-6, "reading {k}");
+            if k == 30 {
+                assert_eq!(r.quadrant_offset(&cfg), Some(0), "corrected by now");
+            }
+        }
+        assert_eq!(r.quadrant_offset(&cfg), Some(0));
     }
 
     /// A count that lost two quarters (an illegal transition) is a glitch.
