@@ -148,7 +148,11 @@ mod tests {
             x ^= x << 13;
             x ^= x >> 7;
             x ^= x << 17;
-            let b = if x.is_multiple_of(50) { b'\n' } else { (x >> 24) as u8 };
+            let b = if x.is_multiple_of(50) {
+                b'\n'
+            } else {
+                (x >> 24) as u8
+            };
             newlines += (b == b'\n') as usize;
             if let Some(e) = asm.push(b) {
                 events += 1;

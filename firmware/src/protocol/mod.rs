@@ -6,9 +6,11 @@
 //! protocol runs in the low-priority serial task: nothing here blocks or touches the turnaround
 //! interrupt, whose state it changes only through staged settings.
 
+pub mod access;
 pub mod line;
 pub mod parse;
 pub mod respond;
+pub mod stream;
 
 /// Why a command was refused. The discriminant is the number after `ERR`; nothing changes
 /// when a command is refused.

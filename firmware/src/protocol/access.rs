@@ -1,0 +1,197 @@
+//! Access control: commands that change coefficients or flash need an unlock.
+//!
+//! - `unlock <key>` with the key kept in flash (the device's calibration key) unlocks for
+//!   [`AccessConfig::unlock_timeout_ms`]; any successful protected command extends it.
+//! - The board starts locked at reset, and `lock` locks at once.
+//! - Wrong keys are rate-limited: after [`AccessConfig::free_attempts`] wrong keys, each further
+//!   attempt must wait a penalty that doubles per wrong key (capped); an attempt during the
+//!   penalty is refused without being checked (`ERR 14`), so guessing a 32-bit key over a
+//!   serial line takes geological time. A correct key resets the count.
+//! - Reads never need an unlock.
+//!
+//! Time is a millisecond tick passed in by the caller (wrapping `u32`, 49 days), so this is
+//! plain logic, testable on the host.
+
+/// Access-control settings (immutable).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AccessConfig {
+    pub unlock_timeout_ms: u32,
+    /// Wrong keys allowed before penalties start.
+    pub free_attempts: u8,
+    /// First penalty, doubled per further wrong key.
+    pub base_penalty_ms: u32,
+    pub max_penalty_ms: u32,
+}
+
+impl AccessConfig {
+    /// 5 minutes unlocked; 3 free attempts, then 1 s, 2 s, 4 s ... up to 10 minutes.
+    pub const DEFAULT: Self = Self {
+        unlock_timeout_ms: 300_000,
+        free_attempts: 3,
+        base_penalty_ms: 1_000,
+        max_penalty_ms: 600_000,
+    };
+}
+
+/// What an unlock attempt did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UnlockOutcome {
+    Unlocked,
+    WrongKey,
+    /// Refused unchecked: wait this long.
+    RateLimited {
+        wait_ms: u32,
+    },
+}
+
+/// The lock's state (starts locked).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Access {
+    unlocked_until_ms: Option<u32>,
+    wrong_keys: u32,
+    blocked_until_ms: Option<u32>,
+}
+
+/// `a` is at or after `b` on the wrapping millisecond clock (within 24 days).
+fn reached(now_ms: u32, deadline_ms: u32) -> bool {
+    now_ms.wrapping_sub(deadline_ms) < (1 << 31)
+}
+
+impl Access {
+    pub const fn new() -> Self {
+        Self {
+            unlocked_until_ms: None,
+            wrong_keys: 0,
+            blocked_until_ms: None,
+        }
+    }
+
+    /// Whether protected commands are allowed now.
+    pub fn is_unlocked(&mut self, now_ms: u32) -> bool {
+        match self.unlocked_until_ms {
+            Some(until) if !reached(now_ms, until) => true,
+            Some(_) => {
+                self.unlocked_until_ms = None;
+                false
+            }
+            None => false,
+        }
+    }
+
+    /// A protected command succeeded: the unlock lasts another full timeout.
+    pub fn touch(&mut self, config: &AccessConfig, now_ms: u32) {
+        if self.is_unlocked(now_ms) {
+            self.unlocked_until_ms = Some(now_ms.wrapping_add(config.unlock_timeout_ms));
+        }
+    }
+
+    pub fn lock(&mut self) {
+        self.unlocked_until_ms = None;
+    }
+
+    /// Wrong keys since the last correct one.
+    pub fn wrong_keys(&self) -> u32 {
+        self.wrong_keys
+    }
+
+    /// An unlock attempt with `given` against the device's `key`.
+    pub fn unlock(
+        &mut self,
+        config: &AccessConfig,
+        now_ms: u32,
+        key: u32,
+        given: u32,
+    ) -> UnlockOutcome {
+        if let Some(until) = self.blocked_until_ms {
+            if !reached(now_ms, until) {
+                return UnlockOutcome::RateLimited {
+                    wait_ms: until.wrapping_sub(now_ms),
+                };
+            }
+            self.blocked_until_ms = None;
+        }
+        if given == key {
+            self.wrong_keys = 0;
+            self.unlocked_until_ms = Some(now_ms.wrapping_add(config.unlock_timeout_ms));
+            return UnlockOutcome::Unlocked;
+        }
+        self.lock();
+        self.wrong_keys = self.wrong_keys.saturating_add(1);
+        if self.wrong_keys > config.free_attempts as u32 {
+            let doublings = (self.wrong_keys - config.free_attempts as u32 - 1).min(31);
+            let penalty = config
+                .base_penalty_ms
+                .saturating_mul(1u32 << doublings)
+                .min(config.max_penalty_ms);
+            self.blocked_until_ms = Some(now_ms.wrapping_add(penalty));
+        }
+        UnlockOutcome::WrongKey
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const KEY: u32 = 0xC0FF_EE42;
+    const C: AccessConfig = AccessConfig::DEFAULT;
+
+    #[test]
+    fn starts_locked_unlocks_and_times_out() {
+        let mut a = Access::new();
+        assert!(!a.is_unlocked(0));
+        assert_eq!(a.unlock(&C, 1000, KEY, KEY), UnlockOutcome::Unlocked);
+        assert!(a.is_unlocked(1000 + C.unlock_timeout_ms - 1));
+        assert!(!a.is_unlocked(1000 + C.unlock_timeout_ms));
+    }
+
+    #[test]
+    fn activity_extends_and_lock_ends_it() {
+        let mut a = Access::new();
+        a.unlock(&C, 0, KEY, KEY);
+        a.touch(&C, 200_000);
+        assert!(a.is_unlocked(450_000));
+        a.lock();
+        assert!(!a.is_unlocked(450_001));
+    }
+
+    /// Three free wrong keys, then 1 s, 2 s, 4 s penalties; attempts during a penalty are not
+    /// even checked (the right key is refused too); the right key afterwards resets the count.
+    #[test]
+    fn wrong_keys_are_rate_limited() {
+        let mut a = Access::new();
+        for t in 0..3 {
+            assert_eq!(a.unlock(&C, t, KEY, 1), UnlockOutcome::WrongKey);
+        }
+        assert_eq!(a.unlock(&C, 10, KEY, 2), UnlockOutcome::WrongKey); // 4th: 1 s penalty
+        assert_eq!(
+            a.unlock(&C, 500, KEY, KEY),
+            UnlockOutcome::RateLimited { wait_ms: 510 }
+        );
+        assert!(!a.is_unlocked(500));
+        assert_eq!(a.unlock(&C, 1010, KEY, 3), UnlockOutcome::WrongKey); // 5th: 2 s
+        assert_eq!(
+            a.unlock(&C, 3000, KEY, KEY),
+            UnlockOutcome::RateLimited { wait_ms: 10 }
+        );
+        assert_eq!(a.unlock(&C, 3010, KEY, KEY), UnlockOutcome::Unlocked);
+        assert_eq!(a.wrong_keys(), 0);
+    }
+
+    /// The penalty is capped, and the wrapping clock is handled.
+    #[test]
+    fn penalty_cap_and_clock_wrap() {
+        let mut a = Access::new();
+        let mut t = u32::MAX - 5_000;
+        for _ in 0..40 {
+            if let UnlockOutcome::RateLimited { wait_ms } = a.unlock(&C, t, KEY, 0) {
+                assert!(wait_ms <= C.max_penalty_ms);
+                t = t.wrapping_add(wait_ms);
+            }
+        }
+        assert_eq!(
+            a.unlock(&C, t.wrapping_add(C.max_penalty_ms), KEY, KEY),
+            UnlockOutcome::Unlocked
+        );
+    }
+}
