@@ -243,7 +243,8 @@ impl<E> EventQueue<E> {
         }
     }
 
-    /// Pop the next event due at or before `until_s` and advance `clock` to its time.
+    /// Pop the next event due at or before `until_s` and advance `clock` to its time. Panics if
+    /// the clock is already past the event (it was advanced behind the queue's back).
     pub fn fire_next(&mut self, clock: &mut SimClock, until_s: f64) -> Option<E> {
         let (at_s, event) = self.pop_until(until_s)?;
         clock.advance_to(at_s);

@@ -16,21 +16,39 @@
 //!   path of psi_H as long as psi_H moves monotonically between two calls of
 //!   [`QuadratureCounter::advance_to`] (with hysteresis, a reversal between calls that does not
 //!   show in the samples would be missed; without hysteresis the count depends on the end point
-//!   only). The register wraps at 16 or 32 bits ([`CounterWidth`]).
+//!   only). In practice: call it at each integrator step and at the exact turnarounds, where
+//!   psi_H reverses. The register wraps at 16 or 32 bits ([`CounterWidth`]).
 //! - [`EdgeSampler`] samples the comparator outputs at a fixed rate (e.g. 10 MHz), from a
 //!   closure `psi_H(t)`: what a software decoder reading the pins by DMA gets. The comparators see
 //!   the noisy analog levels here, one noise draw per channel per sample, so noise near a
 //!   threshold makes them chatter unless hysteresis suppresses it. At the peak beat rate of
-//!   ~590 kHz there are ~2.4 M edges/s: a sampler slower than about twice that skips states and
-//!   produces illegal (two-bit) transitions.
+//!   ~590 kHz there are ~2.4 M edges/s, so a state lasts ~420 ns: the sampler must see every
+//!   state at least once, i.e. run well above 2.4 MHz (unequal quadrants from quadrature or
+//!   threshold errors shorten some states); at 2 MHz it skips states, which shows up as illegal
+//!   (two-bit) transitions.
 //! - [`StateDecoder`] is the hardware decoder fed by such a sampled stream, with the timer's
 //!   digital input filter (an edge is accepted after N equal consecutive samples, so pulses
 //!   shorter than N samples are ignored).
+//!
+//! [`latch_turnaround`] builds the firmware's `TurnaroundSample` from the counter, the ADC and the
+//! capture timer at one instant.
 //!
 //! Glitches for tests: [`QuadratureCounter::inject_counts`] adds spurious counts to the register,
 //! [`QuadratureCounter::miss_next_edges`] drops edges (the net effect of a missed edge: the
 //! register stays one count behind), and [`EdgeSampler::inject_glitch`] inverts a channel for a
 //! few samples of the sampled stream.
+//!
+//! ```
+//! use hal_sim::counter::{CounterConfig, QuadratureCounter};
+//! use hal_sim::photodiode::PhotodiodeConfig;
+//!
+//! let ideal = PhotodiodeConfig::ideal();
+//! let mut counter = QuadratureCounter::new(&ideal, CounterConfig::default(), 0.1).unwrap();
+//! counter.advance_to(0.1 + 3.0 * std::f64::consts::TAU); // three fringes up
+//! assert_eq!(counter.count(), 12);
+//! counter.advance_to(0.1 - std::f64::consts::PI); // back to half a fringe below the start
+//! assert_eq!(counter.count() as i32, -2);
+//! ```
 //!
 //! # Limits
 //!
@@ -42,6 +60,8 @@
 //!   channel may count with the wrong sign; the model applies only the net one-count loss.
 //! - A real encoder timer facing a two-bit jump counts something implementation-defined; the
 //!   [`StateDecoder`] counts nothing and records an illegal transition.
+//! - The latch reads counter, both ADC channels and the timer at the same instant; real firmware
+//!   sees interrupt latency and an ADC conversion time between them.
 
 use core::f64::consts::{PI, TAU};
 
@@ -152,7 +172,9 @@ impl QuadratureState {
 pub struct CounterConfig {
     /// Register width.
     pub width: CounterWidth,
-    /// Register value at the start.
+    /// Register value at the start. A real timer starts wherever the firmware sets it; with ideal
+    /// comparators, `ideal_quadrant_index(psi_h0_rad) as u32` makes the register read
+    /// `floor(psi_H / (pi/2))` (modulo its width) from then on.
     pub initial_count: u32,
     /// Count down for increasing psi_H (channels swapped).
     pub reverse: bool,
@@ -175,12 +197,6 @@ pub enum CounterError {
     InvalidPhotodiodes(crate::photodiode::PhotodiodeConfigError),
     /// Comparator edges of A and B overlap or do not alternate.
     EdgesDoNotAlternate,
-}
-
-/// Edges one comparator has produced, as a function of its backlashed phase `y`: the number of
-/// edge positions `+-c + 2 pi m` at or below `y` (up to a constant). Odd = output high.
-fn edge_index(y_rad: f64, half_high_rad: f64) -> i64 {
-    ((y_rad - half_high_rad) / TAU).floor() as i64 + ((y_rad + half_high_rad) / TAU).floor() as i64
 }
 
 /// Check that the four hysteresis bands (two per comparator) are disjoint and alternate A, B.
@@ -233,7 +249,7 @@ impl QuadratureCounter {
         Ok(Self {
             geometry,
             backlashed_rad,
-            edge_index: [0, 1].map(|k| edge_index(backlashed_rad[k], geometry[k].half_high_rad)),
+            edge_index: [0, 1].map(|k| geometry[k].edge_index(backlashed_rad[k])),
             register: EncoderRegister::new(config.width, config.initial_count),
             reverse: config.reverse,
             edges_since_start: 0,
@@ -250,7 +266,7 @@ impl QuadratureCounter {
             let x = psi_h_rad - g.phase_rad;
             let y = self.backlashed_rad[k].clamp(x - g.backlash_rad, x + g.backlash_rad);
             self.backlashed_rad[k] = y;
-            let index = edge_index(y, g.half_high_rad);
+            let index = g.edge_index(y);
             edges += index - self.edge_index[k];
             self.edge_index[k] = index;
         }
@@ -323,7 +339,7 @@ pub struct EdgeSampler {
 
 impl EdgeSampler {
     /// A sampler at `sample_rate_hz` whose first sample is at `t0_s`. The comparators start in
-    /// the state the noise-free signals at `psi_h0_rad` give against their thresholds.
+    /// the state a [`QuadratureCounter`] started at `psi_h0_rad` reports.
     pub fn new(
         photodiodes: &PhotodiodeConfig,
         sample_rate_hz: f64,
@@ -335,13 +351,13 @@ impl EdgeSampler {
             panic!("invalid photodiode config: {e:?}");
         }
         assert!(sample_rate_hz > 0.0, "sample rate must be positive");
-        let [va, vb] = photodiodes.levels_v(psi_h0_rad);
-        let initial = |ch: &crate::photodiode::ChannelConfig, v: f64| {
-            Comparator::new(ch, v >= ch.mid_level_v + ch.comparator.threshold_offset_v)
-        };
+        let [ga, gb] = photodiodes.edge_geometry();
         Self {
             levels: *photodiodes,
-            comparators: [initial(&photodiodes.a, va), initial(&photodiodes.b, vb)],
+            comparators: [
+                Comparator::new(&photodiodes.a, ga.state_without_history(psi_h0_rad)),
+                Comparator::new(&photodiodes.b, gb.state_without_history(psi_h0_rad)),
+            ],
             rng: ChaCha8Rng::seed_from_u64(seed),
             sample_rate_hz,
             t0_s,

@@ -39,6 +39,19 @@
 //! After a cut every operation (reads included) fails with [`FlashError::PowerCut`] until
 //! [`SimFlash::power_on`], the reboot.
 //!
+//! ```
+//! use embedded_storage::nor_flash::{NorFlash, ReadNorFlash};
+//! use hal_sim::flash::{CalibrationFlash, FlashError, PowerCut};
+//!
+//! let mut flash = CalibrationFlash::default();
+//! flash.arm_power_cut(PowerCut::AfterBytes(8));
+//! assert_eq!(flash.write(0, &[0x42; 12]), Err(FlashError::PowerCut));
+//! flash.power_on();
+//! let mut record = [0; 12];
+//! flash.read(0, &mut record).unwrap();
+//! assert_eq!(record, [0x42, 0x42, 0x42, 0x42, 0x42, 0x42, 0x42, 0x42, 0xFF, 0xFF, 0xFF, 0xFF]);
+//! ```
+//!
 //! Also: erase counts per sector (wear), bytes programmed, an estimate of the time the CPU would
 //! stall ([`FlashStats::busy_s`], typical datasheet times), snapshot/restore of the contents and
 //! byte corruption for tests.
@@ -204,6 +217,11 @@ impl<const SECTOR_BYTES: usize, const MULTIWRITE: bool> SimFlash<SECTOR_BYTES, M
     /// Is the power on?
     pub fn is_powered(&self) -> bool {
         self.powered
+    }
+
+    /// Cut the power now, between operations (nothing is in progress, so nothing is damaged).
+    pub fn power_off(&mut self) {
+        self.cut_power();
     }
 
     /// Reboot after a cut: operations work again; contents stay as the cut left them.

@@ -4,7 +4,8 @@
 //! - the gyro ([`params`], [`units`], [`input`], [`dither`], [`noise`], [`phase`], [`gyro`]):
 //!   the phase equation (PHYSICS.md Eq. 6) integrated with the dither phase known analytically;
 //! - the board ([`photodiode`], [`counter`], [`clock`], [`flash`], [`serial`]): the peripherals
-//!   the firmware reads, producing exactly the plain structs of `firmware::sample`.
+//!   the firmware reads, producing exactly the plain structs of `firmware::sample`;
+//! - [`board`]: gyro and peripherals assembled into what the firmware's interrupts receive.
 
 pub mod units;
 pub mod params;
@@ -19,3 +20,5 @@ pub mod counter;
 pub mod clock;
 pub mod flash;
 pub mod serial;
+
+pub mod board;

@@ -38,6 +38,11 @@
 //! - Detectors respond instantly (no photodiode or amplifier bandwidth, so no phase lag that
 //!   grows with beat frequency, which at ~590 kHz peak beat would be real).
 //! - Comparators have no propagation delay and see the same analog signal as the ADC.
+//! - Same seed, same output bit for bit on one platform and toolchain; `cos`, `sin` and the
+//!   normal sampler's `exp`/`ln` come from the platform's libm, so another platform may differ
+//!   in the last bit.
+
+use core::f64::consts::TAU;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -354,5 +359,17 @@ impl EdgeGeometry {
             half_high_rad: (upper + lower) / 2.0,
             backlash_rad: (lower - upper) / 2.0,
         }
+    }
+
+    /// Number of edges at or below the backlashed phase `y_rad` (edge positions
+    /// `+-half_high_rad + 2 pi m`, up to a constant). Odd means the output is high.
+    pub fn edge_index(&self, y_rad: f64) -> i64 {
+        let c = self.half_high_rad;
+        ((y_rad - c) / TAU).floor() as i64 + ((y_rad + c) / TAU).floor() as i64
+    }
+
+    /// The output at `psi_h_rad` for a comparator with no history (its backlash centred).
+    pub fn state_without_history(&self, psi_h_rad: f64) -> bool {
+        self.edge_index(psi_h_rad - self.phase_rad) & 1 != 0
     }
 }

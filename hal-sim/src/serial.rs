@@ -26,6 +26,19 @@
 //! same damage, independently of how the other direction is used. Dropped bytes still count as
 //! written and take no queue space.
 //!
+//! ```
+//! use embedded_io::{Read, ReadReady, Write};
+//! use hal_sim::serial::{serial_link, SerialConfig};
+//!
+//! let (mut host, mut device) = serial_link(SerialConfig::default(), 0);
+//! host.write_all(b"get p1\n").unwrap();
+//! let mut line = [0; 16];
+//! assert!(device.read_ready().unwrap());
+//! let n = device.read(&mut line).unwrap();
+//! assert_eq!(&line[..n], b"get p1\n");
+//! assert!(device.read(&mut line).is_err()); // nothing more: WouldBlock, not EOF
+//! ```
+//!
 //! # Limits
 //!
 //! - No baud rate: bytes arrive instantly, however many are sent. Protocol timing (a 115200 Bd

@@ -1,4 +1,7 @@
 //! The simulated clock: tick conversion with wraps, and the event queue's ordering.
+//!
+//! Tolerances: the models are deterministic and discrete, so counts, codes, bytes and ticks are
+//! compared exactly, marked "(exact)"; statistical and floating checks state bound and reason.
 
 use hal_sim::clock::{CaptureTimer, EventQueue, SimClock, CAPTURE_TIMER_HZ};
 
@@ -49,7 +52,7 @@ fn time_of_ticks_resolves_wraps() {
     }
 }
 
-/// The clock moves only forward and reads the timer at its current time.
+/// The clock moves only forward and reads the timer at its current time. (exact)
 #[test]
 fn clock_advances() {
     let mut clock = SimClock::new(CaptureTimer::new(1.0e6));
@@ -95,7 +98,7 @@ fn events_fire_in_time_order_ties_in_insertion_order() {
     );
 }
 
-/// Many equal times: the sequence number, not the heap layout, decides the order.
+/// Many equal times: the sequence number, not the heap layout, decides the order. (exact)
 #[test]
 fn thousand_ties_keep_insertion_order() {
     let mut queue = EventQueue::new();

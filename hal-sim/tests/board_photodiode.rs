@@ -1,4 +1,7 @@
 //! Photodiode channels, ADC and comparators against their formulas.
+//!
+//! Tolerances: the models are deterministic and discrete, so counts, codes, bytes and ticks are
+//! compared exactly, marked "(exact)"; statistical and floating checks state bound and reason.
 
 use std::f64::consts::{FRAC_PI_2, PI};
 
@@ -65,12 +68,15 @@ fn offsets_gains_and_quadrature_error() {
     }
 }
 
-/// Noise: sample mean and RMS of 100 000 draws. Standard errors: mean 1e-3/316 = 3.2e-6 V, RMS
-/// 0.22 %; the tolerances (2e-5 V, 1.5 %) are > 6 sigma, so the test is not flaky for any seed.
+/// Noise: sample mean and RMS of 200 000 draws (2 channels x 100 000). Standard errors: mean
+/// 1e-3 / sqrt(2e5) = 2.2e-6 V, RMS 1 / sqrt(4e5) = 0.16 %; the tolerances (2e-5 V, 1.5 %) are
+/// beyond 9 sigma, so no seed would make the test flaky.
 #[test]
 fn noise_has_configured_rms() {
-    let mut config = PhotodiodeConfig::default();
-    config.noise_rms_v = 1e-3;
+    let config = PhotodiodeConfig {
+        noise_rms_v: 1e-3,
+        ..PhotodiodeConfig::default()
+    };
     let mut pd = Photodiodes::new(config, 42);
     let n = 100_000;
     let (mut sum, mut sum_sq) = (0.0, 0.0);
@@ -104,7 +110,7 @@ fn same_seed_same_codes() {
     assert_ne!(run(5), run(6));
 }
 
-/// A comparator with hysteresis switches at threshold +- hysteresis/2 and holds in between.
+/// A comparator with hysteresis switches at threshold +- hysteresis/2 and holds in between. (exact)
 #[test]
 fn comparator_hysteresis() {
     let channel = ChannelConfig {
@@ -149,7 +155,7 @@ fn edge_geometry() {
     assert!((x - (-FRAC_PI_2 + expected)).abs() < 2e-6, "{x}");
 }
 
-/// Invalid configurations are refused.
+/// Invalid configurations are refused. (exact)
 #[test]
 fn validation() {
     let mut config = PhotodiodeConfig::default();
@@ -164,7 +170,9 @@ fn validation() {
         config.validate(),
         Err(PhotodiodeConfigError::NonPositiveAmplitude)
     );
-    let mut config = PhotodiodeConfig::default();
-    config.noise_rms_v = -1.0;
+    let config = PhotodiodeConfig {
+        noise_rms_v: -1.0,
+        ..PhotodiodeConfig::default()
+    };
     assert_eq!(config.validate(), Err(PhotodiodeConfigError::InvalidValue));
 }

@@ -1,4 +1,7 @@
 //! The serial link: ordering, bounded queues, non-blocking behaviour, seeded line noise.
+//!
+//! Tolerances: the models are deterministic and discrete, so counts, codes, bytes and ticks are
+//! compared exactly, marked "(exact)"; statistical and floating checks state bound and reason.
 
 use embedded_io::{Error, ErrorKind, Read, ReadReady, Write, WriteReady};
 use hal_sim::serial::{serial_link, LineNoise, SerialConfig, SerialEnd, SerialError, Side};
@@ -28,7 +31,8 @@ fn ordering_both_directions() {
     assert_eq!(read_everything(&mut host), b"OK 1.25\n");
 }
 
-/// A full queue accepts what fits, then refuses with WouldBlock; never Ok(0) for a non-empty buffer.
+/// A full queue accepts what fits, then refuses with WouldBlock; never Ok(0) for a non-empty
+/// buffer (exact).
 #[test]
 fn bounded_queue() {
     let config = SerialConfig {
@@ -51,7 +55,7 @@ fn bounded_queue() {
 }
 
 /// An empty queue: read_ready false and read WouldBlock (kind TimedOut); after the other end is
-/// dropped: read_ready true and Ok(0), end of file. Writes to a dropped end vanish.
+/// dropped: read_ready true and Ok(0), end of file. Writes to a dropped end vanish. (exact)
 #[test]
 fn non_blocking_read_and_eof() {
     let (mut host, mut device) = serial_link(SerialConfig::default(), 0);
@@ -142,7 +146,7 @@ fn noise_rates_and_single_bit_flips() {
     assert!((850..=1150).contains(&damaged.len()), "{}", damaged.len());
 }
 
-/// The ends are Send: the host side can run in its own thread.
+/// The ends are Send: the host side can run in its own thread. (exact)
 #[test]
 fn ends_work_across_threads() {
     let (mut host, mut device) = serial_link(SerialConfig::default(), 0);

@@ -1,10 +1,182 @@
-//! `rlg-sim`: the simulated gyro with the firmware's own signal chain in the loop.
-#![allow(dead_code)] // wired up once the simulator board lands
-mod args;
-mod plot;
-mod report;
+//! `rlg-sim`: the simulated ring laser gyro with the readout firmware's signal chain in the loop.
+//!
+//! `rlg-sim sweep` reproduces the paper's experiment (Fan et al., Chin. Opt. Lett. 10, 061403,
+//! Figs. 3 and 4); `rlg-sim speed` measures the simulator. Results go to stdout, diagnostics and
+//! errors to stderr; exit status 0 on success, 1 on a failed run, 2 on bad arguments.
 
-fn main() {
-    eprintln!("rlg-sim: under construction");
-    std::process::exit(2);
+mod args;
+
+use args::{Cli, Command, GyroArgs, SpeedArgs, SweepArgs};
+use clap::Parser;
+use hal_sim::params::{AmplitudeModulation, GyroParams};
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use rlg_sim::experiment::{calibrate, measure_rate, measure_speed, settings_from_fit, RunLength};
+use rlg_sim::report::{self, SweepRow};
+use std::process::ExitCode;
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let outcome = match cli.command {
+        Command::Sweep(args) => sweep(&args),
+        Command::Speed(args) => speed(&args),
+    };
+    match outcome {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(Failure::Usage(msg)) => {
+            eprintln!("rlg-sim: error: {msg}");
+            ExitCode::from(2)
+        }
+        Err(Failure::Run(msg)) => {
+            eprintln!("rlg-sim: {msg}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+enum Failure {
+    Usage(String),
+    Run(String),
+}
+
+impl GyroArgs {
+    fn params(&self) -> Result<GyroParams, Failure> {
+        let params = GyroParams {
+            scale_factor_arcsec: self.scale_factor_arcsec,
+            dither_hz: self.dither_hz,
+            dither_amplitude_arcsec: self.dither_amplitude_arcsec,
+            lock_in_deg_per_h: self.lock_in_deg_h,
+            eps_rad: self.eps_rad,
+            arw_deg_per_rt_h: self.arw_deg_rt_h,
+            amplitude_jitter: AmplitudeModulation::jitter(self.amplitude_jitter),
+            seed: self.seed,
+            ..GyroParams::default()
+        };
+        params
+            .derive()
+            .map_err(|e| Failure::Usage(format!("invalid gyro parameters: {e:?}")))?;
+        Ok(params)
+    }
+}
+
+fn progress(len: u64, quiet: bool, what: &str) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(len);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{msg:>12} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    bar.set_message(what.to_string());
+    bar
+}
+
+fn sweep(args: &SweepArgs) -> Result<(), Failure> {
+    args.validate().map_err(Failure::Usage)?;
+    let params = args.gyro.params()?;
+    if let Some(jobs) = args.jobs {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(jobs.max(1))
+            .build_global()
+            .map_err(|e| Failure::Run(format!("thread pool: {e}")))?;
+    }
+    let sf = params.scale_factor_arcsec;
+
+    // Step 2 of the paper: calibrate outside the dead band.
+    let cal_rates = args.calibration_rates_deg_h();
+    let bar = progress(1, args.quiet, "calibration");
+    let cal_length = RunLength {
+        warmup_s: args.warmup_seconds,
+        record_s: args.calibration_seconds,
+    };
+    let fit =
+        calibrate(&params, &cal_rates, cal_length).map_err(|e| Failure::Run(e.to_string()))?;
+    bar.inc(1);
+    bar.finish_and_clear();
+    let settings = settings_from_fit(&fit).map_err(|e| Failure::Run(e.to_string()))?;
+    let truth = params
+        .derive()
+        .map_err(|e| Failure::Usage(format!("{e:?}")))?;
+    eprintln!(
+        "calibration at {:?} deg/h, {} cycles: a = {:.4} rad/s (+-{:.2e}), b = {:.4} rad/s (+-{:.2e})",
+        cal_rates, fit.cycles, fit.a_rad_per_s, fit.a_std_rad_per_s, fit.b_rad_per_s, fit.b_std_rad_per_s
+    );
+    eprintln!(
+        "  Omega_L = {:.3} deg/h (true {:.3}), eps = {:.5} rad (true {:.5}), variance reduction {:.6}, condition {:.3}",
+        fit.lock_in_rad_per_s * sf / std::f64::consts::TAU,
+        truth.omega_l_rad_per_s * sf / std::f64::consts::TAU,
+        fit.eps_rad,
+        params.eps_rad,
+        fit.variance_reduction,
+        fit.condition_number
+    );
+
+    // Steps 3 and 4: record across the range with the fitted coefficients applied.
+    let rates = args.rates_deg_h();
+    let bar = progress(rates.len() as u64, args.quiet, "sweep");
+    let length = RunLength {
+        warmup_s: args.warmup_seconds,
+        record_s: args.seconds_per_point,
+    };
+    let rows: Result<Vec<SweepRow>, String> = rates
+        .par_iter()
+        .map(|&rate| {
+            let m = measure_rate(&params, rate, length, settings).map_err(|e| e.to_string())?;
+            bar.inc(1);
+            Ok(SweepRow {
+                input_deg_h: rate,
+                ideal_hz: rate / sf,
+                uncompensated_hz: m.uncompensated_hz,
+                compensated_hz: m.compensated_hz,
+            })
+        })
+        .collect();
+    bar.finish_and_clear();
+    let rows = rows.map_err(Failure::Run)?;
+    print!("{}", report::table(&rows, sf));
+    let worst = |f: fn(&SweepRow) -> f64| {
+        rows.iter()
+            .map(|r| (f(r) - r.ideal_hz).abs() * sf)
+            .fold(0.0, f64::max)
+    };
+    println!(
+        "max |output - ideal|: uncompensated {:.4} deg/h, compensated {:.5} deg/h",
+        worst(|r| r.uncompensated_hz),
+        worst(|r| r.compensated_hz)
+    );
+    if let Some(path) = &args.csv {
+        report::write_csv(path, &rows)
+            .map_err(|e| Failure::Run(format!("{}: {e}", path.display())))?;
+        eprintln!("wrote {}", path.display());
+    }
+    if let Some(path) = &args.svg {
+        let title = format!(
+            "Dynamic lock-in compensation: Omega_L {} deg/h, dither {} arcsec at {} Hz",
+            args.gyro.lock_in_deg_h, args.gyro.dither_amplitude_arcsec, args.gyro.dither_hz
+        );
+        std::fs::write(path, report::figure(&rows, sf, &title).to_svg())
+            .map_err(|e| Failure::Run(format!("{}: {e}", path.display())))?;
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+fn speed(args: &SpeedArgs) -> Result<(), Failure> {
+    if !(args.seconds.is_finite() && args.seconds > 0.0) {
+        return Err(Failure::Usage("--seconds must be positive".into()));
+    }
+    let params = args.gyro.params()?;
+    let wall_s = measure_speed(&params, args.rate_deg_h, args.seconds)
+        .map_err(|e| Failure::Run(e.to_string()))?;
+    println!(
+        "simulated {:.1} gyro-s in {:.3} wall-s: {:.1} gyro-seconds per wall-second (one core)",
+        args.seconds,
+        wall_s,
+        args.seconds / wall_s
+    );
+    Ok(())
 }

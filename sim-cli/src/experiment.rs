@@ -1,0 +1,184 @@
+//! The paper's experiment on the simulated gyro, with the firmware's signal chain in the loop.
+//!
+//! A run feeds the simulated board's half-cycles (Lissajous samples, then the turnaround latch)
+//! to the firmware's [`Readout`], exactly as the ADC and turnaround interrupts would, and
+//! collects the per-cycle records. On top of runs:
+//!
+//! - [`calibrate`]: the paper's Step 2, runs at rates outside the dead band with compensation off,
+//!   pooled into the least-squares fit of a and b (one intercept per run);
+//! - [`measure_rate`]: one input rate with the compensation on, giving the uncompensated and the
+//!   compensated output of the same cycles, each averaged over whole output periods.
+
+use firmware::calibration::fit::{FitAccumulator, FitResult, SolveError};
+use firmware::readout::{Readout, ReadoutConfig};
+use firmware::signal::compensation::{CoefficientError, Coefficients, CompensationSettings};
+use firmware::signal::cycle::CycleRecord;
+use firmware::signal::output::{AveragerConfig, AveragingMode, CycleOutput, RateAverager};
+use hal_sim::board::{BoardConfig, SimBoard};
+use hal_sim::gyro::Gyro;
+use hal_sim::input::InputProfile;
+use hal_sim::params::GyroParams;
+
+/// A run's timing: warm-up (discarded) and recording, simulated seconds.
+#[derive(Clone, Copy, Debug)]
+pub struct RunLength {
+    pub warmup_s: f64,
+    pub record_s: f64,
+}
+
+/// Why an experiment failed.
+#[derive(Debug)]
+pub enum ExperimentError {
+    Simulator(String),
+    Fit(SolveError),
+    Coefficients(CoefficientError),
+}
+
+impl std::fmt::Display for ExperimentError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Simulator(e) => write!(f, "simulator: {e}"),
+            Self::Fit(e) => write!(f, "calibration fit refused: {e:?}"),
+            Self::Coefficients(e) => write!(f, "fitted coefficients not representable: {e:?}"),
+        }
+    }
+}
+
+impl std::error::Error for ExperimentError {}
+
+/// Runs the board at a constant input rate and hands every recorded cycle to `on_cycle`.
+pub fn run_constant_rate(
+    params: &GyroParams,
+    rate_deg_h: f64,
+    length: RunLength,
+    settings: CompensationSettings,
+    mut on_cycle: impl FnMut(&ReadoutConfig, &CycleRecord),
+) -> Result<(), ExperimentError> {
+    let gyro = Gyro::new(params.clone(), InputProfile::constant(rate_deg_h))
+        .map_err(|e| ExperimentError::Simulator(format!("{e:?}")))?;
+    let board_config = BoardConfig::for_gyro(params);
+    let mut board = SimBoard::new(gyro, board_config.clone())
+        .map_err(|e| ExperimentError::Simulator(format!("{e:?}")))?;
+    let config = ReadoutConfig::for_board(
+        board_config.timer_hz,
+        params.dither_hz,
+        params.scale_factor_arcsec,
+    );
+    let mut readout = Readout::new(&config, settings);
+    let mut lissajous = Vec::new();
+    let end_s = length.warmup_s + length.record_s;
+    loop {
+        let sample = board.next_half_cycle(&mut lissajous);
+        for &(a, b) in &lissajous {
+            readout.on_lissajous_sample(&config, a, b);
+        }
+        if board.time_s() > end_s {
+            return Ok(());
+        }
+        if let Some(record) = readout.on_turnaround(&config, sample) {
+            if board.time_s() > length.warmup_s {
+                on_cycle(&config, &record);
+            }
+        }
+    }
+}
+
+/// The paper's Step 2: runs at each calibration rate with compensation off; the per-cycle
+/// output (count plus fractional fringe) regressed on [1, P1, P2], pooled over runs.
+pub fn calibrate(
+    params: &GyroParams,
+    rates_deg_h: &[f64],
+    length: RunLength,
+) -> Result<FitResult, ExperimentError> {
+    let mut pooled = FitAccumulator::new();
+    for &rate in rates_deg_h {
+        let mut run = FitAccumulator::new();
+        run_constant_rate(
+            params,
+            rate,
+            length,
+            CompensationSettings::default(),
+            |config, c| {
+                if c.output.flags.is_empty() {
+                    run.push(
+                        c.raw_increment_rad(),
+                        c.terms.p1_s as f64,
+                        c.terms.p2_s as f64,
+                        c.duration_s(&config.cycle),
+                    );
+                }
+            },
+        )?;
+        run.end_run();
+        pooled.pool(&run);
+    }
+    pooled.solve().map_err(ExperimentError::Fit)
+}
+
+/// The compensation settings a fit gives (rounded to the Q15.16 format of the flash).
+pub fn settings_from_fit(fit: &FitResult) -> Result<CompensationSettings, ExperimentError> {
+    let coefficients = Coefficients::from_rad_per_s(fit.a_rad_per_s as f32, fit.b_rad_per_s as f32)
+        .map_err(ExperimentError::Coefficients)?;
+    Ok(CompensationSettings {
+        coefficients,
+        enabled: true,
+    })
+}
+
+/// Output rates of one input rate, fringes/s (= beat frequency, Hz).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeasuredRate {
+    pub uncompensated_hz: f64,
+    pub compensated_hz: f64,
+    pub cycles: u32,
+}
+
+/// One input rate with compensation on: both outputs from the same cycles, each averaged over
+/// whole output periods (falling back to the plain mean where it advances less than a fringe).
+pub fn measure_rate(
+    params: &GyroParams,
+    rate_deg_h: f64,
+    length: RunLength,
+    settings: CompensationSettings,
+) -> Result<MeasuredRate, ExperimentError> {
+    let mut raw = RateAverager::new();
+    let mut compensated = RateAverager::new();
+    let mut averager: Option<AveragerConfig> = None;
+    run_constant_rate(params, rate_deg_h, length, settings, |config, c| {
+        let cfg = averager.get_or_insert(AveragerConfig {
+            window_cycles: u32::MAX,
+            mode: AveragingMode::WholePeriods,
+            timer_hz: config.cycle.timer_hz as f64,
+            scale_factor_arcsec: params.scale_factor_arcsec,
+        });
+        let raw_cycle = CycleOutput {
+            increment_q32: c.raw_increment_q32,
+            correction_q32: 0,
+            ..c.output
+        };
+        raw.push(cfg, raw_cycle);
+        compensated.push(cfg, c.output);
+    })?;
+    let cfg = averager
+        .ok_or_else(|| ExperimentError::Simulator("no complete dither cycle recorded".into()))?;
+    let (u, c) = (raw.flush(&cfg), compensated.flush(&cfg));
+    Ok(MeasuredRate {
+        uncompensated_hz: u.rate_fringes_per_s,
+        compensated_hz: c.rate_fringes_per_s,
+        cycles: c.cycles,
+    })
+}
+
+/// Wall-clock seconds the gyro alone (the phase equation, no board, no firmware) takes to
+/// simulate `gyro_seconds` at a constant input rate, on one core.
+pub fn measure_speed(
+    params: &GyroParams,
+    rate_deg_h: f64,
+    gyro_seconds: f64,
+) -> Result<f64, ExperimentError> {
+    let mut gyro = Gyro::new(params.clone(), InputProfile::constant(rate_deg_h))
+        .map_err(|e| ExperimentError::Simulator(format!("{e:?}")))?;
+    let start = std::time::Instant::now();
+    gyro.advance_to(gyro_seconds);
+    Ok(start.elapsed().as_secs_f64())
+}

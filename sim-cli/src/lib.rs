@@ -1,0 +1,8 @@
+//! The simulator's experiments with the firmware's signal chain in the loop, and their reports.
+//!
+//! Used by the `rlg-sim` CLI and by the workspace's system tests (`tests/`), so that the tests
+//! check exactly what the CLI prints.
+
+pub mod experiment;
+pub mod plot;
+pub mod report;
