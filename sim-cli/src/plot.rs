@@ -46,7 +46,7 @@ pub struct Figure {
 
 const MARGIN_LEFT: f64 = 90.0;
 const MARGIN_RIGHT: f64 = 30.0;
-const MARGIN_TOP: f64 = 50.0;
+const MARGIN_TOP: f64 = 75.0;
 const MARGIN_BOTTOM: f64 = 60.0;
 const PANEL_GAP: f64 = 50.0;
 
