@@ -46,7 +46,18 @@ impl std::fmt::Display for ExperimentError {
 
 impl std::error::Error for ExperimentError {}
 
+/// The seed of one run: the experiment's seed mixed with the run's input rate (splitmix64), so
+/// every run draws its own noise, and the same experiment always draws the same.
+pub fn run_seed(seed: u64, rate_deg_h: f64) -> u64 {
+    let mut z = seed ^ rate_deg_h.to_bits().rotate_left(17);
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
 /// Runs the board at a constant input rate and hands every recorded cycle to `on_cycle`.
+/// The run's noise comes from [`run_seed`].
 pub fn run_constant_rate(
     params: &GyroParams,
     rate_deg_h: f64,
@@ -54,6 +65,10 @@ pub fn run_constant_rate(
     settings: CompensationSettings,
     mut on_cycle: impl FnMut(&ReadoutConfig, &CycleRecord),
 ) -> Result<(), ExperimentError> {
+    let params = &GyroParams {
+        seed: run_seed(params.seed, rate_deg_h),
+        ..params.clone()
+    };
     let gyro = Gyro::new(params.clone(), InputProfile::constant(rate_deg_h))
         .map_err(|e| ExperimentError::Simulator(format!("{e:?}")))?;
     let board_config = BoardConfig::for_gyro(params);
