@@ -152,6 +152,11 @@ impl SimBoard {
         &self.gyro
     }
 
+    /// Drains the gyro's log of completed traversals (the truth about lock-in, for tests).
+    pub fn take_traversals(&mut self) -> Vec<crate::gyro::Traversal> {
+        self.gyro.take_traversals()
+    }
+
     /// The counter, for glitch injection in tests.
     pub fn counter_mut(&mut self) -> &mut QuadratureCounter {
         &mut self.counter
