@@ -1,0 +1,155 @@
+//! Instruction counts of the signal chain on the Cortex-M4F: run with
+//! `cargo fw-icount --example cost` (QEMU with `-icount shift=0`, where TIM2 at PSC = 0 counts
+//! exactly one per executed instruction; see TOOLCHAIN.md section 7). Without `-icount` the
+//! numbers follow host time and mean nothing.
+//!
+//! Measures, on a synthetic steady dither (389 Hz, 450 arcsec at SF 1.8655 arcsec/pulse):
+//! - the software x4 decoder per comparator sample (an edge costs what a sample costs);
+//! - one Lissajous sample (`Readout::on_lissajous_sample`, moment accumulation) and one
+//!   Lissajous window solve (the 5x5 fit, once per 4096 samples);
+//! - one turnaround (`Readout::on_turnaround`: count extension, normalisation, CORDIC, fringe
+//!   phase, P1/P2 share), averaged over "-" turnarounds, and one cycle-closing "+" turnaround
+//!   (adds cycle assembly and compensation).
+//!
+//! These are instructions, not cycles: on the M4 at 168 MHz with flash wait states a cycle
+//! count is some 1.2 to 1.6 times higher; the board's DWT.CYCCNT gives the real figure.
+#![cfg_attr(target_os = "none", no_std, no_main)]
+
+#[cfg(target_os = "none")]
+mod app {
+    use firmware::readout::{Readout, ReadoutConfig};
+    use firmware::rt::pac;
+    use firmware::sample::{TurnaroundKind, TurnaroundSample};
+    use firmware::signal::compensation::{Coefficients, CompensationSettings};
+    use firmware::signal::quadrature::QuadratureDecoder;
+    use micromath::F32Ext;
+
+    const TIMER_HZ: f64 = 84e6;
+    const DITHER_HZ: f64 = 389.0;
+    /// Half-cycle excursion of the PHYSICS.md dither, x4 counts (2 x 1515.6 rad / (pi/2)).
+    const EXCURSION_COUNTS: u32 = 1930;
+
+    /// Instructions executed by `f`, minus the measured overhead of an empty section.
+    fn count(tim: &pac::TIM2, overhead: u32, f: impl FnOnce()) -> u32 {
+        let a = tim.cnt().read().bits();
+        f();
+        let b = tim.cnt().read().bits();
+        b.wrapping_sub(a).saturating_sub(overhead)
+    }
+
+    /// ADC codes of a point on the Lissajous circle (centre 2048, radius 1300 codes).
+    fn codes(phase: f32) -> (u16, u16) {
+        let (s, c) = phase.sin_cos();
+        ((2048.0 + 1300.0 * c) as u16, (2048.0 + 1300.0 * s) as u16)
+    }
+
+    #[cortex_m_rt::entry]
+    fn main() -> ! {
+        let dp = pac::Peripherals::take().unwrap();
+        let tim = &dp.TIM2;
+        tim.psc().write(|w| unsafe { w.bits(0) });
+        tim.arr().write(|w| unsafe { w.bits(u32::MAX) });
+        tim.cr1().write(|w| w.cen().set_bit());
+        let overhead = count(tim, 0, || {});
+
+        // Software decoder: a Gray-code walk, forward then back.
+        const GRAY: [u8; 4] = [0b11, 0b01, 0b00, 0b10];
+        let mut samples = [0u8; 4096];
+        for (i, s) in samples.iter_mut().enumerate() {
+            let k = if i < 2048 { i } else { 4095 - i };
+            *s = GRAY[k % 4];
+        }
+        let mut decoder = QuadratureDecoder::new(samples[0]);
+        let n = count(tim, overhead, || {
+            core::hint::black_box(decoder.decode(core::hint::black_box(&samples)));
+        });
+        let per_sample_x100 = n * 100 / samples.len() as u32;
+
+        // The readout: Lissajous samples until the first window is solved.
+        let config = ReadoutConfig::for_board(TIMER_HZ, DITHER_HZ, 1.8655);
+        let settings = CompensationSettings {
+            coefficients: Coefficients::from_rad_per_s(344.0, 579.0).unwrap(),
+            enabled: true,
+        };
+        let mut readout = Readout::new(&config, settings);
+        let window = config.lissajous.window_samples;
+        let mut phase = 0.0f32;
+        let mut lissajous_total = 0u32;
+        for _ in 0..window - 1 {
+            phase += 2.399_963; // golden angle: covers the circle
+            let (a, b) = codes(phase);
+            lissajous_total += count(tim, overhead, || readout.on_lissajous_sample(&config, a, b));
+        }
+        let (a, b) = codes(phase + 2.4);
+        let solve = count(tim, overhead, || readout.on_lissajous_sample(&config, a, b));
+        let lissajous_per_sample = lissajous_total / (window - 1);
+
+        // Turnarounds of a steady dither at a small rate.
+        let half_ticks = (TIMER_HZ / (2.0 * DITHER_HZ)) as u32;
+        let (mut minus_total, mut minus_n, mut plus_total, mut plus_n) = (0u32, 0u32, 0u32, 0u32);
+        let mut base = 100_000u32;
+        for i in 0..400u32 {
+            let kind = if i % 2 == 0 {
+                TurnaroundKind::Plus
+            } else {
+                TurnaroundKind::Minus
+            };
+            let count_now = if i % 2 == 0 {
+                base
+            } else {
+                base + EXCURSION_COUNTS
+            };
+            if i % 2 == 1 {
+                base += 3; // slow drift of the count: a small input rate
+            }
+            let (a, b) = codes(count_now as f32 * core::f32::consts::FRAC_PI_2 + 0.3);
+            let sample = TurnaroundSample {
+                kind,
+                encoder_count: count_now,
+                adc_a_code: a,
+                adc_b_code: b,
+                timestamp_ticks: i * half_ticks,
+            };
+            let mut closed = false;
+            let n = count(tim, overhead, || {
+                closed = readout.on_turnaround(&config, sample).is_some()
+            });
+            if i >= 4 {
+                if kind == TurnaroundKind::Minus {
+                    minus_total += n;
+                    minus_n += 1;
+                } else if closed {
+                    plus_total += n;
+                    plus_n += 1;
+                }
+            }
+        }
+        let per_minus = minus_total / minus_n.max(1);
+        let per_plus = plus_total / plus_n.max(1);
+
+        defmt::info!(
+            "software x4 decoder: {=u32}.{=u32:02} instructions per sample (= per edge)",
+            per_sample_x100 / 100,
+            per_sample_x100 % 100
+        );
+        defmt::info!(
+            "  sustains {=u32} k samples/s at 168 MHz if one instruction were one cycle",
+            168_000 * 100 / per_sample_x100.max(1)
+        );
+        defmt::info!(
+            "Lissajous sample: {=u32} instructions; window solve (every {=u32} samples): {=u32}",
+            lissajous_per_sample,
+            window,
+            solve
+        );
+        defmt::info!("turnaround (-): {=u32} instructions; cycle-closing turnaround (+): {=u32} instructions ({=u32} cycles closed)", per_minus, per_plus, plus_n);
+        let per_cycle = per_minus + per_plus;
+        defmt::info!("per dither cycle: {=u32} instructions = {=u32} per mille of 168 M instructions/s at 389 Hz, {=u32} per mille at 1 kHz", per_cycle, per_cycle * 389 / 168_000, per_cycle * 1000 / 168_000);
+        semihosting::process::exit(if plus_n > 100 { 0 } else { 1 })
+    }
+}
+
+#[cfg(not(target_os = "none"))]
+fn main() {
+    println!("cost: an MCU example (`cargo fw-icount --example cost`)");
+}
