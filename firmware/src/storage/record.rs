@@ -1,0 +1,472 @@
+//! The calibration record: fixed 64-byte little-endian layout, CRC-32, commit marker and the
+//! plausibility checks applied both before storing and after loading.
+//!
+//! # Frame (every format version, present and future)
+//! What the scanner relies on to find, check and skip a record without knowing its version:
+//!
+//! | word | content |
+//! |---|---|
+//! | 0 | magic `0xCA1B` (u16), format version (u8), length in 32-bit words (u8) |
+//! | 1 | sequence number (u32): +1 per store, over both sectors |
+//! | 2 .. n-3 | the version's body |
+//! | n-2 | CRC-32/ISO-HDLC of bytes 0 .. 4(n-2) (header and body) |
+//! | n-1 | commit marker [`COMMIT_MARKER`], programmed last |
+//!
+//! A frame starts on a [`ALIGN_BYTES`] boundary of its sector and is a multiple of
+//! [`ALIGN_BYTES`] long (at most [`MAX_FRAME_BYTES`]). A frame is *valid* when the magic,
+//! the length, the CRC and the marker all check; a valid frame of an unknown version is skipped
+//! by its length and left alone.
+//!
+//! # Format version 1 ([`RECORD_BYTES`] = 64 bytes, 16 words)
+//!
+//! | offset | size | field |
+//! |---|---|---|
+//! | 0 | 2 | magic `0xCA1B` |
+//! | 2 | 1 | format version = 1 |
+//! | 3 | 1 | length = 16 words |
+//! | 4 | 4 | sequence number (u32) |
+//! | 8 | 4 | gyro serial number (u32) |
+//! | 12 | 4 | boot count at the time of storing (u32, supplied by the caller) |
+//! | 16 | 4 | a, Q15.16 rad/s (i32) |
+//! | 20 | 4 | b, Q15.16 rad/s (i32) |
+//! | 24 | 1 | compensation enabled: 0 or 1 |
+//! | 25 | 1 | flags: bit 0 fit summary present, bit 1 reset-to-defaults record; others 0 |
+//! | 26 | 2 | fit: runs pooled (u16, saturated) |
+//! | 28 | 4 | fit: cycles (u32, saturated) |
+//! | 32 | 4 | fit: standard error of a, rad/s (f32) |
+//! | 36 | 4 | fit: standard error of b, rad/s (f32) |
+//! | 40 | 4 | fit: residual standard deviation of the per-cycle output, rad (f32) |
+//! | 44 | 4 | fit: variance reduction (f32) |
+//! | 48 | 4 | fit: condition number (f32) |
+//! | 52 | 4 | fit: mean input rate, rad/s of beat phase (f32) |
+//! | 56 | 4 | CRC-32 of bytes 0..56 |
+//! | 60 | 4 | commit marker |
+//!
+//! The fit's statistics are stored as f32: they are reports for the host, never fed back into
+//! the signal chain, and 24 bits of mantissa are far more than their own uncertainty. The fit's
+//! a and b are not repeated: the record holds them as the applied Q15.16 coefficients, and
+//! Omega_L and eps follow from those ([`CalibrationRecord::lock_in_rad_per_s`],
+//! [`CalibrationRecord::eps_rad`]). Without a fit (coefficients set by hand, or a reset) the fit
+//! bytes are zero and flag bit 0 is clear.
+
+use super::crc::crc32;
+use crate::calibration::fit::FitResult;
+use crate::signal::compensation::{Coefficients, CompensationSettings};
+
+/// First half-word of every frame.
+pub const MAGIC: u16 = 0xCA1B;
+/// The format version this firmware writes and reads.
+pub const FORMAT_VERSION: u8 = 1;
+/// Length of a version-1 record.
+pub const RECORD_BYTES: usize = 64;
+/// Frames start on, and are a whole number of, these units.
+pub const ALIGN_BYTES: usize = 16;
+/// Longest frame the length byte can describe in whole [`ALIGN_BYTES`] units: 252 words.
+pub const MAX_FRAME_BYTES: usize = 252 * 4;
+/// The last word of a frame, programmed only after the rest has been read back and verified.
+/// A power cut leaves it erased or partially programmed (a subset of its bit clears), which
+/// never equals this value.
+pub const COMMIT_MARKER: u32 = 0xA5C3_3C5A;
+
+/// Byte offsets of the version-1 fields (see the module table).
+pub mod offset {
+    pub const MAGIC: usize = 0;
+    pub const VERSION: usize = 2;
+    pub const LENGTH_WORDS: usize = 3;
+    pub const SEQUENCE: usize = 4;
+    pub const SERIAL_NUMBER: usize = 8;
+    pub const BOOT_COUNT: usize = 12;
+    pub const A_Q16: usize = 16;
+    pub const B_Q16: usize = 20;
+    pub const ENABLED: usize = 24;
+    pub const FLAGS: usize = 25;
+    pub const FIT_RUNS: usize = 26;
+    pub const FIT_CYCLES: usize = 28;
+    pub const FIT_A_STD: usize = 32;
+    pub const FIT_B_STD: usize = 36;
+    pub const FIT_RESIDUAL_STD: usize = 40;
+    pub const FIT_VARIANCE_REDUCTION: usize = 44;
+    pub const FIT_CONDITION_NUMBER: usize = 48;
+    pub const FIT_MEAN_RATE: usize = 52;
+    /// CRC of `[0, CRC)`; in any frame of length n bytes it sits at n - 8.
+    pub const CRC: usize = 56;
+    /// Commit marker; in any frame of length n bytes it sits at n - 4.
+    pub const COMMIT: usize = 60;
+}
+
+const FLAG_FIT_PRESENT: u8 = 1 << 0;
+const FLAG_RESET: u8 = 1 << 1;
+const KNOWN_FLAGS: u8 = FLAG_FIT_PRESENT | FLAG_RESET;
+
+/// Why bytes are not a usable record, or a record may not be stored.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum RecordError {
+    /// No magic, or a length that is not a whole frame.
+    NotAFrame,
+    /// The CRC does not match the header and body.
+    Crc,
+    /// The commit marker is not (fully) programmed: a write that did not finish.
+    NotCommitted,
+    /// A valid frame of a format version this firmware cannot read.
+    UnknownVersion { version: u8 },
+    /// The enabled byte is neither 0 nor 1, or unknown flag bits are set.
+    BadFlags,
+    /// A fit statistic is NaN or outside its possible range, or fit bytes without a fit.
+    ImplausibleFit,
+    /// A reset record that carries anything but the default settings.
+    ImplausibleReset,
+}
+
+/// The fit behind the stored coefficients, condensed for the record (see the module table).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FitSummary {
+    /// Dither cycles in the fit (saturates at `u32::MAX`).
+    pub cycles: u32,
+    /// Runs pooled (saturates at `u16::MAX`).
+    pub runs: u16,
+    pub a_std_rad_per_s: f32,
+    pub b_std_rad_per_s: f32,
+    pub residual_std_rad: f32,
+    pub variance_reduction: f32,
+    pub condition_number: f32,
+    pub mean_rate_rad_per_s: f32,
+}
+
+impl FitSummary {
+    /// Condenses a fit: f64 -> f32 (rounded; beyond the f32 range it becomes infinite, which the
+    /// checks accept), counts saturated.
+    pub fn from_fit(fit: &FitResult) -> Self {
+        Self {
+            cycles: u32::try_from(fit.cycles).unwrap_or(u32::MAX),
+            runs: u16::try_from(fit.runs).unwrap_or(u16::MAX),
+            a_std_rad_per_s: fit.a_std_rad_per_s as f32,
+            b_std_rad_per_s: fit.b_std_rad_per_s as f32,
+            residual_std_rad: fit.residual_std_rad as f32,
+            variance_reduction: fit.variance_reduction as f32,
+            condition_number: fit.condition_number as f32,
+            mean_rate_rad_per_s: fit.mean_rate_rad_per_s as f32,
+        }
+    }
+
+    /// No NaN; standard deviations >= 0; condition number >= 1; variance reduction <= 1.
+    pub fn check(&self) -> Result<(), RecordError> {
+        let values = [
+            self.a_std_rad_per_s,
+            self.b_std_rad_per_s,
+            self.residual_std_rad,
+            self.variance_reduction,
+            self.condition_number,
+            self.mean_rate_rad_per_s,
+        ];
+        let plausible = values.iter().all(|value| !value.is_nan())
+            && self.a_std_rad_per_s >= 0.0
+            && self.b_std_rad_per_s >= 0.0
+            && self.residual_std_rad >= 0.0
+            && self.condition_number >= 1.0
+            && self.variance_reduction <= 1.0;
+        if plausible {
+            Ok(())
+        } else {
+            Err(RecordError::ImplausibleFit)
+        }
+    }
+}
+
+/// What is stored: the compensation settings and where they came from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CalibrationRecord {
+    /// The gyro this calibration belongs to.
+    pub serial_number: u32,
+    /// The board's boot count when the record was stored (the caller's counter; the store does
+    /// not keep one, since writing at every boot would wear the flash and stall the CPU).
+    pub boot_count: u32,
+    /// The coefficients and the on/off switch, as applied.
+    pub settings: CompensationSettings,
+    /// The fit that produced the coefficients; `None` when they were set by hand.
+    pub fit: Option<FitSummary>,
+    /// Written by `reset_to_defaults`: the settings are the defaults, on purpose.
+    pub reset_to_defaults: bool,
+}
+
+impl CalibrationRecord {
+    /// What runs when nothing valid is stored: compensation off, a = b = 0, serial 0 (unknown).
+    pub const DEFAULTS: Self = Self {
+        serial_number: 0,
+        boot_count: 0,
+        settings: CompensationSettings {
+            coefficients: Coefficients { a_q16: 0, b_q16: 0 },
+            enabled: false,
+        },
+        fit: None,
+        reset_to_defaults: false,
+    };
+
+    /// The record `reset_to_defaults` writes.
+    pub const fn reset(serial_number: u32, boot_count: u32) -> Self {
+        Self {
+            serial_number,
+            boot_count,
+            reset_to_defaults: true,
+            ..Self::DEFAULTS
+        }
+    }
+
+    /// Omega_L = hypot(a, b) of the stored coefficients, rad/s.
+    pub fn lock_in_rad_per_s(&self) -> f32 {
+        let c = self.settings.coefficients;
+        libm::hypotf(c.a_rad_per_s(), c.b_rad_per_s())
+    }
+
+    /// eps = atan2(b, a) - pi/4 of the stored coefficients, rad.
+    pub fn eps_rad(&self) -> f32 {
+        let c = self.settings.coefficients;
+        libm::atan2f(c.b_rad_per_s(), c.a_rad_per_s()) - core::f32::consts::FRAC_PI_4
+    }
+
+    /// The plausibility checks (the CRC and the frame are checked by [`decode`]).
+    pub fn check(&self) -> Result<(), RecordError> {
+        if let Some(fit) = &self.fit {
+            fit.check()?;
+        }
+        let is_default = self.settings == Self::DEFAULTS.settings && self.fit.is_none();
+        if self.reset_to_defaults && !is_default {
+            return Err(RecordError::ImplausibleReset);
+        }
+        Ok(())
+    }
+}
+
+/// The header of any frame, as far as the first [`ALIGN_BYTES`] tell (CRC not yet checked).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameHeader {
+    pub version: u8,
+    pub length_bytes: usize,
+    pub sequence: u32,
+}
+
+/// Reads a frame header: the magic and a length that is a whole number of units.
+pub fn parse_header(unit: &[u8; ALIGN_BYTES]) -> Option<FrameHeader> {
+    let length_bytes = unit[offset::LENGTH_WORDS] as usize * 4;
+    let whole = length_bytes >= ALIGN_BYTES && length_bytes.is_multiple_of(ALIGN_BYTES);
+    (get_u16(unit, offset::MAGIC) == MAGIC && whole).then(|| FrameHeader {
+        version: unit[offset::VERSION],
+        length_bytes,
+        sequence: get_u32(unit, offset::SEQUENCE),
+    })
+}
+
+/// The version-1 bytes of `record` with sequence number `sequence`, CRC and commit marker.
+/// Does not check the record (the store does, before it writes).
+pub fn encode(record: &CalibrationRecord, sequence: u32) -> [u8; RECORD_BYTES] {
+    let mut bytes = [0u8; RECORD_BYTES];
+    put(&mut bytes, offset::MAGIC, &MAGIC.to_le_bytes());
+    bytes[offset::VERSION] = FORMAT_VERSION;
+    bytes[offset::LENGTH_WORDS] = (RECORD_BYTES / 4) as u8;
+    put(&mut bytes, offset::SEQUENCE, &sequence.to_le_bytes());
+    put(
+        &mut bytes,
+        offset::SERIAL_NUMBER,
+        &record.serial_number.to_le_bytes(),
+    );
+    put(
+        &mut bytes,
+        offset::BOOT_COUNT,
+        &record.boot_count.to_le_bytes(),
+    );
+    let coefficients = record.settings.coefficients;
+    put(&mut bytes, offset::A_Q16, &coefficients.a_q16.to_le_bytes());
+    put(&mut bytes, offset::B_Q16, &coefficients.b_q16.to_le_bytes());
+    bytes[offset::ENABLED] = record.settings.enabled as u8;
+    let mut flags = 0;
+    if let Some(fit) = &record.fit {
+        flags |= FLAG_FIT_PRESENT;
+        encode_fit(&mut bytes, fit);
+    }
+    if record.reset_to_defaults {
+        flags |= FLAG_RESET;
+    }
+    bytes[offset::FLAGS] = flags;
+    seal(&mut bytes);
+    bytes
+}
+
+/// Writes the CRC of `frame[..len - 8]` at `len - 8` and the commit marker at `len - 4`:
+/// the closing words of any frame.
+pub fn seal(frame: &mut [u8]) {
+    let crc_at = frame.len() - 8;
+    let crc = crc32(&frame[..crc_at]);
+    put(frame, crc_at, &crc.to_le_bytes());
+    put(frame, crc_at + 4, &COMMIT_MARKER.to_le_bytes());
+}
+
+fn encode_fit(bytes: &mut [u8; RECORD_BYTES], fit: &FitSummary) {
+    put(bytes, offset::FIT_RUNS, &fit.runs.to_le_bytes());
+    put(bytes, offset::FIT_CYCLES, &fit.cycles.to_le_bytes());
+    let floats = [
+        (offset::FIT_A_STD, fit.a_std_rad_per_s),
+        (offset::FIT_B_STD, fit.b_std_rad_per_s),
+        (offset::FIT_RESIDUAL_STD, fit.residual_std_rad),
+        (offset::FIT_VARIANCE_REDUCTION, fit.variance_reduction),
+        (offset::FIT_CONDITION_NUMBER, fit.condition_number),
+        (offset::FIT_MEAN_RATE, fit.mean_rate_rad_per_s),
+    ];
+    for (at, value) in floats {
+        put(bytes, at, &value.to_le_bytes());
+    }
+}
+
+/// Checks a version-1 frame completely (magic, version, length, CRC, marker, plausibility) and
+/// returns its sequence number and record.
+pub fn decode(bytes: &[u8; RECORD_BYTES]) -> Result<(u32, CalibrationRecord), RecordError> {
+    let header: &[u8; ALIGN_BYTES] = bytes[..ALIGN_BYTES].try_into().unwrap();
+    let header = parse_header(header).ok_or(RecordError::NotAFrame)?;
+    if header.length_bytes != RECORD_BYTES {
+        return Err(RecordError::NotAFrame);
+    }
+    if get_u32(bytes, offset::COMMIT) != COMMIT_MARKER {
+        return Err(RecordError::NotCommitted);
+    }
+    if get_u32(bytes, offset::CRC) != crc32(&bytes[..offset::CRC]) {
+        return Err(RecordError::Crc);
+    }
+    if header.version != FORMAT_VERSION {
+        return Err(RecordError::UnknownVersion {
+            version: header.version,
+        });
+    }
+    let record = decode_body(bytes)?;
+    record.check()?;
+    Ok((header.sequence, record))
+}
+
+fn decode_body(bytes: &[u8; RECORD_BYTES]) -> Result<CalibrationRecord, RecordError> {
+    let flags = bytes[offset::FLAGS];
+    let enabled = bytes[offset::ENABLED];
+    if flags & !KNOWN_FLAGS != 0 || enabled > 1 {
+        return Err(RecordError::BadFlags);
+    }
+    let fit = if flags & FLAG_FIT_PRESENT != 0 {
+        Some(decode_fit(bytes))
+    } else if bytes[offset::FIT_RUNS..offset::CRC].iter().any(|&b| b != 0) {
+        return Err(RecordError::ImplausibleFit);
+    } else {
+        None
+    };
+    Ok(CalibrationRecord {
+        serial_number: get_u32(bytes, offset::SERIAL_NUMBER),
+        boot_count: get_u32(bytes, offset::BOOT_COUNT),
+        settings: CompensationSettings {
+            coefficients: Coefficients {
+                a_q16: get_u32(bytes, offset::A_Q16) as i32,
+                b_q16: get_u32(bytes, offset::B_Q16) as i32,
+            },
+            enabled: enabled == 1,
+        },
+        fit,
+        reset_to_defaults: flags & FLAG_RESET != 0,
+    })
+}
+
+fn decode_fit(bytes: &[u8; RECORD_BYTES]) -> FitSummary {
+    let float = |at| f32::from_bits(get_u32(bytes, at));
+    FitSummary {
+        cycles: get_u32(bytes, offset::FIT_CYCLES),
+        runs: get_u16(bytes, offset::FIT_RUNS),
+        a_std_rad_per_s: float(offset::FIT_A_STD),
+        b_std_rad_per_s: float(offset::FIT_B_STD),
+        residual_std_rad: float(offset::FIT_RESIDUAL_STD),
+        variance_reduction: float(offset::FIT_VARIANCE_REDUCTION),
+        condition_number: float(offset::FIT_CONDITION_NUMBER),
+        mean_rate_rad_per_s: float(offset::FIT_MEAN_RATE),
+    }
+}
+
+fn put(bytes: &mut [u8], at: usize, value: &[u8]) {
+    bytes[at..at + value.len()].copy_from_slice(value);
+}
+
+fn get_u16(bytes: &[u8], at: usize) -> u16 {
+    u16::from_le_bytes([bytes[at], bytes[at + 1]])
+}
+
+/// The little-endian word at `at`.
+pub fn get_u32(bytes: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> CalibrationRecord {
+        CalibrationRecord {
+            serial_number: 0x1234_5678,
+            boot_count: 42,
+            settings: CompensationSettings {
+                coefficients: Coefficients {
+                    a_q16: 12_345_678,
+                    b_q16: -7_654_321,
+                },
+                enabled: true,
+            },
+            fit: Some(FitSummary {
+                cycles: 1_000_000,
+                runs: 4,
+                a_std_rad_per_s: 1.5e-3,
+                b_std_rad_per_s: 2.5e-3,
+                residual_std_rad: 3e-4,
+                variance_reduction: 0.93,
+                condition_number: 1.7,
+                mean_rate_rad_per_s: -12.5,
+            }),
+            reset_to_defaults: false,
+        }
+    }
+
+    #[test]
+    fn round_trip() {
+        for record in [
+            sample(),
+            CalibrationRecord::DEFAULTS,
+            CalibrationRecord::reset(7, 9),
+        ] {
+            let bytes = encode(&record, 99);
+            assert_eq!(decode(&bytes), Ok((99, record)));
+        }
+    }
+
+    #[test]
+    fn layout_is_little_endian_at_documented_offsets() {
+        let bytes = encode(&sample(), 0x0102_0304);
+        assert_eq!(&bytes[..4], &[0x1B, 0xCA, 1, 16]);
+        assert_eq!(&bytes[4..8], &[4, 3, 2, 1]);
+        assert_eq!(&bytes[8..12], &[0x78, 0x56, 0x34, 0x12]);
+        assert_eq!(get_u32(&bytes, offset::CRC), crc32(&bytes[..56]));
+        assert_eq!(get_u32(&bytes, offset::COMMIT), COMMIT_MARKER);
+    }
+
+    #[test]
+    fn every_single_bit_flip_is_refused() {
+        let bytes = encode(&sample(), 5);
+        for bit in 0..RECORD_BYTES * 8 {
+            let mut flipped = bytes;
+            flipped[bit / 8] ^= 1 << (bit % 8);
+            assert!(decode(&flipped).is_err(), "bit {bit}");
+        }
+    }
+
+    #[test]
+    fn implausible_records_are_refused() {
+        let mut record = sample();
+        record.fit.as_mut().unwrap().condition_number = 0.5;
+        assert_eq!(record.check(), Err(RecordError::ImplausibleFit));
+        record.fit.as_mut().unwrap().condition_number = f32::NAN;
+        assert_eq!(record.check(), Err(RecordError::ImplausibleFit));
+        let mut reset = CalibrationRecord::reset(1, 1);
+        reset.settings.enabled = true;
+        assert_eq!(reset.check(), Err(RecordError::ImplausibleReset));
+    }
+}

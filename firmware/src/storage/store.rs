@@ -1,0 +1,482 @@
+//! The two-sector log: where a record goes, how the newest is found again, and what a store
+//! may erase (see the module docs of [`crate::storage`] for the power-fail argument).
+
+use embedded_storage::nor_flash::{NorFlash, ReadNorFlash};
+
+use super::crc::Crc32;
+use super::record::{
+    self, get_u32, CalibrationRecord, FrameHeader, RecordError, ALIGN_BYTES, COMMIT_MARKER,
+    FORMAT_VERSION, RECORD_BYTES,
+};
+use super::ReadoutPaused;
+
+/// The log has exactly two sectors: one keeps the newest record while the other is erased.
+const SECTORS: usize = 2;
+/// Flash is read in these units: a frame's first unit holds its whole header.
+type Unit = [u8; ALIGN_BYTES];
+const ERASED_UNIT: Unit = [0xFF; ALIGN_BYTES];
+
+/// Where the two sectors are, in the offsets of the `NorFlash` driver.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Geometry {
+    /// Offset of the first sector; the second follows it directly.
+    pub base_offset: u32,
+    /// Size of each sector: a multiple of the flash's erase size.
+    pub sector_bytes: u32,
+}
+
+impl Geometry {
+    /// Sectors 10 and 11 of the STM32F405 (0x080C_0000 and 0x080E_0000, 128 KiB each, reserved
+    /// in `memory.x`) for a driver whose offset 0 is 0x0800_0000.
+    pub const F405_SECTORS_10_11: Self = Self {
+        base_offset: 0x000C_0000,
+        sector_bytes: 128 * 1024,
+    };
+    /// The same two sectors for a driver that addresses only the calibration area, from 0
+    /// (hal-sim's `CalibrationFlash`).
+    pub const F405_CALIBRATION_AREA: Self = Self {
+        base_offset: 0,
+        sector_bytes: 128 * 1024,
+    };
+
+    fn sector_start(&self, sector: usize) -> u32 {
+        self.base_offset + sector as u32 * self.sector_bytes
+    }
+}
+
+/// Why a geometry does not fit a flash.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum GeometryError {
+    /// Base or sector size not a multiple of the erase size or of [`ALIGN_BYTES`].
+    Unaligned,
+    /// A sector cannot hold one record.
+    TooSmall,
+    /// The two sectors do not lie inside the flash.
+    OutOfBounds,
+    /// The driver's write size does not divide 4 (the commit marker is one word written alone)
+    /// or its read size does not divide [`ALIGN_BYTES`].
+    UnsupportedFlash,
+}
+
+/// Why a store failed. Whatever the error, `load` returns the record that loaded before, or the
+/// new one if its commit marker was programmed before the failure (a power cut in the last
+/// word, or a read-back mismatch after the marker): never anything else.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum StoreError<E> {
+    /// The record fails its plausibility checks; nothing was written.
+    Record(RecordError),
+    /// The flash driver failed (erase, program or read); in the simulator also a power cut.
+    Flash(E),
+    /// Read-back differs from what was programmed, at this driver offset. The marker is written
+    /// only after the body verified, so a body mismatch leaves an uncommitted (ignored) record.
+    /// The next store appends after it; retrying is the caller's choice.
+    Verify { offset: u32 },
+    /// Flash that must be erased is not (at this offset): the erase did not complete.
+    NotErased { offset: u32 },
+    /// The sequence number would overflow (2^32 stores: beyond the flash's endurance).
+    SequenceExhausted,
+}
+
+/// A valid frame of a format version this firmware cannot read: skipped and left in flash.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SkippedFrame {
+    pub version: u8,
+    pub sequence: u32,
+}
+
+/// Why the defaults are in force.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum DefaultsReason {
+    /// Both sectors are erased: a fresh board.
+    Erased,
+    /// Something is stored, but no valid record of this format version.
+    NoValidRecord,
+    /// The newest record was written by `reset_to_defaults` (with this sequence number).
+    Reset { sequence: u32 },
+    /// The flash could not be read.
+    ReadFailed,
+}
+
+/// What `load` found: the flag the host reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum LoadOutcome {
+    /// The stored calibration with this sequence number is in force.
+    Loaded { sequence: u32 },
+    /// The defaults are in force.
+    Defaults { reason: DefaultsReason },
+}
+
+/// The outcome and the health of the store.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LoadReport {
+    pub outcome: LoadOutcome,
+    /// The newest valid frame of an unknown (newer) format version, if any: skipped, untouched.
+    pub newer_format: Option<SkippedFrame>,
+    /// Valid frames of this version whose contents failed the plausibility checks.
+    pub rejected_records: u32,
+    /// Bytes neither erased nor part of a valid frame: torn writes and corruption.
+    pub damaged_bytes: u32,
+}
+
+impl LoadReport {
+    fn defaults(reason: DefaultsReason) -> Self {
+        Self {
+            outcome: LoadOutcome::Defaults { reason },
+            newer_format: None,
+            rejected_records: 0,
+            damaged_bytes: 0,
+        }
+    }
+}
+
+/// What one pass over a sector found.
+#[derive(Clone, Copy, Debug, Default)]
+struct SectorScan {
+    /// The newest loadable record and its sequence number.
+    newest: Option<(u32, CalibrationRecord)>,
+    /// The highest sequence number of any valid frame, of any version.
+    max_sequence: Option<u32>,
+    newer_format: Option<SkippedFrame>,
+    rejected_records: u32,
+    damaged_bytes: u32,
+    /// End of the last unit that is not erased: the next record goes here.
+    used_bytes: u32,
+}
+
+/// Both sectors.
+struct Scan([SectorScan; SECTORS]);
+
+impl Scan {
+    /// The sector and contents of the newest loadable record.
+    fn newest(&self) -> Option<(usize, u32, CalibrationRecord)> {
+        (0..SECTORS)
+            .filter_map(|s| self.0[s].newest.map(|(seq, record)| (s, seq, record)))
+            .max_by_key(|&(_, seq, _)| seq)
+    }
+
+    /// The sector holding the highest sequence number of any valid frame: the one written last.
+    fn head(&self) -> Option<usize> {
+        (0..SECTORS)
+            .filter(|&s| self.0[s].max_sequence.is_some())
+            .max_by_key(|&s| self.0[s].max_sequence)
+    }
+
+    fn max_sequence(&self) -> Option<u32> {
+        self.0.iter().filter_map(|s| s.max_sequence).max()
+    }
+
+    fn report(&self, outcome: LoadOutcome) -> LoadReport {
+        LoadReport {
+            outcome,
+            newer_format: self
+                .0
+                .iter()
+                .filter_map(|s| s.newer_format)
+                .max_by_key(|f| f.sequence),
+            rejected_records: self.0.iter().map(|s| s.rejected_records).sum(),
+            damaged_bytes: self.0.iter().map(|s| s.damaged_bytes).sum(),
+        }
+    }
+}
+
+/// The calibration store over two sectors (stateless: every call scans the flash).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CalibrationStore {
+    geometry: Geometry,
+}
+
+impl CalibrationStore {
+    /// Checks `geometry` against `flash` (use the store with that flash only).
+    pub fn new<F: NorFlash>(flash: &F, geometry: Geometry) -> Result<Self, GeometryError> {
+        let unit = ALIGN_BYTES as u32;
+        if !(4usize.is_multiple_of(F::WRITE_SIZE) && ALIGN_BYTES.is_multiple_of(F::READ_SIZE)) {
+            return Err(GeometryError::UnsupportedFlash);
+        }
+        let erase = F::ERASE_SIZE as u32;
+        let aligned = |value: u32| value.is_multiple_of(erase) && value.is_multiple_of(unit);
+        if !(aligned(geometry.base_offset) && aligned(geometry.sector_bytes)) {
+            return Err(GeometryError::Unaligned);
+        }
+        if (geometry.sector_bytes as usize) < RECORD_BYTES {
+            return Err(GeometryError::TooSmall);
+        }
+        let end = geometry.base_offset as u64 + SECTORS as u64 * geometry.sector_bytes as u64;
+        if end > flash.capacity() as u64 {
+            return Err(GeometryError::OutOfBounds);
+        }
+        Ok(Self { geometry })
+    }
+
+    pub fn geometry(&self) -> Geometry {
+        self.geometry
+    }
+
+    /// The newest valid record, or the defaults and why. Reads both sectors once (256 KiB on
+    /// the F405) and never writes: a torn or unknown record is left as it is.
+    pub fn load<F: ReadNorFlash>(&self, flash: &mut F) -> (CalibrationRecord, LoadReport) {
+        let Ok(scan) = self.scan(flash) else {
+            let report = LoadReport::defaults(DefaultsReason::ReadFailed);
+            return (CalibrationRecord::DEFAULTS, report);
+        };
+        let (record, outcome) = match scan.newest() {
+            Some((_, sequence, record)) if record.reset_to_defaults => {
+                let reason = DefaultsReason::Reset { sequence };
+                (record, LoadOutcome::Defaults { reason })
+            }
+            Some((_, sequence, record)) => (record, LoadOutcome::Loaded { sequence }),
+            None => {
+                let erased = scan.0.iter().all(|s| s.used_bytes == 0);
+                let reason = if erased {
+                    DefaultsReason::Erased
+                } else {
+                    DefaultsReason::NoValidRecord
+                };
+                (
+                    CalibrationRecord::DEFAULTS,
+                    LoadOutcome::Defaults { reason },
+                )
+            }
+        };
+        (record, scan.report(outcome))
+    }
+
+    /// Appends `record` and returns its sequence number, after reading it back.
+    ///
+    /// Stalls the CPU: programming takes 16 words x up to 100 us, and when the written sector
+    /// is full the other one is erased first, up to [`super::SECTOR_ERASE_MAX_MS`] on the
+    /// single-bank F405, during which no instruction is fetched from flash and no interrupt
+    /// served. Hence the [`ReadoutPaused`] token: the readout must be stopped first and
+    /// re-synchronised after.
+    pub fn store_while_paused<F: NorFlash>(
+        &self,
+        flash: &mut F,
+        _paused: &ReadoutPaused,
+        record: &CalibrationRecord,
+    ) -> Result<u32, StoreError<F::Error>> {
+        record.check().map_err(StoreError::Record)?;
+        let scan = self.scan(flash).map_err(StoreError::Flash)?;
+        let sequence = match scan.max_sequence() {
+            None => 1,
+            Some(last) => last.checked_add(1).ok_or(StoreError::SequenceExhausted)?,
+        };
+        let (sector, at) = match self.append_position(&scan) {
+            Some(position) => position,
+            None => {
+                let sector = Self::sector_to_erase(&scan);
+                self.erase(flash, sector)?;
+                (sector, 0)
+            }
+        };
+        let address = self.geometry.sector_start(sector) + at;
+        program(flash, address, &record::encode(record, sequence))?;
+        Ok(sequence)
+    }
+
+    /// Stores a record that marks the defaults as chosen (compensation off, a = b = 0), like
+    /// any other store: the previous calibration stays loadable until it is committed, and
+    /// `load` then reports [`DefaultsReason::Reset`]. (Erasing both sectors instead would not
+    /// be power-fail safe: a cut between the two erases could bring back an older record.)
+    pub fn reset_to_defaults<F: NorFlash>(
+        &self,
+        flash: &mut F,
+        paused: &ReadoutPaused,
+        serial_number: u32,
+        boot_count: u32,
+    ) -> Result<u32, StoreError<F::Error>> {
+        let record = CalibrationRecord::reset(serial_number, boot_count);
+        self.store_while_paused(flash, paused, &record)
+    }
+
+    /// Room without erasing: first in the sector written last, else in the other one.
+    fn append_position(&self, scan: &Scan) -> Option<(usize, u32)> {
+        let first = scan.head().unwrap_or(0);
+        [first, 1 - first].into_iter().find_map(|sector| {
+            let used = scan.0[sector].used_bytes;
+            let fits = used as usize + RECORD_BYTES <= self.geometry.sector_bytes as usize;
+            fits.then_some((sector, used))
+        })
+    }
+
+    /// Both sectors are full: erase the one without the newest loadable record (without a
+    /// loadable record, the one not written last).
+    fn sector_to_erase(scan: &Scan) -> usize {
+        let keep = match scan.newest() {
+            Some((sector, _, _)) => sector,
+            None => scan.head().unwrap_or(0),
+        };
+        1 - keep
+    }
+
+    fn erase<F: NorFlash>(&self, flash: &mut F, sector: usize) -> Result<(), StoreError<F::Error>> {
+        let start = self.geometry.sector_start(sector);
+        let end = start + self.geometry.sector_bytes;
+        flash.erase(start, end).map_err(StoreError::Flash)?;
+        expect_erased(flash, start, end)
+    }
+
+    fn scan<F: ReadNorFlash>(&self, flash: &mut F) -> Result<Scan, F::Error> {
+        Ok(Scan([
+            self.scan_sector(flash, 0)?,
+            self.scan_sector(flash, 1)?,
+        ]))
+    }
+
+    /// Walks a sector in units: a valid frame is taken whole, anything else not erased is
+    /// damage, skipped one unit at a time (so damage never hides the frames after it).
+    fn scan_sector<F: ReadNorFlash>(
+        &self,
+        flash: &mut F,
+        sector: usize,
+    ) -> Result<SectorScan, F::Error> {
+        let start = self.geometry.sector_start(sector);
+        let sector_bytes = self.geometry.sector_bytes;
+        let mut scan = SectorScan::default();
+        let mut at = 0;
+        while at < sector_bytes {
+            let unit = read_unit(flash, start + at)?;
+            if unit == ERASED_UNIT {
+                at += ALIGN_BYTES as u32;
+                continue;
+            }
+            let header = record::parse_header(&unit)
+                .filter(|h| at as usize + h.length_bytes <= sector_bytes as usize);
+            let frame = match header {
+                Some(header) if frame_is_valid(flash, start + at, &header, &unit)? => Some(header),
+                _ => None,
+            };
+            match frame {
+                Some(header) => {
+                    take_frame(flash, start + at, &header, &mut scan)?;
+                    at += header.length_bytes as u32;
+                }
+                None => {
+                    scan.damaged_bytes += ALIGN_BYTES as u32;
+                    at += ALIGN_BYTES as u32;
+                }
+            }
+            scan.used_bytes = at;
+        }
+        Ok(scan)
+    }
+}
+
+/// Files a valid frame: a record of this version (checked), or an unknown version (noted).
+fn take_frame<F: ReadNorFlash>(
+    flash: &mut F,
+    address: u32,
+    header: &FrameHeader,
+    scan: &mut SectorScan,
+) -> Result<(), F::Error> {
+    scan.max_sequence = scan.max_sequence.max(Some(header.sequence));
+    if header.version != FORMAT_VERSION {
+        let skipped = SkippedFrame {
+            version: header.version,
+            sequence: header.sequence,
+        };
+        if scan
+            .newer_format
+            .is_none_or(|f| f.sequence < skipped.sequence)
+        {
+            scan.newer_format = Some(skipped);
+        }
+        return Ok(());
+    }
+    if header.length_bytes != RECORD_BYTES {
+        scan.rejected_records += 1;
+        return Ok(());
+    }
+    let mut bytes = [0u8; RECORD_BYTES];
+    flash.read(address, &mut bytes)?;
+    match record::decode(&bytes) {
+        Ok((sequence, record)) if scan.newest.is_none_or(|(seq, _)| seq < sequence) => {
+            scan.newest = Some((sequence, record));
+        }
+        Ok(_) => {}
+        Err(_) => scan.rejected_records += 1,
+    }
+    Ok(())
+}
+
+/// CRC and commit marker of the frame at `address` (of any version), streaming its units.
+fn frame_is_valid<F: ReadNorFlash>(
+    flash: &mut F,
+    address: u32,
+    header: &FrameHeader,
+    first: &Unit,
+) -> Result<bool, F::Error> {
+    let last = address + (header.length_bytes - ALIGN_BYTES) as u32;
+    let mut crc = Crc32::new();
+    let mut unit = *first;
+    let mut at = address;
+    while at < last {
+        crc.update(&unit);
+        at += ALIGN_BYTES as u32;
+        unit = read_unit(flash, at)?;
+    }
+    let crc_at = ALIGN_BYTES - 8;
+    crc.update(&unit[..crc_at]);
+    let committed = get_u32(&unit, crc_at + 4) == COMMIT_MARKER;
+    Ok(committed && get_u32(&unit, crc_at) == crc.finish())
+}
+
+/// Programs a record: blank check, body, read-back, then the commit marker, read-back again.
+fn program<F: NorFlash>(
+    flash: &mut F,
+    address: u32,
+    bytes: &[u8; RECORD_BYTES],
+) -> Result<(), StoreError<F::Error>> {
+    expect_erased(flash, address, address + RECORD_BYTES as u32)?;
+    let (body, marker) = bytes.split_at(record::offset::COMMIT);
+    flash.write(address, body).map_err(StoreError::Flash)?;
+    verify(flash, address, body)?;
+    let marker_address = address + body.len() as u32;
+    flash
+        .write(marker_address, marker)
+        .map_err(StoreError::Flash)?;
+    verify(flash, address, bytes)
+}
+
+/// Compares flash from `address` with `expected`, in units (the tail may be shorter).
+fn verify<F: ReadNorFlash>(
+    flash: &mut F,
+    address: u32,
+    expected: &[u8],
+) -> Result<(), StoreError<F::Error>> {
+    let mut at = address;
+    for chunk in expected.chunks(ALIGN_BYTES) {
+        let mut actual = [0u8; ALIGN_BYTES];
+        let actual = &mut actual[..chunk.len()];
+        flash.read(at, actual).map_err(StoreError::Flash)?;
+        if actual != chunk {
+            return Err(StoreError::Verify { offset: at });
+        }
+        at += chunk.len() as u32;
+    }
+    Ok(())
+}
+
+fn expect_erased<F: ReadNorFlash>(
+    flash: &mut F,
+    start: u32,
+    end: u32,
+) -> Result<(), StoreError<F::Error>> {
+    for at in (start..end).step_by(ALIGN_BYTES) {
+        if read_unit(flash, at).map_err(StoreError::Flash)? != ERASED_UNIT {
+            return Err(StoreError::NotErased { offset: at });
+        }
+    }
+    Ok(())
+}
+
+fn read_unit<F: ReadNorFlash>(flash: &mut F, address: u32) -> Result<Unit, F::Error> {
+    let mut unit = ERASED_UNIT;
+    flash.read(address, &mut unit)?;
+    Ok(unit)
+}
