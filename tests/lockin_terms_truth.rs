@@ -36,7 +36,7 @@ fn correlation(x: &[f64], y: &[f64]) -> f64 {
 
 /// (model, truth) per cycle, for `seconds` of gyro time at `rate_deg_h`.
 fn model_and_truth(params: &GyroParams, rate_deg_h: f64, seconds: f64) -> (Vec<f64>, Vec<f64>) {
-    let gyro = Gyro::new(params.clone(), InputProfile::constant(rate_deg_h)).unwrap();
+    let gyro = Gyro::new(*params, InputProfile::constant(rate_deg_h)).unwrap();
     let board_config = BoardConfig::for_gyro(params);
     let mut board = SimBoard::new(gyro, board_config.clone()).unwrap();
     let config = ReadoutConfig::for_board(

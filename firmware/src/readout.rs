@@ -158,6 +158,16 @@ impl Readout {
         Some(record)
     }
 
+    /// Starts counting afresh after the readout was paused (a flash store stalls the CPU for up
+    /// to 2 s: turnarounds were missed and the encoder moved by an unknown amount). The count
+    /// reference, the quadrant offset and the open cycle are dropped; the Lissajous coefficients,
+    /// the compensation settings and the counters are kept. The first cycle after it is flagged.
+    pub fn resynchronise(&mut self) {
+        self.counter = FringeCounter::new();
+        self.resolver.realign();
+        self.cycles = CycleAssembler::new();
+    }
+
     /// Stages compensation settings; they apply whole from the next cycle boundary.
     pub fn stage_compensation(&mut self, settings: CompensationSettings) {
         self.compensator.stage(settings);
@@ -166,6 +176,11 @@ impl Readout {
     /// The compensation settings in force.
     pub fn compensation(&self) -> CompensationSettings {
         self.compensator.active()
+    }
+
+    /// The settings most recently asked for (staged, or in force if none waits).
+    pub fn staged_or_active_compensation(&self) -> CompensationSettings {
+        self.compensator.staged_or_active()
     }
 
     pub fn counters(&self) -> ReadoutCounters {

@@ -10,7 +10,8 @@
 //!   the pins return to their reset state (dither drive off) and the firmware starts again.
 //!   A fault that repeats at every boot therefore reset-loops; its message is in the RTT log.
 
-use cortex_m as _; // critical-section implementation
+use core::cell::Cell;
+use cortex_m::interrupt::{self, Mutex}; // also the critical-section implementation
 #[cfg(feature = "hw")]
 use defmt_rtt as _;
 #[cfg(feature = "qemu")]
@@ -97,8 +98,22 @@ impl MemoryMap {
     }
 }
 
+/// Called once by the panic and HardFault handlers before they end the program, e.g. for a
+/// test harness to close its report. Runs in the fault context: keep it to logging.
+static FATAL_HOOK: Mutex<Cell<Option<FatalHook>>> = Mutex::new(Cell::new(None));
+type FatalHook = fn();
+
+/// Installs the hook the fatal-error handlers call before ending the program.
+pub fn set_fatal_hook(hook: FatalHook) {
+    interrupt::free(|cs| FATAL_HOOK.borrow(cs).set(Some(hook)));
+}
+
 /// Ends the program after a fatal error (see the module docs for what each feature does).
 fn fatal(code: i32) -> ! {
+    // Taken, not read: a panic inside the hook ends here without calling it again.
+    if let Some(hook) = interrupt::free(|cs| FATAL_HOOK.borrow(cs).take()) {
+        hook();
+    }
     #[cfg(feature = "qemu")]
     {
         semihosting::process::exit(code)

@@ -99,7 +99,7 @@ impl SimBoard {
         let counter = QuadratureCounter::new(&config.photodiodes, config.counter, psi_h0)
             .map_err(BoardError::Counter)?;
         Ok(Self {
-            photodiodes: Photodiodes::new(config.photodiodes.clone(), config.seed),
+            photodiodes: Photodiodes::new(config.photodiodes, config.seed),
             rng: ChaCha8Rng::seed_from_u64(config.seed.wrapping_add(1)),
             timer: CaptureTimer::new(config.timer_hz),
             next_lissajous_s: 0.5 / config.lissajous_rate_hz,

@@ -27,7 +27,7 @@
 
 use crate::params::{AmplitudeModulation, Derived, GyroParams};
 use crate::units::beat_rad_to_arcsec;
-use core::f64::consts::{FRAC_PI_2, TAU};
+use core::f64::consts::TAU;
 use firmware::sample::TurnaroundKind;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -61,16 +61,36 @@ fn draw_tones(m: &AmplitudeModulation, seed: u64, out: &mut Vec<Tone>) {
     let a = m.relative_rms * (2.0 / m.tones as f64).sqrt();
     for _ in 0..m.tones {
         let f = m.min_hz + (m.max_hz - m.min_hz) * rng.random::<f64>();
-        out.push(Tone { a, nu_rad_per_s: TAU * f, phase_rad: TAU * rng.random::<f64>() });
+        out.push(Tone {
+            a,
+            nu_rad_per_s: TAU * f,
+            phase_rad: TAU * rng.random::<f64>(),
+        });
     }
 }
 
-/// `2 pi frac(f t)` computed with an error-free product: the dither phase in [0, 2 pi).
+/// Veltkamp split of `a` into two 26-bit halves (`a = hi + lo` exactly).
+#[inline]
+fn split(a: f64) -> (f64, f64) {
+    let c = 134_217_729.0 * a;
+    let hi = c - (c - a);
+    (hi, a - hi)
+}
+
+/// `2 pi frac(f t)`: the dither phase in [0, 2 pi), with `f t` formed as an error-free
+/// product (Dekker; `f64::mul_add` would be a slow libm call without target FMA) and the
+/// floor by the 1.5 * 2^52 rounding trick (valid for 0 <= f t < 2^51).
 fn reduced_phase(freq_hz: f64, t_s: f64) -> f64 {
+    const MAGIC: f64 = 6_755_399_441_055_744.0;
     let p = freq_hz * t_s;
-    let e = freq_hz.mul_add(t_s, -p);
-    let frac = (p - p.floor()) + e;
-    TAU * frac
+    let (fh, fl) = split(freq_hz);
+    let (th, tl) = split(t_s);
+    let e = ((fh * th - p) + fh * tl + fl * th) + fl * tl;
+    let mut n = (p + MAGIC) - MAGIC;
+    if n > p {
+        n -= 1.0;
+    }
+    TAU * ((p - n) + e)
 }
 
 fn binomial_row(n: usize) -> [f64; MAX_JET] {
@@ -87,11 +107,23 @@ impl Dither {
     pub fn new(params: &GyroParams, derived: &Derived) -> Self {
         let mut tones = Vec::new();
         if params.has_dither() {
-            draw_tones(&params.amplitude_jitter, params.seed ^ 0x6a09_e667_f3bc_c908, &mut tones);
-            draw_tones(&params.random_noise_dither, params.seed ^ 0xbb67_ae85_84ca_a73b, &mut tones);
+            draw_tones(
+                &params.amplitude_jitter,
+                params.seed ^ 0x6a09_e667_f3bc_c908,
+                &mut tones,
+            );
+            draw_tones(
+                &params.random_noise_dither,
+                params.seed ^ 0xbb67_ae85_84ca_a73b,
+                &mut tones,
+            );
         }
         Self {
-            freq_hz: if params.has_dither() { params.dither_hz } else { 0.0 },
+            freq_hz: if params.has_dither() {
+                params.dither_hz
+            } else {
+                0.0
+            },
             w_rad_per_s: derived.dither_w_rad_per_s,
             amp0_rad: derived.dither_amp_rad,
             tones,
@@ -135,7 +167,9 @@ impl Dither {
         }
         // g = -cos(w t) and its derivatives; A = A0 (1 + m).
         let mut g = [0.0; MAX_JET];
-        crate::input::add_sinusoid_derivs(-1.0, self.w_rad_per_s, reduced_phase(self.freq_hz, t_s) + FRAC_PI_2, &mut g[..n]);
+        // -cos(x) = -sin(x + pi/2): pass sin and cos of x + pi/2, i.e. cos x and -sin x.
+        let (c, s) = crate::phase::trig::fast_cos_sin(reduced_phase(self.freq_hz, t_s));
+        crate::input::add_sinusoid_derivs_sc(-1.0, self.w_rad_per_s, c, -s, &mut g[..n]);
         if self.tones.is_empty() {
             for (o, gk) in out.iter_mut().zip(g.iter()) {
                 *o = self.amp0_rad * gk;
@@ -202,7 +236,11 @@ impl Dither {
             if t > t_s {
                 let mut d = [0.0; 3];
                 self.angle_jet(t, &mut d);
-                let kind = if d[2] > 0.0 { TurnaroundKind::Plus } else { TurnaroundKind::Minus };
+                let kind = if d[2] > 0.0 {
+                    TurnaroundKind::Plus
+                } else {
+                    TurnaroundKind::Minus
+                };
                 return Some((t, kind));
             }
             n += 1;
@@ -215,7 +253,10 @@ mod tests {
     use super::*;
 
     fn dither(jitter: f64) -> Dither {
-        let p = GyroParams { amplitude_jitter: AmplitudeModulation::jitter(jitter), ..Default::default() };
+        let p = GyroParams {
+            amplitude_jitter: AmplitudeModulation::jitter(jitter),
+            ..Default::default()
+        };
         Dither::new(&p, &p.derive().unwrap())
     }
 
@@ -234,7 +275,15 @@ mod tests {
                 d.angle_jet(t - h, &mut b);
                 let fd = (a[k] - b[k]) / (2.0 * h);
                 // Central difference: relative error ~ (w h)^2 / 6 ~ 1e-11, plus rounding.
-                assert!((fd - j[k + 1]).abs() < 1e-6 * j[k + 1].abs().max(1e-3 * d.amp0_rad * d.w_rad_per_s.powi(k as i32 + 1)), "k={k} {fd} {}", j[k + 1]);
+                assert!(
+                    (fd - j[k + 1]).abs()
+                        < 1e-6
+                            * j[k + 1]
+                                .abs()
+                                .max(1e-3 * d.amp0_rad * d.w_rad_per_s.powi(k as i32 + 1)),
+                    "k={k} {fd} {}",
+                    j[k + 1]
+                );
             }
         }
     }

@@ -1,1 +1,244 @@
-//! TODO(owner: see lib.rs)
+//! The simulated gyro: the public face of the physics core.
+//!
+//! [`Gyro`] owns the parameters (immutable), the input profile and the integrator state,
+//! and answers, for forward-moving time:
+//! - the beat phase `psi(t)` (rad, unwrapped) and what the photodiodes see, `psi_H = psi - eps`;
+//! - the turnarounds: exact zeros of the lock-in-free rate (dither + input + noise), with the
+//!   beat phase at the instant and `psi_ddot` there;
+//! - the truth about lock-in: per traversal the change of the slow lock-in phase `chi`
+//!   across the near region ([`Traversal::lockin_error_rad`]), and at every turnaround the
+//!   lock-in phase `phi = psi - theta` itself, whose difference between two turnarounds of
+//!   the same kind is the exact lock-in error of that dither cycle;
+//! - the free phase `theta(t)`, the true input rate, the dither pick-off and its turnarounds.
+//!
+//! Time only moves forward (`advance_to` panics on a step back); clone the gyro to explore
+//! ahead. Same parameters (and seed) and same input give the same results bit for bit,
+//! independent of how often or where the caller looks.
+
+use crate::input::InputProfile;
+use crate::params::{Derived, GyroParams, ParamError};
+use crate::phase::free_phase::FreePhase;
+use crate::phase::integrator::{Event, Integrator};
+pub use crate::phase::plan::TurnaroundTime;
+use firmware::sample::TurnaroundKind;
+use std::collections::VecDeque;
+
+/// A turnaround as the gyro passed it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Turnaround {
+    /// Exact zero of the lock-in-free rate, s.
+    pub time_s: f64,
+    pub kind: TurnaroundKind,
+    /// Beat phase at the instant, rad (unwrapped).
+    pub psi_rad: f64,
+    /// Lock-in phase `psi - theta` at the instant, rad.
+    pub phi_rad: f64,
+    /// `d omega / dt` at the zero, rad/s^2 (psi_ddot without the small lock-in term).
+    pub psi_ddot_rad_per_s2: f64,
+}
+
+/// One traversal of the lock-in zone (a near region containing exactly one turnaround).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Traversal {
+    pub turnaround: Turnaround,
+    /// Change of the slow lock-in phase `chi` across the near region, rad: the lock-in phase
+    /// error of this traversal with the far-field oscillation removed at both ends.
+    pub lockin_error_rad: f64,
+    /// Where the near region begins and ends, s.
+    pub near_start_s: f64,
+    pub near_end_s: f64,
+}
+
+/// Traversals kept if the caller never drains them (oldest dropped first).
+pub const TRAVERSAL_LOG_CAP: usize = 1 << 20;
+
+/// A simulated ring laser gyro.
+#[derive(Clone, Debug)]
+pub struct Gyro {
+    params: GyroParams,
+    derived: Derived,
+    integ: Integrator,
+    run_turns: Vec<Turnaround>,
+    last_turn: Option<Turnaround>,
+    traversals: VecDeque<Traversal>,
+}
+
+impl Gyro {
+    /// A gyro with `params`, driven by `input`, at t = 0.
+    pub fn new(params: GyroParams, input: InputProfile) -> Result<Self, ParamError> {
+        let derived = params.derive()?;
+        let fp = FreePhase::new(&params, &derived, input);
+        let integ = Integrator::new(
+            fp,
+            derived.omega_l_rad_per_s,
+            &params.solver,
+            params.initial_psi_rad,
+        );
+        Ok(Self {
+            params,
+            derived,
+            integ,
+            run_turns: Vec::new(),
+            last_turn: None,
+            traversals: VecDeque::new(),
+        })
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &GyroParams {
+        &self.params
+    }
+
+    /// The parameters in beat-phase units.
+    pub fn derived(&self) -> &Derived {
+        &self.derived
+    }
+
+    /// The latest time advanced to, s.
+    pub fn t_s(&self) -> f64 {
+        self.integ.t_now()
+    }
+
+    fn absorb_events(&mut self) {
+        let events: Vec<Event> = self.integ.drain_events().collect();
+        for ev in events {
+            match ev {
+                Event::Turnaround(ts) => {
+                    let t = Turnaround {
+                        time_s: ts.at.time_s,
+                        kind: ts.at.kind,
+                        psi_rad: ts.psi_rad,
+                        phi_rad: ts.phi_rad,
+                        psi_ddot_rad_per_s2: ts.at.psi_ddot_rad_per_s2,
+                    };
+                    self.run_turns.push(t);
+                    self.last_turn = Some(t);
+                }
+                Event::NearRunEnd(run) => {
+                    if let (Some(chi_in), [turn]) = (run.chi_in, self.run_turns.as_slice()) {
+                        if self.traversals.len() == TRAVERSAL_LOG_CAP {
+                            self.traversals.pop_front();
+                        }
+                        self.traversals.push_back(Traversal {
+                            turnaround: *turn,
+                            lockin_error_rad: run.chi_out - chi_in,
+                            near_start_s: run.t_in,
+                            near_end_s: run.t_out,
+                        });
+                    }
+                    self.run_turns.clear();
+                }
+            }
+        }
+    }
+
+    /// Advances to `t_s` (>= the current time) and returns the beat phase `psi(t)`, rad.
+    pub fn advance_to(&mut self, t_s: f64) -> f64 {
+        let psi = self.integ.advance_to(t_s);
+        self.absorb_events();
+        psi
+    }
+
+    /// What the photodiodes see at `t_s`: `psi_H = psi - eps`, rad (advances to `t_s`).
+    pub fn psi_h(&mut self, t_s: f64) -> f64 {
+        self.advance_to(t_s) - self.params.eps_rad
+    }
+
+    /// The next turnaround after the current time, without advancing (plans ahead).
+    pub fn upcoming_turnaround(&mut self) -> TurnaroundTime {
+        self.integ.upcoming_turnaround()
+    }
+
+    /// Advances to the next turnaround and returns it with the beat phase at the instant.
+    pub fn next_turnaround(&mut self) -> Turnaround {
+        let next = self.integ.upcoming_turnaround();
+        self.advance_to(next.time_s);
+        let t = self.last_turn.expect("the turnaround was just passed");
+        debug_assert_eq!(t.time_s, next.time_s);
+        t
+    }
+
+    /// Drains the traversals completed so far (a traversal completes when its near region
+    /// ends, ~66 us after its turnaround with the default solver settings).
+    pub fn take_traversals(&mut self) -> Vec<Traversal> {
+        self.traversals.drain(..).collect()
+    }
+
+    /// The lock-in-free phase `theta(t)` (input + dither + noise angle), rad of beat phase.
+    pub fn theta_rad(&self, t_s: f64) -> f64 {
+        self.integ.free_phase().theta_rad(t_s)
+    }
+
+    /// The lock-in-free rate at `t_s`, rad/s of beat phase.
+    pub fn lockin_free_rate_rad_per_s(&self, t_s: f64) -> f64 {
+        let fp = self.integ.free_phase();
+        fp.omega_and_slope(t_s, fp.piece_at(t_s)).0
+    }
+
+    /// The true input rate at `t_s`, deg/h.
+    pub fn input_rate_deg_per_h(&self, t_s: f64) -> f64 {
+        self.integ.free_phase().input().rate_deg_per_h(t_s)
+    }
+
+    /// The true input angle since t = 0, arcsec of body angle.
+    pub fn input_angle_arcsec(&self, t_s: f64) -> f64 {
+        self.integ.free_phase().input().angle_arcsec(t_s)
+    }
+
+    /// The dither pick-off (spring deflection) at `t_s`, arcsec of body angle.
+    pub fn dither_pickoff_arcsec(&self, t_s: f64) -> f64 {
+        self.integ.free_phase().dither().pickoff_angle_arcsec(t_s)
+    }
+
+    /// The first zero of the dither-only rate after `t_s` (the pick-off's turnaround), which
+    /// differs from the true turnaround by about `Omega_i / psi_ddot` (PHYSICS.md pitfall 3).
+    pub fn pickoff_turnaround_after(&self, t_s: f64) -> Option<(f64, TurnaroundKind)> {
+        self.integ
+            .free_phase()
+            .dither()
+            .pickoff_turnaround_after(t_s)
+    }
+
+    /// The free phase model (input, dither, noise).
+    pub fn free_phase(&self) -> &FreePhase {
+        self.integ.free_phase()
+    }
+}
+
+/// Speed of the simulation: gyro-seconds per wall-second on one core for the PHYSICS.md
+/// parameter set and default accuracy, driven at the paper's +13.888 deg/h (rotary table at
+/// 22.2 deg latitude, azimuth 0), simulating `gyro_seconds`.
+pub fn speed_gyro_s_per_wall_s(gyro_seconds: f64) -> f64 {
+    let mut g = Gyro::new(GyroParams::default(), InputProfile::rotary_table(22.2, 0.0))
+        .expect("defaults are valid");
+    let start = std::time::Instant::now();
+    g.advance_to(gyro_seconds);
+    gyro_seconds / start.elapsed().as_secs_f64()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn turnarounds_alternate_and_traversals_are_logged() {
+        let mut g = Gyro::new(GyroParams::default(), InputProfile::constant(5.0)).unwrap();
+        let mut last: Option<Turnaround> = None;
+        for _ in 0..20 {
+            let t = g.next_turnaround();
+            assert!(g.lockin_free_rate_rad_per_s(t.time_s).abs() < 1e-4);
+            if let Some(l) = last {
+                assert_ne!(l.kind, t.kind);
+                assert!(t.time_s > l.time_s);
+            }
+            last = Some(t);
+        }
+        g.advance_to(g.t_s() + 1e-3);
+        let tr = g.take_traversals();
+        assert!(tr.len() >= 19, "{}", tr.len());
+        for x in &tr {
+            // Per traversal ~ Omega_L k ~ 0.018 rad at most.
+            assert!(x.lockin_error_rad.abs() < 0.03, "{x:?}");
+        }
+    }
+}

@@ -92,7 +92,9 @@ impl PiecewiseRate {
     }
 
     fn index(&self, t_s: f64) -> usize {
-        self.pieces.partition_point(|p| p.start_s <= t_s).saturating_sub(1)
+        self.pieces
+            .partition_point(|p| p.start_s <= t_s)
+            .saturating_sub(1)
     }
 }
 
@@ -131,9 +133,11 @@ impl InputProfile {
         let last = knots[knots.len() - 1];
         raw.push((last.0, last.1, 0.0));
         raw.retain(|&(t, _, _)| t >= 0.0);
-        raw.dedup_by(|b, a| a.0 == b.0 && {
-            *a = *b;
-            true
+        raw.dedup_by(|b, a| {
+            a.0 == b.0 && {
+                *a = *b;
+                true
+            }
         });
         Self::Piecewise(PiecewiseRate::new(&raw))
     }
@@ -144,8 +148,18 @@ impl InputProfile {
     }
 
     /// `offset + amplitude sin(2 pi f t + phase)`.
-    pub fn sinusoid(offset_deg_per_h: f64, amplitude_deg_per_h: f64, freq_hz: f64, phase_rad: f64) -> Self {
-        Self::Sinusoid { offset_deg_per_h, amplitude_deg_per_h, freq_hz, phase_rad }
+    pub fn sinusoid(
+        offset_deg_per_h: f64,
+        amplitude_deg_per_h: f64,
+        freq_hz: f64,
+        phase_rad: f64,
+    ) -> Self {
+        Self::Sinusoid {
+            offset_deg_per_h,
+            amplitude_deg_per_h,
+            freq_hz,
+            phase_rad,
+        }
     }
 
     /// The paper's rotary table at a fixed azimuth, solar Earth rate 15 deg/h.
@@ -159,7 +173,11 @@ impl InputProfile {
     }
 
     /// A rotary table turning at `table_rate_deg_per_s` about the vertical from `azimuth0_deg`.
-    pub fn rotary_table_turning(latitude_deg: f64, azimuth0_deg: f64, table_rate_deg_per_s: f64) -> Self {
+    pub fn rotary_table_turning(
+        latitude_deg: f64,
+        azimuth0_deg: f64,
+        table_rate_deg_per_s: f64,
+    ) -> Self {
         Self::RotaryTable {
             earth_rate_deg_per_h: crate::units::EARTH_RATE_SOLAR_DEG_PER_H,
             latitude_rad: latitude_deg.to_radians(),
@@ -206,7 +224,9 @@ impl InputProfile {
             Self::Piecewise(p) => {
                 let q = &p.pieces[piece];
                 let dt = t_s - q.start_s;
-                out[0] = q.angle0_arcsec + q.rate0_deg_per_h * dt + 0.5 * q.slope_deg_per_h_per_s * dt * dt;
+                out[0] = q.angle0_arcsec
+                    + q.rate0_deg_per_h * dt
+                    + 0.5 * q.slope_deg_per_h_per_s * dt * dt;
                 if out.len() > 1 {
                     out[1] = q.rate0_deg_per_h + q.slope_deg_per_h_per_s * dt;
                 }
@@ -214,7 +234,12 @@ impl InputProfile {
                     out[2] = q.slope_deg_per_h_per_s;
                 }
             }
-            &Self::Sinusoid { offset_deg_per_h, amplitude_deg_per_h, freq_hz, phase_rad } => {
+            &Self::Sinusoid {
+                offset_deg_per_h,
+                amplitude_deg_per_h,
+                freq_hz,
+                phase_rad,
+            } => {
                 let w = TAU * freq_hz;
                 out[0] = offset_deg_per_h * t_s;
                 if out.len() > 1 {
@@ -233,7 +258,12 @@ impl InputProfile {
                     }
                 }
             }
-            &Self::RotaryTable { earth_rate_deg_per_h, latitude_rad, azimuth0_rad, table_rate_rad_per_s } => {
+            &Self::RotaryTable {
+                earth_rate_deg_per_h,
+                latitude_rad,
+                azimuth0_rad,
+                table_rate_rad_per_s,
+            } => {
                 let r = earth_rate_deg_per_h * latitude_rad.cos();
                 let rho = table_rate_rad_per_s;
                 if rho == 0.0 {
@@ -256,6 +286,11 @@ impl InputProfile {
 /// `amp w^k sin(x + k pi/2)`.
 pub(crate) fn add_sinusoid_derivs(amp: f64, w: f64, x: f64, out: &mut [f64]) {
     let (s, c) = x.sin_cos();
+    add_sinusoid_derivs_sc(amp, w, s, c, out);
+}
+
+/// As [`add_sinusoid_derivs`] from `sin x`, `cos x`.
+pub(crate) fn add_sinusoid_derivs_sc(amp: f64, w: f64, s: f64, c: f64, out: &mut [f64]) {
     let cycle = [s, c, -s, -c];
     let mut scale = amp;
     for (k, o) in out.iter_mut().enumerate() {
@@ -278,17 +313,28 @@ mod tests {
             acc += 0.5 * h * (p.rate_deg_per_h(a) + p.rate_deg_per_h(a + h));
         }
         let exact = p.angle_arcsec(t_end);
-        assert!((acc - exact).abs() < tol * (1.0 + exact.abs()), "{acc} vs {exact}");
+        assert!(
+            (acc - exact).abs() < tol * (1.0 + exact.abs()),
+            "{acc} vs {exact}"
+        );
     }
 
     #[test]
     fn angles_are_integrals_of_rates() {
         // Trapezoid error: O(h^2) on smooth pieces, O(h * jump) at a step (h = 1e-4 s).
         check_angle_is_integral(&InputProfile::constant(3.0), 2.0, 1e-9);
-        check_angle_is_integral(&InputProfile::steps(1.0, &[(0.5, -2.0), (1.25, 4.0)]), 2.0, 5e-4);
+        check_angle_is_integral(
+            &InputProfile::steps(1.0, &[(0.5, -2.0), (1.25, 4.0)]),
+            2.0,
+            5e-4,
+        );
         check_angle_is_integral(&InputProfile::ramp(0.2, -1.0, 1.2, 5.0), 2.0, 1e-7);
         check_angle_is_integral(&InputProfile::sinusoid(0.5, 2.0, 1.3, 0.4), 2.0, 1e-7);
-        check_angle_is_integral(&InputProfile::rotary_table_turning(22.2, 10.0, 30.0), 2.0, 1e-7);
+        check_angle_is_integral(
+            &InputProfile::rotary_table_turning(22.2, 10.0, 30.0),
+            2.0,
+            1e-7,
+        );
     }
 
     #[test]

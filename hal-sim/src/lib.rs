@@ -22,3 +22,4 @@ pub mod flash;
 pub mod serial;
 
 pub mod board;
+pub mod device;

@@ -51,7 +51,11 @@ impl Noise {
         Self {
             sigma_rad_per_rt_s: derived.arw_rad_per_rt_s,
             seed: params.seed ^ 0x3c6e_f372_fe94_f82b,
-            dither_hz: if params.has_dither() { params.dither_hz } else { 0.0 },
+            dither_hz: if params.has_dither() {
+                params.dither_hz
+            } else {
+                0.0
+            },
             piece_s: params.solver.max_piece_s,
             cache: RefCell::new(Cache::default()),
         }
@@ -179,7 +183,10 @@ mod tests {
 
     #[test]
     fn random_walk_variance_matches_arw() {
-        let p = GyroParams { arw_deg_per_rt_h: 0.1, ..Default::default() };
+        let p = GyroParams {
+            arw_deg_per_rt_h: 0.1,
+            ..Default::default()
+        };
         let d = p.derive().unwrap();
         let n = Noise::new(&p, &d);
         // Increments over 1 s windows: variance ARW^2 * 1 s. 2000 windows: 3 % rel. std.
@@ -198,7 +205,10 @@ mod tests {
 
     #[test]
     fn angle_is_continuous_and_reproducible() {
-        let p = GyroParams { arw_deg_per_rt_h: 0.1, ..Default::default() };
+        let p = GyroParams {
+            arw_deg_per_rt_h: 0.1,
+            ..Default::default()
+        };
         let d = p.derive().unwrap();
         let n1 = Noise::new(&p, &d);
         let n2 = Noise::new(&p, &d);
@@ -209,7 +219,10 @@ mod tests {
             n1.angle_jet(t, k - 1, &mut a);
             n1.angle_jet(t, k, &mut b);
             assert!((a[0] - b[0]).abs() < 1e-12);
-            assert_eq!(n1.angle_rad(t + 1e-4).to_bits(), n2.angle_rad(t + 1e-4).to_bits());
+            assert_eq!(
+                n1.angle_rad(t + 1e-4).to_bits(),
+                n2.angle_rad(t + 1e-4).to_bits()
+            );
             assert_eq!(n1.segment_index(t), k);
         }
     }

@@ -30,18 +30,31 @@ pub struct AmplitudeModulation {
 
 impl AmplitudeModulation {
     /// No modulation.
-    pub const OFF: Self = Self { relative_rms: 0.0, min_hz: 0.1, max_hz: 2.0, tones: 6 };
+    pub const OFF: Self = Self {
+        relative_rms: 0.0,
+        min_hz: 0.1,
+        max_hz: 2.0,
+        tones: 6,
+    };
 
     /// A slow amplitude jitter of a high-Q resonator (0.1 % rms, 0.1..2 Hz).
     pub fn jitter(relative_rms: f64) -> Self {
-        Self { relative_rms, ..Self::OFF }
+        Self {
+            relative_rms,
+            ..Self::OFF
+        }
     }
 
     /// The industry's random-noise dither: a deliberately large random amplitude modulation
     /// (e.g. 10..20 % rms) up to a few tens of Hz, which spreads the lock-in error over the
     /// turnaround phase instead of compensating it.
     pub fn random_noise_dither(relative_rms: f64) -> Self {
-        Self { relative_rms, min_hz: 1.0, max_hz: 30.0, tones: 12 }
+        Self {
+            relative_rms,
+            min_hz: 1.0,
+            max_hz: 30.0,
+            tones: 12,
+        }
     }
 
     fn is_on(&self) -> bool {
@@ -66,9 +79,9 @@ pub struct SolverParams {
 impl Default for SolverParams {
     fn default() -> Self {
         Self {
-            step_phase_rad: 0.25,
-            far_threshold_rad_per_s: 1.0e6,
-            far_max_adiabatic: 0.012,
+            step_phase_rad: 0.5,
+            far_threshold_rad_per_s: 5.0e5,
+            far_max_adiabatic: 0.04,
             max_piece_s: 1.0e-3,
         }
     }
@@ -168,7 +181,10 @@ fn check_modulation(m: &AmplitudeModulation, what: &'static str) -> Result<(), P
     }
     check(m.relative_rms.is_finite() && m.relative_rms < 0.3, what)?;
     check(m.tones >= 1 && m.tones <= 64, what)?;
-    check(m.min_hz > 0.0 && m.max_hz >= m.min_hz && m.max_hz.is_finite(), what)
+    check(
+        m.min_hz > 0.0 && m.max_hz >= m.min_hz && m.max_hz.is_finite(),
+        what,
+    )
 }
 
 impl GyroParams {
@@ -180,7 +196,10 @@ impl GyroParams {
     /// Validates and converts to beat-phase units.
     pub fn derive(&self) -> Result<Derived, ParamError> {
         let sf = self.scale_factor_arcsec;
-        check(sf.is_finite() && sf > 0.0, "scale_factor_arcsec must be > 0")?;
+        check(
+            sf.is_finite() && sf > 0.0,
+            "scale_factor_arcsec must be > 0",
+        )?;
         check(
             self.dither_hz.is_finite() && self.dither_hz >= 0.0 && self.dither_hz < 1.0e5,
             "dither_hz must be in [0, 1e5)",
@@ -194,13 +213,22 @@ impl GyroParams {
             "lock_in_deg_per_h must be >= 0",
         )?;
         check(self.eps_rad.is_finite(), "eps_rad must be finite")?;
-        check(self.initial_psi_rad.is_finite(), "initial_psi_rad must be finite")?;
+        check(
+            self.initial_psi_rad.is_finite(),
+            "initial_psi_rad must be finite",
+        )?;
         check(
             self.arw_deg_per_rt_h.is_finite() && self.arw_deg_per_rt_h >= 0.0,
             "arw_deg_per_rt_h must be >= 0",
         )?;
-        check_modulation(&self.amplitude_jitter, "amplitude_jitter: rms in [0, 0.3), 1..64 tones, 0 < min_hz <= max_hz")?;
-        check_modulation(&self.random_noise_dither, "random_noise_dither: rms in [0, 0.3), 1..64 tones, 0 < min_hz <= max_hz")?;
+        check_modulation(
+            &self.amplitude_jitter,
+            "amplitude_jitter: rms in [0, 0.3), 1..64 tones, 0 < min_hz <= max_hz",
+        )?;
+        check_modulation(
+            &self.random_noise_dither,
+            "random_noise_dither: rms in [0, 0.3), 1..64 tones, 0 < min_hz <= max_hz",
+        )?;
         let s = &self.solver;
         check(
             s.step_phase_rad > 0.0 && s.step_phase_rad <= 1.0,
@@ -210,14 +238,20 @@ impl GyroParams {
             s.far_max_adiabatic > 0.0 && s.far_max_adiabatic <= 0.05,
             "solver.far_max_adiabatic must be in (0, 0.05]",
         )?;
-        check(s.max_piece_s > 0.0 && s.max_piece_s <= 1.0, "solver.max_piece_s must be in (0, 1]")?;
+        check(
+            s.max_piece_s > 0.0 && s.max_piece_s <= 1.0,
+            "solver.max_piece_s must be in (0, 1]",
+        )?;
         let omega_l = deg_per_h_to_beat_rad_per_s(self.lock_in_deg_per_h, sf);
         check(
             s.far_threshold_rad_per_s.is_finite() && s.far_threshold_rad_per_s >= 500.0 * omega_l,
             "solver.far_threshold_rad_per_s must be >= 500 Omega_L (far series in Omega_L/omega)",
         )?;
         let (w, amp) = if self.has_dither() {
-            (hz_to_rad_per_s(self.dither_hz), arcsec_to_beat_rad(self.dither_amplitude_arcsec, sf))
+            (
+                hz_to_rad_per_s(self.dither_hz),
+                arcsec_to_beat_rad(self.dither_amplitude_arcsec, sf),
+            )
         } else {
             (0.0, 0.0)
         };
@@ -245,11 +279,20 @@ mod tests {
 
     #[test]
     fn rejects_nonsense() {
-        let p = GyroParams { scale_factor_arcsec: -1.0, ..Default::default() };
+        let p = GyroParams {
+            scale_factor_arcsec: -1.0,
+            ..Default::default()
+        };
         assert!(p.derive().is_err());
-        let p = GyroParams { lock_in_deg_per_h: f64::NAN, ..Default::default() };
+        let p = GyroParams {
+            lock_in_deg_per_h: f64::NAN,
+            ..Default::default()
+        };
         assert!(p.derive().is_err());
-        let p = GyroParams { amplitude_jitter: AmplitudeModulation::jitter(0.5), ..Default::default() };
+        let p = GyroParams {
+            amplitude_jitter: AmplitudeModulation::jitter(0.5),
+            ..Default::default()
+        };
         assert!(p.derive().is_err());
     }
 }

@@ -48,7 +48,10 @@ pub fn hz_to_rad_per_s(freq_hz: f64) -> f64 {
 /// Angle random walk in deg/sqrt(h) to beat phase in rad/sqrt(s).
 ///
 /// 1 deg/sqrt(h) = 3600 arcsec / 60 sqrt(s) = 60 arcsec/sqrt(s).
-pub fn arw_deg_per_rt_h_to_beat_rad_per_rt_s(arw_deg_per_rt_h: f64, scale_factor_arcsec: f64) -> f64 {
+pub fn arw_deg_per_rt_h_to_beat_rad_per_rt_s(
+    arw_deg_per_rt_h: f64,
+    scale_factor_arcsec: f64,
+) -> f64 {
     arcsec_to_beat_rad(60.0 * arw_deg_per_rt_h, scale_factor_arcsec)
 }
 
@@ -70,6 +73,9 @@ mod tests {
         // Earth rate at 22.2 deg latitude: the paper's 13.888 deg/h.
         let e = EARTH_RATE_SOLAR_DEG_PER_H * (22.2f64).to_radians().cos();
         assert!((e - 13.888).abs() < 1e-3, "{e}");
-        assert!((arw_deg_per_rt_h_to_beat_rad_per_rt_s(1.0, sf) - arcsec_to_beat_rad(60.0, sf)).abs() < 1e-12);
+        assert!(
+            (arw_deg_per_rt_h_to_beat_rad_per_rt_s(1.0, sf) - arcsec_to_beat_rad(60.0, sf)).abs()
+                < 1e-12
+        );
     }
 }

@@ -67,9 +67,9 @@ pub fn run_constant_rate(
 ) -> Result<(), ExperimentError> {
     let params = &GyroParams {
         seed: run_seed(params.seed, rate_deg_h),
-        ..params.clone()
+        ..*params
     };
-    let gyro = Gyro::new(params.clone(), InputProfile::constant(rate_deg_h))
+    let gyro = Gyro::new(*params, InputProfile::constant(rate_deg_h))
         .map_err(|e| ExperimentError::Simulator(format!("{e:?}")))?;
     let board_config = BoardConfig::for_gyro(params);
     let mut board = SimBoard::new(gyro, board_config.clone())
@@ -191,7 +191,7 @@ pub fn measure_speed(
     rate_deg_h: f64,
     gyro_seconds: f64,
 ) -> Result<f64, ExperimentError> {
-    let mut gyro = Gyro::new(params.clone(), InputProfile::constant(rate_deg_h))
+    let mut gyro = Gyro::new(*params, InputProfile::constant(rate_deg_h))
         .map_err(|e| ExperimentError::Simulator(format!("{e:?}")))?;
     let start = std::time::Instant::now();
     gyro.advance_to(gyro_seconds);

@@ -1,7 +1,7 @@
 //! Answers: exactly one line per command, `OK <fields>` or `ERR <code> <text>`, with the CRC
 //! suffix `*XXXX` when the request carried one, then `\r\n`.
 //!
-//! Built in a fixed buffer ([`MAX_RESPONSE`] bytes); a field that would overflow it is cut and
+//! Built in a fixed buffer ([`MAX_RESPONSE`] bytes, room for the longest answer, `status`); a field that would overflow it is cut and
 //! the answer marked with a trailing `~` rather than dropped, so the host always gets its line.
 
 use super::parse::crc16;
@@ -10,7 +10,7 @@ use core::fmt::Write;
 use heapless::String;
 
 /// Longest answer, bytes (with CRC suffix and terminator).
-pub const MAX_RESPONSE: usize = 192;
+pub const MAX_RESPONSE: usize = 320;
 
 /// An answer being built.
 #[derive(Clone, Debug)]

@@ -149,6 +149,12 @@ impl Compensator {
         self.active
     }
 
+    /// The settings most recently asked for: the staged set if one waits, else the active one
+    /// (so that two edits within one cycle build on each other).
+    pub fn staged_or_active(&self) -> CompensationSettings {
+        self.staged.unwrap_or(self.active)
+    }
+
     /// Closes a dither cycle: applies a staged set first (so the whole cycle uses one set), then
     /// returns this cycle's correction in Q32 fringes (0 when compensation is off) and adds it to
     /// the running total.

@@ -62,12 +62,22 @@ impl FreePhase {
 
     /// The piece containing `t_s`.
     pub fn piece_at(&self, t_s: f64) -> PieceId {
-        PieceId { input: self.input.piece_index(t_s), noise: self.noise.segment_index(t_s) }
+        PieceId {
+            input: self.input.piece_index(t_s),
+            noise: self.noise.segment_index(t_s),
+        }
     }
 
     /// End of the piece containing `t_s` (the next breakpoint strictly after it).
+    ///
+    /// Pieces follow the noise segments (half dither cycles between rate peaks). Without
+    /// noise nothing jumps at a peak, so pairs of half cycles are merged into one piece:
+    /// one far segment then spans the peak (fewer boundaries to expand, same result).
     pub fn piece_end_after(&self, t_s: f64) -> f64 {
-        let k = self.noise.segment_index(t_s);
+        let mut k = self.noise.segment_index(t_s);
+        if !self.noise.is_on() && self.dither.is_on() && k % 2 == 1 {
+            k += 1;
+        }
         let mut end = self.noise.segment_end_s(k);
         if let Some(b) = self.input.breakpoint_after(t_s) {
             end = end.min(b);

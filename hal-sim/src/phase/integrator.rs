@@ -46,48 +46,132 @@ pub enum Event {
     NearRunEnd(NearRun),
 }
 
+/// How a part of the drift integral is parametrised.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Map {
+    /// Chebyshev in `t`.
+    Linear,
+    /// Chebyshev in `u = ln|t - t_star|`, with `t_star` the zero of `omega` extrapolated
+    /// from the end nearest a turnaround: the drift `~ -Omega_L^2 / (2 omega)` has a pole
+    /// there, which the logarithm moves to `u = -infinity`, so one 24-node interpolant holds
+    /// the whole segment to ~1e-11 relative.
+    Log { t_star: f64 },
+}
+
+#[derive(Clone, Debug)]
+struct DriftPart {
+    map: Map,
+    t_end: f64,
+    cheb: ChebIntegral,
+    offset: f64,
+}
+
 #[derive(Clone, Debug)]
 struct FarDrift {
-    parts: Vec<(ChebIntegral, f64)>,
+    parts: Vec<DriftPart>,
 }
 
 impl FarDrift {
     /// Tolerance on the Chebyshev tail of each part, rad.
-    const TAIL_TOL: f64 = 1e-13;
+    const TAIL_TOL: f64 = 2e-11;
 
-    fn new(t_a: f64, t_b: f64, f: &impl Fn(f64) -> f64) -> Self {
-        let mut parts = Vec::with_capacity(1);
-        Self::build(t_a, t_b, f, 0, &mut parts);
+    /// `f` is the drift rate, `w` gives `(omega, omega')`.
+    fn new(t_a: f64, t_b: f64, f: &impl Fn(f64) -> f64, w: &impl Fn(f64) -> (f64, f64)) -> Self {
+        let mut parts = Vec::with_capacity(2);
+        let len = t_b - t_a;
+        let (wa, sa) = w(t_a);
+        let (wb, sb) = w(t_b);
+        // Zeros of omega extrapolated (one Newton step) behind t_a and beyond t_b.
+        let za = t_a - wa / sa;
+        let zb = t_b - wb / sb;
+        let before = za < t_a && t_a - za < len;
+        let after = zb > t_b && zb - t_b < len;
+        match (before, after) {
+            (true, true) => {
+                let m = 0.5 * (t_a + t_b);
+                Self::build(t_a, m, Map::Log { t_star: za }, f, 0, &mut parts);
+                Self::build(m, t_b, Map::Log { t_star: zb }, f, 0, &mut parts);
+            }
+            (true, false) => Self::build(t_a, t_b, Map::Log { t_star: za }, f, 0, &mut parts),
+            (false, true) => Self::build(t_a, t_b, Map::Log { t_star: zb }, f, 0, &mut parts),
+            (false, false) => Self::build(t_a, t_b, Map::Linear, f, 0, &mut parts),
+        }
         let mut off = 0.0;
         for p in parts.iter_mut() {
-            p.1 = off;
-            off += p.0.eval(p.0.t_end());
+            p.offset = off;
+            off += p.eval_local(p.t_end);
         }
         Self { parts }
     }
 
-    fn build(t_a: f64, t_b: f64, f: &impl Fn(f64) -> f64, depth: u32, out: &mut Vec<(ChebIntegral, f64)>) {
-        let ci = ChebIntegral::new(t_a, t_b, f);
-        if ci.tail <= Self::TAIL_TOL || depth >= 8 {
-            out.push((ci, 0.0));
+    /// A part on `[t_a, t_b]`; if its Chebyshev tail is too large, split it (linearly
+    /// graded: a quarter of the length from the steeper end).
+    fn build(
+        t_a: f64,
+        t_b: f64,
+        map: Map,
+        f: &impl Fn(f64) -> f64,
+        depth: u32,
+        out: &mut Vec<DriftPart>,
+    ) {
+        let cheb = match map {
+            Map::Linear => ChebIntegral::new(t_a, t_b, f),
+            Map::Log { t_star } => {
+                let sgn = if t_star < t_a { 1.0 } else { -1.0 };
+                let ua = (sgn * (t_a - t_star)).ln();
+                let ub = (sgn * (t_b - t_star)).ln();
+                // dt = sgn e^u du
+                ChebIntegral::new(ua, ub, |u: f64| {
+                    let d = u.exp();
+                    f(t_star + sgn * d) * sgn * d
+                })
+            }
+        };
+        if cheb.tail.abs() <= Self::TAIL_TOL || depth >= 10 {
+            out.push(DriftPart {
+                map,
+                t_end: t_b,
+                cheb,
+                offset: 0.0,
+            });
         } else {
-            let m = 0.5 * (t_a + t_b);
-            Self::build(t_a, m, f, depth + 1, out);
-            Self::build(m, t_b, f, depth + 1, out);
+            let steep_at_start = f(t_a).abs() > f(t_b).abs();
+            let r = if steep_at_start { 0.25 } else { 0.75 };
+            let m = t_a + r * (t_b - t_a);
+            Self::build(t_a, m, Map::Linear, f, depth + 1, out);
+            Self::build(m, t_b, Map::Linear, f, depth + 1, out);
         }
     }
 
     fn eval(&self, t: f64) -> f64 {
-        let i = self.parts.partition_point(|p| p.0.t_end() < t).min(self.parts.len() - 1);
-        let (ci, off) = &self.parts[i];
-        off + ci.eval(t)
+        let i = self
+            .parts
+            .partition_point(|p| p.t_end < t)
+            .min(self.parts.len() - 1);
+        let p = &self.parts[i];
+        p.offset + p.eval_local(t)
+    }
+}
+
+impl DriftPart {
+    fn eval_local(&self, t: f64) -> f64 {
+        match self.map {
+            Map::Linear => self.cheb.eval(t),
+            Map::Log { t_star } => self.cheb.eval((t - t_star).abs().ln()),
+        }
     }
 }
 
 #[derive(Clone, Debug)]
 enum State {
-    Near { stepper: NearStepper, trial_len: f64 },
-    Far { chi_a: f64, drift: FarDrift },
+    Near {
+        stepper: NearStepper,
+        trial_len: f64,
+    },
+    Far {
+        chi_a: f64,
+        drift: FarDrift,
+    },
 }
 
 /// The fast integrator of Eq. 6.
@@ -115,7 +199,10 @@ impl Integrator {
         }
         let seg = planner.segments.pop_front().expect("planned");
         let phi0 = psi0 - fp.theta_rad(0.0);
-        let placeholder = State::Far { chi_a: 0.0, drift: FarDrift { parts: Vec::new() } };
+        let placeholder = State::Far {
+            chi_a: 0.0,
+            drift: FarDrift { parts: Vec::new() },
+        };
         let mut me = Self {
             fp,
             omega_l,
@@ -177,7 +264,12 @@ impl Integrator {
             let (osc, theta) = self.oscillation(seg.t_a, seg.piece);
             let chi_a = phi - osc.eval(theta + phi);
             if let Some((t_in, chi_in)) = self.run.take() {
-                self.events.push_back(Event::NearRunEnd(NearRun { t_in, t_out: seg.t_a, chi_in, chi_out: chi_a }));
+                self.events.push_back(Event::NearRunEnd(NearRun {
+                    t_in,
+                    t_out: seg.t_a,
+                    chi_in,
+                    chi_out: chi_a,
+                }));
             }
             let (fp, l, piece) = (&self.fp, self.omega_l, seg.piece);
             let g = |t: f64| {
@@ -185,14 +277,18 @@ impl Integrator {
                 fp.angle_jet(t, piece, &mut j);
                 far::drift_rate(j[1], j[2], j[3], l)
             };
-            let drift = FarDrift::new(seg.t_a, seg.t_b, &g);
+            let w = |t: f64| fp.omega_and_slope(t, piece);
+            let drift = FarDrift::new(seg.t_a, seg.t_b, &g, &w);
             self.state = State::Far { chi_a, drift };
         } else {
             if self.run.is_none() {
                 self.run = Some((seg.t_a, chi_prev));
             }
             let (stepper, len) = self.near_piece(seg.t_a, seg.t_b - seg.t_a, phi);
-            self.state = State::Near { stepper, trial_len: 2.0 * len };
+            self.state = State::Near {
+                stepper,
+                trial_len: 2.0 * len,
+            };
         }
     }
 
@@ -200,11 +296,18 @@ impl Integrator {
     fn near_piece(&self, t_a: f64, len: f64, phi: f64) -> (NearStepper, f64) {
         let mut len = len.min(self.seg.t_b - t_a);
         loop {
-            let t_b = if len >= self.seg.t_b - t_a { self.seg.t_b } else { t_a + len };
+            let t_b = if len >= self.seg.t_b - t_a {
+                self.seg.t_b
+            } else {
+                t_a + len
+            };
             if let Some(poly) = NearPoly::build(&self.fp, self.seg.piece, t_a, t_b) {
                 return (NearStepper::new(poly, phi), len);
             }
-            assert!(len > 1e-9, "theta has no accurate local polynomial at t = {t_a}");
+            assert!(
+                len > 1e-9,
+                "theta has no accurate local polynomial at t = {t_a}"
+            );
             len *= 0.5;
         }
     }
@@ -242,7 +345,10 @@ impl Integrator {
                     if stepper.poly.t_b < seg_end {
                         let (start, phi, trial) = (stepper.poly.t_b, stepper.phi, *trial_len);
                         let (s, len) = self.near_piece(start, trial, phi);
-                        self.state = State::Near { stepper: s, trial_len: 2.0 * len };
+                        self.state = State::Near {
+                            stepper: s,
+                            trial_len: 2.0 * len,
+                        };
                         continue;
                     }
                 }
@@ -292,7 +398,11 @@ impl Integrator {
 
     /// Integrates to `t` (forward only) and returns `psi(t)`, rad.
     pub fn advance_to(&mut self, t: f64) -> f64 {
-        assert!(t >= self.t_now, "time is forward-only: asked {t} after {}", self.t_now);
+        assert!(
+            t >= self.t_now,
+            "time is forward-only: asked {t} after {}",
+            self.t_now
+        );
         self.plan_past(t);
         while let Some(&tt) = self.planner.turnarounds.front() {
             if tt.time_s > t {
@@ -302,7 +412,11 @@ impl Integrator {
             self.commit_until(tt.time_s);
             let psi = self.psi_from_state(tt.time_s);
             let phi = psi - self.fp.theta_rad(tt.time_s);
-            self.events.push_back(Event::Turnaround(TurnaroundState { at: tt, psi_rad: psi, phi_rad: phi }));
+            self.events.push_back(Event::Turnaround(TurnaroundState {
+                at: tt,
+                psi_rad: psi,
+                phi_rad: phi,
+            }));
         }
         self.commit_until(t);
         self.t_now = t;

@@ -58,7 +58,11 @@ impl Planner {
             cursor: t0,
             omega_c: solver.far_threshold_rad_per_s,
             delta_max: solver.far_max_adiabatic,
-            probe_dt: if f > 0.0 { 1.0 / (32.0 * f) } else { solver.max_piece_s / 4.0 },
+            probe_dt: if f > 0.0 {
+                1.0 / (32.0 * f)
+            } else {
+                solver.max_piece_s / 4.0
+            },
             segments: VecDeque::new(),
             turnarounds: VecDeque::new(),
         }
@@ -69,9 +73,17 @@ impl Planner {
         self.cursor
     }
 
-    fn margin(&self, fp: &FreePhase, piece: PieceId, t: f64) -> f64 {
+    /// `(omega, q)`: the rate and the far margin `q` (far where `q > 0`).
+    fn probe(&self, fp: &FreePhase, piece: PieceId, t: f64) -> (f64, f64) {
         let (w, s) = fp.omega_and_slope(t, piece);
-        w.abs() - self.omega_c.max((s.abs() / self.delta_max).sqrt())
+        (
+            w,
+            w.abs() - self.omega_c.max((s.abs() / self.delta_max).sqrt()),
+        )
+    }
+
+    fn margin(&self, fp: &FreePhase, piece: PieceId, t: f64) -> f64 {
+        self.probe(fp, piece, t).1
     }
 
     /// Plans the next smooth piece.
@@ -80,19 +92,25 @@ impl Planner {
         let b = fp.piece_end_after(a);
         let piece = fp.piece_at(0.5 * (a + b));
         let n = (((b - a) / self.probe_dt).ceil() as usize).max(2);
-        let probe = |i: usize| if i == n { b } else { a + (b - a) * i as f64 / n as f64 };
+        let probe = |i: usize| {
+            if i == n {
+                b
+            } else {
+                a + (b - a) * i as f64 / n as f64
+            }
+        };
         let mut bounds = vec![a];
-        let (mut t0, mut w0) = (a, fp.omega_and_slope(a, piece).0);
-        let mut q0 = self.margin(fp, piece, a);
+        let (mut w0, mut q0) = self.probe(fp, piece, a);
+        let mut t0 = a;
         for i in 1..=n {
             let t1 = probe(i);
-            let w1 = fp.omega_and_slope(t1, piece).0;
-            let q1 = self.margin(fp, piece, t1);
+            let (w1, q1) = self.probe(fp, piece, t1);
             if (w0 >= 0.0) != (w1 >= 0.0) {
-                self.turnarounds.push_back(find_turnaround(fp, piece, t0, t1));
+                self.turnarounds
+                    .push_back(find_turnaround(fp, piece, t0, t1));
             }
             if (q0 > 0.0) != (q1 > 0.0) {
-                bounds.push(bisect(|t| self.margin(fp, piece, t) > 0.0, t0, t1, q0 > 0.0));
+                bounds.push(regula_falsi(|t| self.margin(fp, piece, t), t0, q0, t1, q1));
             }
             (t0, w0, q0) = (t1, w1, q1);
         }
@@ -103,10 +121,17 @@ impl Planner {
             if sb <= sa {
                 continue;
             }
-            let far = (1..8).all(|j| self.margin(fp, piece, sa + (sb - sa) * j as f64 / 8.0) > 0.0);
+            let far = (1..4).all(|j| self.margin(fp, piece, sa + (sb - sa) * j as f64 / 4.0) > 0.0);
             match self.segments.back_mut() {
-                Some(last) if last.far == far && last.piece == piece && last.t_b == sa => last.t_b = sb,
-                _ => self.segments.push_back(Segment { t_a: sa, t_b: sb, far, piece }),
+                Some(last) if last.far == far && last.piece == piece && last.t_b == sa => {
+                    last.t_b = sb
+                }
+                _ => self.segments.push_back(Segment {
+                    t_a: sa,
+                    t_b: sb,
+                    far,
+                    piece,
+                }),
             }
         }
         self.cursor = b;
@@ -114,19 +139,34 @@ impl Planner {
 }
 
 /// Bisection for the switch of `pred` in `[lo, hi]` (`pred(lo) == at_lo`).
-fn bisect(pred: impl Fn(f64) -> bool, mut lo: f64, mut hi: f64, at_lo: bool) -> f64 {
-    for _ in 0..64 {
-        let mid = 0.5 * (lo + hi);
-        if mid <= lo || mid >= hi {
+/// Root of `q` bracketed by `[a, b]` (Illinois regula falsi), to ~1e-9 of the bracket: a
+/// boundary needs no precision, only determinism and the right side of the sign change.
+fn regula_falsi(q: impl Fn(f64) -> f64, mut a: f64, mut qa: f64, mut b: f64, mut qb: f64) -> f64 {
+    let tol = 1e-9 * (b - a);
+    let mut side = 0;
+    for _ in 0..40 {
+        let c = (a * qb - b * qa) / (qb - qa);
+        let qc = q(c);
+        if (qc > 0.0) == (qa > 0.0) {
+            a = c;
+            qa = qc;
+            if side == -1 {
+                qb *= 0.5;
+            }
+            side = -1;
+        } else {
+            b = c;
+            qb = qc;
+            if side == 1 {
+                qa *= 0.5;
+            }
+            side = 1;
+        }
+        if b - a < tol || qc == 0.0 {
             break;
         }
-        if pred(mid) == at_lo {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
     }
-    0.5 * (lo + hi)
+    0.5 * (a + b)
 }
 
 /// Zero of `omega` bracketed by `[lo, hi]`: Newton, falling back to bisection when a step
@@ -146,13 +186,23 @@ pub fn find_turnaround(fp: &FreePhase, piece: PieceId, lo: f64, hi: f64) -> Turn
         if !(tn > lo && tn < hi) {
             tn = 0.5 * (lo + hi);
         }
-        if (tn - t).abs() <= 2.0 * f64::EPSILON * t.abs().max(1e-3) || hi - lo <= f64::EPSILON * t.abs() {
+        if (tn - t).abs() <= 2.0 * f64::EPSILON * t.abs().max(1e-3)
+            || hi - lo <= f64::EPSILON * t.abs()
+        {
             t = tn;
             break;
         }
         t = tn;
     }
     let s = fp.omega_and_slope(t, piece).1;
-    let kind = if lo_positive { TurnaroundKind::Minus } else { TurnaroundKind::Plus };
-    TurnaroundTime { time_s: t, kind, psi_ddot_rad_per_s2: s }
+    let kind = if lo_positive {
+        TurnaroundKind::Minus
+    } else {
+        TurnaroundKind::Plus
+    };
+    TurnaroundTime {
+        time_s: t,
+        kind,
+        psi_ddot_rad_per_s2: s,
+    }
 }

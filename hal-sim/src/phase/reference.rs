@@ -19,15 +19,34 @@ pub struct Reference<'a> {
     pub h_max: f64,
     t: f64,
     phi: f64,
+    /// Kahan compensation of the running sum `phi` (millions of tiny increments onto
+    /// |phi| ~ 1e3 would otherwise lose ~1e-10 rad to rounding).
+    phi_carry: f64,
     /// Steps taken so far.
     pub steps: u64,
 }
 
 impl<'a> Reference<'a> {
     /// Starts at `t0` with beat phase `psi0`.
-    pub fn new(fp: &'a FreePhase, omega_l: f64, t0: f64, psi0: f64, dtheta: f64, h_max: f64) -> Self {
+    pub fn new(
+        fp: &'a FreePhase,
+        omega_l: f64,
+        t0: f64,
+        psi0: f64,
+        dtheta: f64,
+        h_max: f64,
+    ) -> Self {
         let phi = psi0 - fp.theta_rad(t0);
-        Self { fp, omega_l, dtheta, h_max, t: t0, phi, steps: 0 }
+        Self {
+            fp,
+            omega_l,
+            dtheta,
+            h_max,
+            t: t0,
+            phi,
+            phi_carry: 0.0,
+            steps: 0,
+        }
     }
 
     /// Current time, s.
@@ -65,7 +84,10 @@ impl<'a> Reference<'a> {
                 let k2 = l * (mid[0] + phi + 0.5 * h * k1).cos();
                 let k3 = l * (mid[0] + phi + 0.5 * h * k2).cos();
                 let k4 = l * (end[0] + phi + h * k3).cos();
-                self.phi += h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4);
+                let inc = h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4) - self.phi_carry;
+                let sum = self.phi + inc;
+                self.phi_carry = (sum - self.phi) - inc;
+                self.phi = sum;
                 self.t = t1;
                 jet = end;
                 self.steps += 1;

@@ -1,0 +1,245 @@
+//! The serial protocol end to end on the simulated board: the firmware's parser, executor,
+//! calibration session and flash store, driven by text lines as a technician or the host tool
+//! would send them. Seeded; every exchange is one line in, exactly one line out.
+
+use firmware::protocol::parse::crc16;
+use firmware::protocol::stream::{decode_frame, GapCounter};
+use hal_sim::device::{SimDevice, SIM_IDENTITY};
+use hal_sim::flash::{CalibrationFlash, PowerCut};
+use hal_sim::input::InputProfile;
+use hal_sim::params::GyroParams;
+
+const KEY: &str = "c0ffee42";
+
+fn boot(flash: CalibrationFlash, rate_deg_h: f64, boot_count: u32) -> SimDevice {
+    let params = GyroParams {
+        seed: 31 + boot_count as u64,
+        ..GyroParams::default()
+    };
+    SimDevice::boot(
+        params,
+        InputProfile::constant(rate_deg_h),
+        SIM_IDENTITY,
+        flash,
+        boot_count,
+    )
+    .unwrap()
+}
+
+/// Sends one line, returns the answer line (without `\r\n`); asserts exactly one answer.
+fn ask(dev: &mut SimDevice, line: &str) -> String {
+    dev.receive(line.as_bytes());
+    dev.receive(b"\n");
+    let out = String::from_utf8(dev.take_output()).expect("text answer");
+    let lines: Vec<&str> = out.split_terminator("\r\n").collect();
+    assert_eq!(lines.len(), 1, "one answer to {line:?}: {out:?}");
+    lines[0].to_string()
+}
+
+/// The value of `key=` in an answer.
+fn field<'a>(answer: &'a str, key: &str) -> &'a str {
+    answer
+        .split(' ')
+        .find_map(|w| w.strip_prefix(key).and_then(|w| w.strip_prefix('=')))
+        .unwrap_or_else(|| panic!("{key} in {answer}"))
+}
+
+#[test]
+fn a_fresh_board_identifies_itself_and_runs_on_defaults() {
+    let mut dev = boot(CalibrationFlash::default(), 10.0, 0);
+    dev.run_for(0.5);
+    let id = ask(&mut dev, "id");
+    assert!(
+        id.starts_with("OK fw=") && id.contains("serial=4242"),
+        "{id}"
+    );
+    let status = ask(&mut dev, "status");
+    assert_eq!(field(&status, "coeffs"), "defaults:erased");
+    assert_eq!(field(&status, "comp"), "off");
+    assert_eq!(field(&status, "locked"), "yes");
+    assert_eq!(field(&status, "signal"), "ok");
+    // The measured dither: 389 Hz, 450 arcsec (f32 status fields, 0.1 % of the values).
+    assert!(
+        (field(&status, "dither_hz").parse::<f64>().unwrap() - 389.0).abs() < 0.4,
+        "{status}"
+    );
+    assert!(
+        (field(&status, "dither_amp_arcsec").parse::<f64>().unwrap() - 450.0).abs() < 0.5,
+        "{status}"
+    );
+    assert_eq!(ask(&mut dev, "get coeffs").split(' ').nth(1), Some("a=0"));
+    assert!(ask(&mut dev, "help").starts_with("OK commands:"));
+}
+
+/// The technician's workflow: unlock, calibrate outside the dead band, check the fit, accept,
+/// store; after a power cycle the board comes up with the stored coefficients.
+#[test]
+fn calibrate_accept_store_and_survive_a_power_cycle() {
+    let mut dev = boot(CalibrationFlash::default(), 13.888, 0);
+    dev.run_for(0.6);
+    assert!(
+        ask(&mut dev, "set a 300").starts_with("ERR 9 "),
+        "locked at reset"
+    );
+    assert!(ask(&mut dev, "unlock 1234").starts_with("ERR 15 "));
+    assert!(ask(&mut dev, &format!("unlock {KEY}")).starts_with("OK unlocked"));
+    assert!(ask(&mut dev, "cal start 3000 100").starts_with("OK cal=running"));
+    assert!(
+        ask(&mut dev, "set a 300").starts_with("ERR 10 "),
+        "busy during a run"
+    );
+    assert!(ask(&mut dev, "cal result").starts_with("ERR 10 "));
+    dev.run_for(8.5);
+    assert!(ask(&mut dev, "cal status").starts_with("OK cal=run_done"));
+    let result = ask(&mut dev, "cal result");
+    assert!(result.starts_with("OK a="), "{result}");
+    // Omega_L and eps within 1 % of the simulator's truth (200 deg/h, 0.3 rad).
+    let lock_in: f64 = field(&result, "lock_in_deg_h").parse().unwrap();
+    let eps: f64 = field(&result, "eps_rad").parse().unwrap();
+    assert!((lock_in / 200.0 - 1.0).abs() < 0.01, "{result}");
+    assert!((eps / 0.3 - 1.0).abs() < 0.01, "{result}");
+    let accepted = ask(&mut dev, "cal accept");
+    assert!(
+        accepted.starts_with("OK a=") && accepted.ends_with("comp=on"),
+        "{accepted}"
+    );
+    assert_eq!(field(&ask(&mut dev, "status"), "coeffs"), "unsaved");
+    let stored = ask(&mut dev, "store");
+    assert!(stored.starts_with("OK stored seq=1"), "{stored}");
+    let coeffs = ask(&mut dev, "get coeffs");
+
+    let mut dev = boot(dev.power_off(), 13.888, 1);
+    dev.run_for(0.2);
+    assert_eq!(
+        ask(&mut dev, "get coeffs"),
+        coeffs,
+        "the stored coefficients come back"
+    );
+    let status = ask(&mut dev, "status");
+    assert_eq!(field(&status, "coeffs"), "flash:1");
+    assert_eq!(field(&status, "comp"), "on");
+    assert_eq!(field(&status, "locked"), "yes", "locked again after reset");
+}
+
+/// Bad input of every kind gets its own ERR, changes nothing, and the next good line works.
+#[test]
+fn bad_input_is_answered_and_changes_nothing() {
+    let mut dev = boot(CalibrationFlash::default(), 5.0, 0);
+    dev.run_for(0.2);
+    ask(&mut dev, &format!("unlock {KEY}"));
+    let before = ask(&mut dev, "get coeffs");
+    let cases: [(&[u8], &str); 9] = [
+        (b"frobnicate", "ERR 1 "),
+        (b"set a", "ERR 2 "),
+        (b"set a twelve", "ERR 3 "),
+        (b"set a NaN", "ERR 4 "),
+        (b"set b -inf", "ERR 4 "),
+        (b"set a 1e9", "ERR 5 "),
+        (b"get a*0000", "ERR 6 "),
+        (&[b'x'; 300], "ERR 7 "),
+        (b"set a \x00\xff\x13", "ERR 8 "),
+    ];
+    for (line, want) in cases {
+        dev.receive(line);
+        dev.receive(b"\r\n");
+        let out = String::from_utf8(dev.take_output()).unwrap();
+        assert!(
+            out.starts_with(want) && out.matches("\r\n").count() == 1,
+            "{line:?}: {out:?}"
+        );
+    }
+    // A partial line is not answered until it ends.
+    dev.receive(b"get ");
+    assert!(dev.take_output().is_empty());
+    dev.receive(b"coeffs\n");
+    assert_eq!(
+        String::from_utf8(dev.take_output()).unwrap().trim_end(),
+        before
+    );
+    // Random line noise: one answer per non-empty line at most, never a panic.
+    let mut x = 0x1234_5678_9ABC_DEF0u64;
+    let noise: Vec<u8> = (0..20_000)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            if x.is_multiple_of(40) {
+                b'\n'
+            } else {
+                (x >> 32) as u8
+            }
+        })
+        .collect();
+    dev.receive(&noise);
+    dev.receive(b"\n");
+    let _ = dev.take_output();
+    assert_eq!(ask(&mut dev, "get coeffs"), before);
+}
+
+/// A request with a CRC suffix gets an answer with one, over the answer's text.
+#[test]
+fn checksummed_requests_get_checksummed_answers() {
+    let mut dev = boot(CalibrationFlash::default(), 5.0, 0);
+    let answer = ask(&mut dev, &format!("get a*{:04X}", crc16(b"get a")));
+    let (body, crc) = answer.rsplit_once('*').expect("crc suffix");
+    assert_eq!(
+        u16::from_str_radix(crc, 16).unwrap(),
+        crc16(body.as_bytes())
+    );
+    assert_eq!(body, "OK a=0");
+}
+
+/// Streaming: one frame per cycle at divider 1, sequence numbers without gaps, P1/P2 present;
+/// a text command still gets its answer between 0x00 delimiters.
+#[test]
+fn streaming_frames_are_complete_and_numbered() {
+    let mut dev = boot(CalibrationFlash::default(), 5.0, 0);
+    dev.run_for(0.6);
+    dev.receive(b"stream on 1\n");
+    assert!(String::from_utf8(dev.take_output())
+        .unwrap()
+        .starts_with("OK stream=on"));
+    dev.run_for(1.0);
+    dev.receive(b"status\n");
+    let bytes = dev.take_output();
+    let (mut gaps, mut frames, mut texts) = (GapCounter::default(), 0, 0);
+    for chunk in bytes.split(|&b| b == 0).filter(|c| !c.is_empty()) {
+        match decode_frame(chunk) {
+            Ok(frame) => {
+                gaps.observe(frame.sequence);
+                frames += 1;
+                assert!(frame.p1_s.abs() < 1e-4 && frame.duration_ticks > 200_000);
+            }
+            Err(_) => {
+                assert!(
+                    chunk.starts_with(b"OK signal="),
+                    "{:?}",
+                    String::from_utf8_lossy(chunk)
+                );
+                texts += 1;
+            }
+        }
+    }
+    assert!(
+        (385..=392).contains(&frames),
+        "{frames} frames in 1 s at 389 Hz"
+    );
+    assert_eq!((gaps.lost, texts), (0, 1));
+}
+
+/// A power cut in the middle of a store: the command fails, and after the reboot the board
+/// has either the previous calibration or the new one, never garbage.
+#[test]
+fn a_power_cut_during_store_keeps_a_valid_calibration() {
+    let mut dev = boot(CalibrationFlash::default(), 5.0, 0);
+    ask(&mut dev, &format!("unlock {KEY}"));
+    ask(&mut dev, "set a 100");
+    assert!(ask(&mut dev, "store").starts_with("OK stored seq=1"));
+    ask(&mut dev, "set a 222");
+    dev.flash_mut().arm_power_cut(PowerCut::AfterBytes(30));
+    assert!(ask(&mut dev, "store").starts_with("ERR 13 "));
+    let mut dev = boot(dev.power_off(), 5.0, 1);
+    let a: f64 = field(&ask(&mut dev, "get a"), "a").parse().unwrap();
+    assert_eq!(a, 100.0, "the torn record is ignored");
+    assert_eq!(field(&ask(&mut dev, "status"), "coeffs"), "flash:1");
+}
