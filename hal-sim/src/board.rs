@@ -40,6 +40,10 @@ pub struct BoardConfig {
     pub latch_offset_s: f64,
     /// RMS jitter of the latch instant, s.
     pub latch_jitter_rms_s: f64,
+    /// Drift of the photodiode phase offset eps (thermal, ageing), rad/s, applied from t = 0
+    /// until `eps_drift_until_s`: the photodiodes see psi - eps(t).
+    pub eps_drift_rad_per_s: f64,
+    pub eps_drift_until_s: f64,
     pub seed: u64,
 }
 
@@ -54,6 +58,8 @@ impl BoardConfig {
             lissajous_rate_hz: 12_345.0,
             latch_offset_s: 0.0,
             latch_jitter_rms_s: 0.0,
+            eps_drift_rad_per_s: 0.0,
+            eps_drift_until_s: 0.0,
             seed: params.seed ^ 0xB0A2_D5EE_D000_0001,
         }
     }
@@ -124,13 +130,14 @@ impl SimBoard {
         };
         let latch_s = (turnaround.time_s + self.config.latch_offset_s + jitter).max(self.time_s);
         while self.next_lissajous_s < latch_s {
-            let psi_h = self.gyro.advance_to(self.next_lissajous_s) - self.eps_rad;
+            let psi_h =
+                self.gyro.advance_to(self.next_lissajous_s) - self.eps_at(self.next_lissajous_s);
             self.counter.advance_to(psi_h);
             let codes = self.photodiodes.sample_codes(psi_h);
             lissajous.push((codes.a_code, codes.b_code));
             self.next_lissajous_s += 1.0 / self.config.lissajous_rate_hz;
         }
-        let psi_h = self.gyro.advance_to(latch_s) - self.eps_rad;
+        let psi_h = self.gyro.advance_to(latch_s) - self.eps_at(latch_s);
         self.time_s = latch_s;
         latch_turnaround(
             turnaround.kind,
@@ -140,6 +147,11 @@ impl SimBoard {
             &mut self.photodiodes,
             &self.timer,
         )
+    }
+
+    /// The photodiode phase offset at `t_s`, rad.
+    pub fn eps_at(&self, t_s: f64) -> f64 {
+        self.eps_rad + self.config.eps_drift_rad_per_s * t_s.min(self.config.eps_drift_until_s)
     }
 
     /// Simulated time of the last latch, s.

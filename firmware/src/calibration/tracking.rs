@@ -21,11 +21,20 @@
 //! (the paper's point), so updates are frozen there: the caller says whether the cycle is
 //! usable, typically |rate| > margin x Omega_L0 from the current estimate, and not flagged.
 //!
+//! [`TrackingLoop`] runs it in the cycle task: it estimates the rate from the uncompensated
+//! output, uses a cycle only while that rate is outside the dead band (Chow's Omega_L0 from the
+//! current estimate and the measured dither amplitude) and hands out new coefficients to stage
+//! every so many used cycles.
+//!
 //! # Numerics
 //! P1 and P2 are scaled by k_ref (~26 us) to order one, so the 3x3 covariance is well
 //! conditioned in f64; it is re-symmetrised after every update. f64 is software floating point
 //! on the M4F: about 80 operations per cycle, tens of microseconds at 389 Hz, run in the
 //! low-priority cycle task, never in the turnaround interrupt.
+
+use super::validation::chow_dead_band_rad_per_s;
+use crate::signal::compensation::Coefficients;
+use crate::signal::cycle::CycleRecord;
 
 /// Tracker settings (immutable).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -34,8 +43,11 @@ pub struct TrackingConfig {
     pub memory_cycles: f64,
     /// Memory of the intercept (the input rate), cycles.
     pub intercept_memory_cycles: f64,
-    /// Expected per-cycle output noise, rad (ARW, ADC noise, residual model error).
+    /// Initial guess of the per-cycle output noise, rad (ARW, ADC noise on the two fractional
+    /// fringes, residual model error); the tracker then estimates it from the innovations.
     pub noise_rad: f64,
+    /// Memory of that noise estimate, cycles.
+    pub noise_memory_cycles: f64,
     /// Scale of P1, P2 (s): the traversal time constant k of the gyro, ~26 us.
     pub k_ref_s: f64,
     /// Initial standard deviation of a and b, rad/s.
@@ -50,20 +62,16 @@ impl TrackingConfig {
         Self {
             memory_cycles: cycles.max(1.0),
             intercept_memory_cycles: 20.0,
-            noise_rad: 1e-4,
+            noise_rad: 2e-3,
+            noise_memory_cycles: 500.0,
             k_ref_s,
             initial_std_rad_per_s: 100.0,
             gate_sigma: 8.0,
         }
     }
 
-    fn measurement_variance(&self) -> f64 {
-        self.noise_rad * self.noise_rad
-    }
-
-    /// Per-cycle random-walk variances of [c, a k_ref, b k_ref].
-    fn process_variance(&self) -> [f64; 3] {
-        let r = self.measurement_variance();
+    /// Per-cycle random-walk variances of [c, a k_ref, b k_ref] for measurement variance r.
+    fn process_variance(&self, r: f64) -> [f64; 3] {
         let q_ab = r / (self.memory_cycles * self.memory_cycles);
         let q_c = r / (self.intercept_memory_cycles * self.intercept_memory_cycles).max(1.0);
         [q_c, q_ab, q_ab]
@@ -78,6 +86,8 @@ pub struct Tracker {
     updates: u64,
     frozen: u64,
     rate_steps: u64,
+    /// Estimated measurement variance r, rad^2.
+    noise_var: f64,
 }
 
 /// Initial (and re-opened) variance of the intercept, rad^2.
@@ -102,6 +112,7 @@ impl Tracker {
             updates: 0,
             frozen: 0,
             rate_steps: 0,
+            noise_var: config.noise_rad * config.noise_rad,
         }
     }
 
@@ -138,7 +149,11 @@ impl Tracker {
             return;
         }
         // Predict: the random walk widens the covariance.
-        for (i, q) in config.process_variance().into_iter().enumerate() {
+        for (i, q) in config
+            .process_variance(self.noise_var)
+            .into_iter()
+            .enumerate()
+        {
             self.p[i][i] += q;
         }
         // Update with y = x' theta + v.
@@ -147,8 +162,7 @@ impl Tracker {
         for (i, row) in self.p.iter().enumerate() {
             px[i] = row[0] * x[0] + row[1] * x[1] + row[2] * x[2];
         }
-        let innovation_var =
-            config.measurement_variance() + x[0] * px[0] + x[1] * px[1] + x[2] * px[2];
+        let innovation_var = self.noise_var + x[0] * px[0] + x[1] * px[1] + x[2] * px[2];
         if !(innovation_var.is_finite() && innovation_var > 0.0) {
             self.frozen += 1;
             return;
@@ -179,7 +193,111 @@ impl Tracker {
                 self.p[j][i] = v;
             }
         }
+        // The noise estimate follows the accepted innovations (slightly high by x' P x, which
+        // is small once converged); gated innovations do not enter it.
+        let memory = config.noise_memory_cycles.max(1.0);
+        self.noise_var =
+            (self.noise_var + (err * err - self.noise_var) / memory).max(MIN_NOISE_VAR_RAD2);
         self.updates += 1;
+    }
+
+    /// The estimated per-cycle output noise, rad.
+    pub fn noise_rad(&self) -> f64 {
+        libm::sqrt(self.noise_var)
+    }
+}
+
+/// Floor of the noise estimate, rad^2 (1e-6 rad: below any real fractional-fringe noise).
+const MIN_NOISE_VAR_RAD2: f64 = 1e-12;
+
+/// Settings of the tracking loop (immutable).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrackingLoopConfig {
+    pub tracking: TrackingConfig,
+    /// Cycles are used only while |rate| > margin x Omega_L0 (Chow, from the current a, b and
+    /// the measured dither amplitude).
+    pub dead_band_margin: f64,
+    /// Memory of the rate estimate that decides it, cycles.
+    pub rate_memory_cycles: f64,
+    /// New coefficients are staged every this many used cycles.
+    pub stage_every_cycles: u32,
+}
+
+impl TrackingLoopConfig {
+    /// Memory `cycles`, k_ref 26 us, 1.5 x the dead band, rate over 100 cycles, staging every
+    /// 389 used cycles (once a second at the paper's dither).
+    pub fn with_memory(cycles: f64) -> Self {
+        Self {
+            tracking: TrackingConfig::with_memory(cycles, 26e-6),
+            dead_band_margin: 1.5,
+            rate_memory_cycles: 100.0,
+            stage_every_cycles: 389,
+        }
+    }
+}
+
+/// The tracking loop of the cycle task: decides whether a cycle may be used, feeds the
+/// tracker, and hands out new coefficients to stage now and then.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrackingLoop {
+    tracker: Tracker,
+    rate_rad_per_s: f64,
+    countdown: u32,
+}
+
+impl TrackingLoop {
+    /// Starts from the coefficients in force.
+    pub fn new(config: &TrackingLoopConfig, start: Coefficients) -> Self {
+        Self {
+            tracker: Tracker::new(
+                &config.tracking,
+                start.a_rad_per_s() as f64,
+                start.b_rad_per_s() as f64,
+            ),
+            rate_rad_per_s: 0.0,
+            countdown: config.stage_every_cycles,
+        }
+    }
+
+    pub fn tracker(&self) -> &Tracker {
+        &self.tracker
+    }
+
+    /// One dither cycle; returns coefficients to stage when due. Cycles inside the dead band
+    /// (judged from the uncompensated rate, which is ~0 there) or flagged ones freeze it.
+    pub fn on_cycle(
+        &mut self,
+        config: &TrackingLoopConfig,
+        record: &CycleRecord,
+        cycle_s: f64,
+    ) -> Option<Coefficients> {
+        let y = record.raw_increment_rad();
+        if cycle_s > 0.0 && y.is_finite() {
+            let alpha = 1.0 / config.rate_memory_cycles.max(1.0);
+            self.rate_rad_per_s += alpha * (y / cycle_s - self.rate_rad_per_s);
+        }
+        let (a, b) = self.tracker.coefficients_rad_per_s(&config.tracking);
+        let band = chow_dead_band_rad_per_s(libm::hypot(a, b), record.dither_amplitude_rad as f64);
+        let usable = record.output.flags.is_empty()
+            && record.dither_amplitude_rad > 0.0
+            && libm::fabs(self.rate_rad_per_s) > config.dead_band_margin * band;
+        self.tracker.update(
+            &config.tracking,
+            y,
+            record.terms.p1_s as f64,
+            record.terms.p2_s as f64,
+            usable,
+        );
+        if !usable {
+            return None;
+        }
+        self.countdown = self.countdown.saturating_sub(1);
+        if self.countdown > 0 {
+            return None;
+        }
+        self.countdown = config.stage_every_cycles;
+        let (a, b) = self.tracker.coefficients_rad_per_s(&config.tracking);
+        Coefficients::from_rad_per_s(a as f32, b as f32).ok()
     }
 }
 
