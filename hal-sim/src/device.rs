@@ -74,8 +74,8 @@ impl SimDevice {
         mut flash: CalibrationFlash,
         boot_count: u32,
     ) -> Result<Self, BoardError> {
-        let gyro = Gyro::new(params, input)
-            .map_err(|_| BoardError::Config("invalid gyro parameters"))?;
+        let gyro =
+            Gyro::new(params, input).map_err(|_| BoardError::Config("invalid gyro parameters"))?;
         let board_config = BoardConfig::for_gyro(&params);
         let board = SimBoard::new(gyro, board_config.clone())?;
         let config = ReadoutConfig::for_board(
@@ -165,7 +165,11 @@ impl SimDevice {
             self.status.rate_deg_per_h = reading.rate_deg_per_h as f32;
         }
         let cycle_s = record.duration_s(&self.config.cycle);
-        if let Some(frame) = self.executor.on_cycle(&record, cycle_s) {
+        let actions = self.executor.on_cycle(&record, cycle_s);
+        if let Some(settings) = actions.stage {
+            self.readout.stage_compensation(settings);
+        }
+        if let Some(frame) = actions.frame {
             let mut buf = [0u8; MAX_FRAME];
             let n = encode_frame(&frame, &mut buf);
             self.output.extend_from_slice(&buf[..n]);

@@ -243,3 +243,68 @@ fn a_power_cut_during_store_keeps_a_valid_calibration() {
     assert_eq!(a, 100.0, "the torn record is ignored");
     assert_eq!(field(&ask(&mut dev, "status"), "coeffs"), "flash:1");
 }
+
+/// `track on` (protected) lets the firmware learn a and b by itself outside the dead band: a
+/// fresh board (a = b = 0, compensation off) converges to the simulator's truth within 1 % and
+/// turns the compensation on; `status` reports it and the source becomes "unsaved".
+#[test]
+fn tracking_learns_the_coefficients_from_scratch() {
+    let mut dev = boot(CalibrationFlash::default(), 13.888, 0);
+    dev.run_for(0.6);
+    assert!(ask(&mut dev, "track on").starts_with("ERR 9 "));
+    ask(&mut dev, &format!("unlock {KEY}"));
+    assert!(ask(&mut dev, "track on").starts_with("OK track=on"));
+    dev.run_for(20.0);
+    let coeffs = ask(&mut dev, "get coeffs");
+    let lock_in: f64 = field(&coeffs, "lock_in_deg_h").parse().unwrap();
+    let eps: f64 = field(&coeffs, "eps_rad").parse().unwrap();
+    assert!((lock_in / 200.0 - 1.0).abs() < 0.01, "{coeffs}");
+    assert!((eps - 0.3).abs() < 0.01, "{coeffs}");
+    let status = ask(&mut dev, "status");
+    assert_eq!(
+        (field(&status, "track"), field(&status, "comp")),
+        ("on", "on")
+    );
+    assert_eq!(field(&status, "coeffs"), "unsaved");
+    assert!(ask(&mut dev, "track off").starts_with("OK track=off"));
+}
+
+/// Every command that changes coefficients, compensation or flash is refused while locked,
+/// and changes nothing; every read works.
+#[test]
+fn every_protected_command_needs_the_unlock() {
+    let mut dev = boot(CalibrationFlash::default(), 5.0, 0);
+    let before = ask(&mut dev, "get coeffs");
+    for cmd in [
+        "set a 1",
+        "set b 1",
+        "comp on",
+        "comp off",
+        "track on",
+        "cal accept",
+        "store",
+        "reload",
+        "defaults",
+    ] {
+        assert!(
+            ask(&mut dev, cmd).starts_with("ERR 9 "),
+            "{cmd} while locked"
+        );
+    }
+    for cmd in [
+        "id",
+        "status",
+        "get a",
+        "get coeffs",
+        "cal status",
+        "help",
+        "stream off",
+    ] {
+        assert!(
+            ask(&mut dev, cmd).starts_with("OK"),
+            "{cmd} needs no unlock"
+        );
+    }
+    assert_eq!(ask(&mut dev, "get coeffs"), before);
+    assert_eq!(field(&ask(&mut dev, "status"), "coeffs"), "defaults:erased");
+}

@@ -8,8 +8,8 @@
 //!
 //! Rules:
 //! - reads (`id`, `status`, `get`, `cal status`, `cal result`, `help`) never need an unlock;
-//! - everything that changes coefficients, compensation or flash (`set`, `comp`, `cal accept`,
-//!   `store`, `reload`, `defaults`) needs one, and extends it when it succeeds;
+//! - everything that changes coefficients, compensation or flash (`set`, `comp`, `track`,
+//!   `cal accept`, `store`, `reload`, `defaults`) needs one, and extends it when it succeeds;
 //! - while a calibration run collects cycles, those commands answer `ERR 10` (busy): the run's
 //!   data would no longer match the coefficients;
 //! - a refused command changes nothing.
@@ -21,6 +21,7 @@ use super::stream::StreamRecord;
 use super::ErrorCode;
 use crate::calibration::fit::FitResult;
 use crate::calibration::session::{CalibrationSession, SessionError, SessionState};
+use crate::calibration::tracking::{TrackingLoop, TrackingLoopConfig};
 use crate::calibration::validation::AcceptanceLimits;
 use crate::signal::compensation::{Coefficients, CompensationSettings};
 use crate::signal::cycle::CycleRecord;
@@ -100,9 +101,21 @@ pub struct Executor {
     stream_divider: Option<u16>,
     stream_countdown: u16,
     stream_sequence: u32,
+    tracking_config: TrackingLoopConfig,
+    tracking: Option<TrackingLoop>,
 }
 
-const HELP: &str = "commands: id status get{a|b|coeffs} set{a|b}<rad/s> comp{on|off} \
+/// What a dither cycle asks of the serial task.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CycleActions {
+    /// A stream frame to send.
+    pub frame: Option<StreamRecord>,
+    /// Coefficients the tracking loop wants staged (compensation on).
+    pub stage: Option<CompensationSettings>,
+}
+
+const HELP: &str =
+    "commands: id status get{a|b|coeffs} set{a|b}<rad/s> comp{on|off} track{on|off} \
 cal{start<n>[<warmup>]|status|abort|result|accept} store reload defaults stream{on[<n>]|off} \
 unlock<key> lock help";
 
@@ -124,7 +137,14 @@ impl Executor {
             stream_divider: None,
             stream_countdown: 0,
             stream_sequence: 0,
+            tracking_config: TrackingLoopConfig::with_memory(20_000.0),
+            tracking: None,
         }
+    }
+
+    /// Whether online tracking runs.
+    pub fn tracking(&self) -> bool {
+        self.tracking.is_some()
     }
 
     pub fn source(&self) -> Source {
@@ -137,18 +157,31 @@ impl Executor {
     }
 
     /// Every dither cycle (from the low-priority cycle task): feeds a running calibration and
-    /// returns a stream record when one is due.
-    pub fn on_cycle(&mut self, record: &CycleRecord, cycle_s: f64) -> Option<StreamRecord> {
+    /// the tracking loop; returns a stream frame when one is due and coefficients to stage when
+    /// tracking has new ones.
+    pub fn on_cycle(&mut self, record: &CycleRecord, cycle_s: f64) -> CycleActions {
         self.session.on_cycle(record, cycle_s);
-        let divider = self.stream_divider?;
-        if self.stream_countdown > 1 {
-            self.stream_countdown -= 1;
-            return None;
+        let mut actions = CycleActions::default();
+        if let Some(tracking) = self.tracking.as_mut() {
+            if let Some(coefficients) = tracking.on_cycle(&self.tracking_config, record, cycle_s) {
+                actions.stage = Some(CompensationSettings {
+                    coefficients,
+                    enabled: true,
+                });
+                self.source = Source::Unsaved;
+                self.fit = None;
+            }
         }
-        self.stream_countdown = divider;
-        let frame = StreamRecord::from_cycle(self.stream_sequence, record);
-        self.stream_sequence = self.stream_sequence.wrapping_add(1);
-        Some(frame)
+        if let Some(divider) = self.stream_divider {
+            if self.stream_countdown > 1 {
+                self.stream_countdown -= 1;
+            } else {
+                self.stream_countdown = divider;
+                actions.frame = Some(StreamRecord::from_cycle(self.stream_sequence, record));
+                self.stream_sequence = self.stream_sequence.wrapping_add(1);
+            }
+        }
+        actions
     }
 
     /// Executes one command.
@@ -241,6 +274,16 @@ impl Executor {
                 device.stage_settings(settings);
                 self.source = Source::Unsaved;
                 r.field(format_args!("comp={}", if on { "on" } else { "off" }));
+            }
+            Command::Tracking(on) => {
+                self.tracking = on.then(|| {
+                    TrackingLoop::new(&self.tracking_config, device.active_settings().coefficients)
+                });
+                r.field(format_args!(
+                    "track={} memory_cycles={}",
+                    if on { "on" } else { "off" },
+                    self.tracking_config.tracking.memory_cycles
+                ));
             }
             Command::CalStart {
                 cycles,
@@ -355,7 +398,7 @@ impl Executor {
             s.dither_amplitude_rad * id.scale_factor_arcsec / core::f32::consts::TAU;
         r.field(format_args!(
             "signal={} dither_hz={:.3} dither_amp_arcsec={:.2} rate_deg_h={:.4} turnarounds={} cycles={} \
-counter_glitches={} phase_glitches={} signal_lost={} missed={} comp={} coeffs={} locked={}",
+counter_glitches={} phase_glitches={} signal_lost={} missed={} comp={} track={} coeffs={} locked={}",
             if s.signal_ok { "ok" } else { "lost" },
             s.dither_hz,
             amplitude_arcsec,
@@ -367,6 +410,7 @@ counter_glitches={} phase_glitches={} signal_lost={} missed={} comp={} coeffs={}
             s.signal_lost,
             s.missed_turnarounds,
             if settings.enabled { "on" } else { "off" },
+            if self.tracking.is_some() { "on" } else { "off" },
             SourceText(self.source),
             if self.access.is_unlocked(now) { "no" } else { "yes" },
         ));
@@ -379,6 +423,7 @@ fn protected(command: &Command) -> bool {
         command,
         Command::Set(..)
             | Command::Compensation(_)
+            | Command::Tracking(_)
             | Command::CalAccept
             | Command::Store
             | Command::Reload

@@ -28,6 +28,8 @@ pub enum Command {
     Set(Coefficient, f32),
     /// `comp on` | `comp off`.
     Compensation(bool),
+    /// `track on` | `track off`: online tracking of a and b outside the dead band.
+    Tracking(bool),
     /// `cal start <cycles> [<warmup cycles>]`: one calibration run (pooled with a completed one).
     CalStart {
         cycles: u32,
@@ -148,6 +150,8 @@ pub fn parse(text: &str) -> Result<Command, ErrorCode> {
         Command::Set(which, value)
     } else if is("comp") {
         Command::Compensation(on_off(words.next())?)
+    } else if is("track") {
+        Command::Tracking(on_off(words.next())?)
     } else if is("cal") {
         let sub = words.next().ok_or(ErrorCode::Syntax)?;
         let sub_is = |w: &str| sub.eq_ignore_ascii_case(w);
@@ -249,6 +253,7 @@ mod tests {
             Ok(Command::Set(Coefficient::B, -550.0))
         );
         assert_eq!(parse("comp off"), Ok(Command::Compensation(false)));
+        assert_eq!(parse("track on"), Ok(Command::Tracking(true)));
         assert_eq!(
             parse("cal start 4000 400"),
             Ok(Command::CalStart {
