@@ -55,15 +55,15 @@ pub fn table(rows: &[SweepRow], scale_factor_arcsec: f64) -> String {
     s
 }
 
-/// The figure: output vs input for ideal, uncompensated and compensated, and the deviations
-/// from ideal (deg/h) below.
+/// The figure: output vs input for ideal, uncompensated and compensated; the deviations from
+/// ideal (deg/h) below; and the compensated deviation alone, at its own scale.
 pub fn figure(rows: &[SweepRow], scale_factor_arcsec: f64, title: &str) -> Figure {
     let pts = |f: &dyn Fn(&SweepRow) -> f64| rows.iter().map(|r| (r.input_deg_h, f(r))).collect();
     Figure {
         title: title.into(),
         x_label: "input rate (deg/h)".into(),
         width_px: 900.0,
-        height_px: 760.0,
+        height_px: 960.0,
         panels: vec![
             Panel {
                 title: "gyro output (Fig. 3 uncompensated, Fig. 4 compensated)".into(),
@@ -108,6 +108,17 @@ pub fn figure(rows: &[SweepRow], scale_factor_arcsec: f64, title: &str) -> Figur
                         style: Style::LineAndMarkers,
                     },
                 ],
+            },
+            Panel {
+                title: "compensated deviation, at its own scale".into(),
+                y_label: "output - ideal (deg/h)".into(),
+                weight: 1.0,
+                series: vec![Series {
+                    label: "compensated".into(),
+                    points: pts(&|r| (r.compensated_hz - r.ideal_hz) * scale_factor_arcsec),
+                    color: "#1f77b4",
+                    style: Style::LineAndMarkers,
+                }],
             },
         ],
     }
