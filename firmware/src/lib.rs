@@ -14,7 +14,10 @@ pub mod protocol;
 pub mod readout;
 pub mod sample;
 pub mod signal;
+
 pub mod storage;
+#[cfg(test)]
+mod test_rng;
 
 #[cfg(target_os = "none")]
 pub mod rt;

@@ -181,20 +181,7 @@ impl FitAccumulator {
 mod tests {
     use super::*;
 
-    /// xorshift64*: deterministic test data without dev-dependencies.
-    struct Rng(u64);
-    impl Rng {
-        fn uniform(&mut self) -> f64 {
-            self.0 ^= self.0 >> 12;
-            self.0 ^= self.0 << 25;
-            self.0 ^= self.0 >> 27;
-            (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
-        }
-        fn normal(&mut self) -> f64 {
-            // Sum of 12 uniforms: unit variance, good enough for test noise.
-            (0..12).map(|_| self.uniform()).sum::<f64>() - 6.0
-        }
-    }
+    use crate::test_rng::XorShift as Rng;
 
     const K: f64 = 26.3e-6;
     const A: f64 = 673.6 * 0.8253356149096783 * 0.6967067093471654; // ~ Omega_L cos(eps+pi/4)
@@ -209,7 +196,7 @@ mod tests {
             let (pp, pm) = (u * tau, v * tau);
             let p1 = 0.5 * K * (pp.cos() + (w * tau).cos()) + K * pm.sin();
             let p2 = K * pm.cos() - 0.5 * K * (pp.sin() + (w * tau).sin());
-            let y = rate * t + A * p1 + B * p2 + noise * rng.normal();
+            let y = rate * t + A * p1 + B * p2 + noise * rng.gauss();
             assert!(acc.push(y, p1, p2, t));
         }
         acc.end_run();

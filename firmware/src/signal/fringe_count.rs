@@ -192,15 +192,7 @@ impl FringeCounter {
 mod tests {
     use super::*;
 
-    struct XorShift(u64);
-    impl XorShift {
-        fn next(&mut self) -> u64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            self.0
-        }
-    }
+    use crate::test_rng::XorShift;
 
     fn config(width: CounterWidth, max_step: u32) -> FringeCountConfig {
         FringeCountConfig {

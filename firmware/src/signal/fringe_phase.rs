@@ -353,18 +353,7 @@ mod tests {
     use crate::signal::quadrature::QuadratureDecoder;
     use std::f64::consts::TAU;
 
-    struct XorShift(u64);
-    impl XorShift {
-        fn next(&mut self) -> u64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            self.0
-        }
-        fn uniform(&mut self) -> f64 {
-            (self.next() >> 11) as f64 / (1u64 << 53) as f64
-        }
-    }
+    use crate::test_rng::XorShift;
 
     const Q30: f64 = (1u64 << 30) as f64;
 

@@ -735,24 +735,7 @@ mod tests {
     use super::*;
     use std::f64::consts::{PI, TAU};
 
-    struct XorShift(u64);
-    impl XorShift {
-        fn next(&mut self) -> u64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            self.0
-        }
-        fn uniform(&mut self) -> f64 {
-            (self.next() >> 11) as f64 / (1u64 << 53) as f64
-        }
-        /// Standard normal (Box-Muller; std math is fine in tests).
-        fn gauss(&mut self) -> f64 {
-            let u1 = self.uniform().max(1e-300);
-            let u2 = self.uniform();
-            (-2.0 * u1.ln()).sqrt() * (TAU * u2).cos()
-        }
-    }
+    use crate::test_rng::XorShift;
 
     #[derive(Clone, Copy)]
     struct Truth {

@@ -188,15 +188,7 @@ impl QuadratureDecoder {
 mod tests {
     use super::*;
 
-    struct XorShift(u64);
-    impl XorShift {
-        fn next(&mut self) -> u64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            self.0
-        }
-    }
+    use crate::test_rng::XorShift;
 
     /// Comparator state of ideal comparators at quadrant `q` of psi_H, from the physics
     /// (A = cos > 0, B = sin > 0 at the quadrant's centre), independent of the table.
