@@ -12,7 +12,10 @@
 //! - the free phase `theta(t)`, the true input rate, the dither pick-off and its turnarounds.
 //!
 //! Time only moves forward (`advance_to` panics on a step back); clone the gyro to explore
-//! ahead. Same parameters (and seed) and same input give the same results bit for bit,
+//! ahead. `psi` is an unwrapped `f64`, so its resolution is one ulp of |psi| (2e-10 rad at
+//! 1e6 rad, i.e. after ~1 s at 100 deg/s of input); time is an `f64` of seconds, whose ulp
+//! (4.5e-13 s at 1 h) is worth ~2e-6 rad at the peak dither rate: inherent in the interface,
+//! not in the integration, which works relative to each segment. Same parameters (and seed) and same input give the same results bit for bit,
 //! independent of how often or where the caller looks.
 
 use crate::input::InputProfile;
@@ -47,6 +50,16 @@ pub struct Traversal {
     /// Where the near region begins and ends, s.
     pub near_start_s: f64,
     pub near_end_s: f64,
+}
+
+impl Turnaround {
+    /// The exact lock-in phase error accumulated from `self` to a later turnaround `later`
+    /// (of the same kind: one dither cycle), rad: the change of `phi = psi - theta`, i.e. the
+    /// measured phase minus the true angle. The compensated output is the measured phase
+    /// minus this.
+    pub fn lockin_error_until_rad(&self, later: &Turnaround) -> f64 {
+        later.phi_rad - self.phi_rad
+    }
 }
 
 /// Traversals kept if the caller never drains them (oldest dropped first).
@@ -159,7 +172,7 @@ impl Gyro {
     }
 
     /// Drains the traversals completed so far (a traversal completes when its near region
-    /// ends, ~66 us after its turnaround with the default solver settings).
+    /// ends, ~55 us after its turnaround with the default solver settings).
     pub fn take_traversals(&mut self) -> Vec<Traversal> {
         self.traversals.drain(..).collect()
     }
@@ -205,15 +218,46 @@ impl Gyro {
     }
 }
 
-/// Speed of the simulation: gyro-seconds per wall-second on one core for the PHYSICS.md
-/// parameter set and default accuracy, driven at the paper's +13.888 deg/h (rotary table at
-/// 22.2 deg latitude, azimuth 0), simulating `gyro_seconds`.
-pub fn speed_gyro_s_per_wall_s(gyro_seconds: f64) -> f64 {
+/// Speed of the simulation for the PHYSICS.md parameter set at default accuracy, driven
+/// at the paper's +13.888 deg/h (rotary table at 22.2 deg latitude, azimuth 0).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Speed {
+    /// Simulated gyro-seconds per wall-clock second.
+    pub gyro_s_per_wall_s: f64,
+    /// Simulated gyro-seconds per second of this thread's CPU time (Linux
+    /// `/proc/thread-self/schedstat`; `None` elsewhere). On a loaded machine this is the
+    /// figure that says what one free core would do.
+    pub gyro_s_per_cpu_s: Option<f64>,
+}
+
+/// This thread's CPU time in seconds, if the OS tells.
+fn thread_cpu_s() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    let ns: f64 = s.split_whitespace().next()?.parse().ok()?;
+    Some(ns * 1e-9)
+}
+
+/// Measures [`Speed`] by simulating `gyro_seconds` on the calling thread.
+pub fn measure_speed(gyro_seconds: f64) -> Speed {
     let mut g = Gyro::new(GyroParams::default(), InputProfile::rotary_table(22.2, 0.0))
         .expect("defaults are valid");
+    let cpu0 = thread_cpu_s();
     let start = std::time::Instant::now();
     g.advance_to(gyro_seconds);
-    gyro_seconds / start.elapsed().as_secs_f64()
+    let wall = start.elapsed().as_secs_f64();
+    let cpu = match (cpu0, thread_cpu_s()) {
+        (Some(a), Some(b)) if b > a => Some(gyro_seconds / (b - a)),
+        _ => None,
+    };
+    Speed {
+        gyro_s_per_wall_s: gyro_seconds / wall,
+        gyro_s_per_cpu_s: cpu,
+    }
+}
+
+/// Gyro-seconds per wall-second on one core (see [`measure_speed`]).
+pub fn speed_gyro_s_per_wall_s(gyro_seconds: f64) -> f64 {
+    measure_speed(gyro_seconds).gyro_s_per_wall_s
 }
 
 #[cfg(test)]
@@ -240,5 +284,24 @@ mod tests {
             // Per traversal ~ Omega_L k ~ 0.018 rad at most.
             assert!(x.lockin_error_rad.abs() < 0.03, "{x:?}");
         }
+    }
+
+    #[test]
+    fn no_dither_ramp_has_one_turnaround_and_locks_then_slips() {
+        let p = GyroParams {
+            dither_amplitude_arcsec: 0.0,
+            ..Default::default()
+        };
+        let mut g = Gyro::new(p, InputProfile::ramp(0.0, -400.0, 1.0, 400.0)).unwrap();
+        let t = g.next_turnaround();
+        assert_eq!(t.kind, TurnaroundKind::Plus);
+        assert!((t.time_s - 0.5).abs() < 1e-12, "{}", t.time_s);
+        let psi_locked = g.advance_to(0.55);
+        // 0.55 s: 40 deg/h < Omega_L: locked, psi barely moves after settling.
+        assert!((g.advance_to(0.6) - psi_locked).abs() < 0.5);
+        // At the end the rate is 400 deg/h > Omega_L: slipping forward.
+        let a = g.advance_to(0.95);
+        assert!(g.advance_to(1.0) - a > 10.0);
+        assert!(g.take_traversals().is_empty());
     }
 }

@@ -26,7 +26,8 @@
 //! with the PHYSICS.md set (`u = 1.3e-3`, `delta = 0.036`) the terms fall to ~1e-8 rad by
 //! order 8 and stall there (the measured far error, ~1e-8 per boundary); at 6e5 they reach
 //! 7e-10, at 8e5 1e-11. The recursion stops early where the terms vanish (at a dither peak
-//! `omega' = 0`). The drift's next term `g_6` integrates to < 1e-9 rad at 5e5.
+//! `omega' = 0`). The drift's next term `g_6` (not included) integrates to a few 1e-9 rad per boundary at
+//! 5e5 (below the measured total error of ~4e-8 rad per traversal).
 //!
 //! [`oscillation`] evaluates `W`'s Fourier coefficients at one instant by running the
 //! recursion on truncated Taylor series in `t` (jets of `omega`), so no derivative is
@@ -39,20 +40,7 @@ const H: usize = ORDER + 2;
 
 type Jet = [f64; ORDER];
 
-/// Product of two jets, only the first `len` coefficients (the rest are left 0).
-#[inline]
-fn jmul_n(a: &Jet, b: &Jet, len: usize) -> Jet {
-    let mut r = [0.0; ORDER];
-    for j in 0..len {
-        let mut s = 0.0;
-        for i in 0..=j {
-            s += a[i] * b[j - i];
-        }
-        r[j] = s;
-    }
-    r
-}
-
+#[inline(always)]
 fn jrecip(a: &Jet) -> Jet {
     let mut r = [0.0; ORDER];
     r[0] = 1.0 / a[0];
@@ -64,24 +52,6 @@ fn jrecip(a: &Jet) -> Jet {
         r[j] = -s * r[0];
     }
     r
-}
-
-fn jderiv(a: &Jet) -> Jet {
-    let mut r = [0.0; ORDER];
-    for j in 0..ORDER - 1 {
-        r[j] = (j + 1) as f64 * a[j + 1];
-    }
-    r
-}
-
-fn jscale(a: &Jet, s: f64) -> Jet {
-    a.map(|x| x * s)
-}
-
-fn jadd_to(acc: &mut Jet, a: &Jet, s: f64) {
-    for (x, y) in acc.iter_mut().zip(a) {
-        *x += s * y;
-    }
 }
 
 /// A Fourier series in `psi`: `sum_k c[k] cos(k psi) + s[k] sin(k psi)`, `k >= 1`.
@@ -116,60 +86,79 @@ pub fn oscillation_with_means(omega_taylor: &Jet, omega_l: f64) -> (Oscillation,
 }
 
 /// As [`oscillation_with_means`] with only the first `orders` terms (`<= ORDER`).
+///
+/// Written with explicit index loops over only the live harmonics and jet coefficients (at
+/// order n, harmonics up to n + 1 and the first ORDER - n Taylor coefficients): this runs at
+/// every far boundary and must stay cheap even at `opt-level = "s"`.
 pub fn oscillation_orders(
     omega_taylor: &Jet,
     omega_l: f64,
     orders: usize,
 ) -> (Oscillation, [f64; ORDER]) {
     let inv = jrecip(omega_taylor);
-    let zero = [0.0; ORDER];
-    let mut sc = [zero; H];
-    let mut ss = [zero; H];
+    let half = 0.5 * omega_l;
+    let mut sc = [[0.0; ORDER]; H];
+    let mut ss = [[0.0; ORDER]; H];
+    let mut wc = [[0.0; ORDER]; H];
+    let mut ws = [[0.0; ORDER]; H];
     sc[1][0] = omega_l;
     let mut out = Oscillation::default();
     let mut means = [0.0; ORDER];
     for (n, mean) in means.iter_mut().enumerate().take(orders) {
         *mean = sc[0][0];
-        // S_n holds harmonics 0..=n (n counted from 1): skip the rest. Only the first
-        // ORDER - n jet coefficients of w_n are ever used (each order differentiates once).
         let top = (n + 2).min(H);
         let len = ORDER - n;
-        // w_n = antiderivative in psi of the oscillating part, divided by omega.
-        let mut wc = [zero; H];
-        let mut ws = [zero; H];
+        // w_n = antiderivative in psi of the oscillating part of S_n, divided by omega.
         for k in 1..top {
             let kf = k as f64;
-            wc[k] = jmul_n(&jscale(&ss[k], -1.0 / kf), &inv, len);
-            ws[k] = jmul_n(&jscale(&sc[k], 1.0 / kf), &inv, len);
+            for j in 0..len {
+                let (mut a, mut b) = (0.0, 0.0);
+                for i in 0..=j {
+                    a += ss[k][i] * inv[j - i];
+                    b += sc[k][i] * inv[j - i];
+                }
+                wc[k][j] = -a / kf;
+                ws[k][j] = b / kf;
+            }
             out.c[k] += wc[k][0];
             out.s[k] += ws[k][0];
         }
-        // S_{n+1} = -dw/dt - Omega_L cos psi dw/dpsi.
-        let mut nc = [zero; H];
-        let mut ns = [zero; H];
-        for k in 1..top {
-            jadd_to(&mut nc[k], &jderiv(&wc[k]), -1.0);
-            jadd_to(&mut ns[k], &jderiv(&ws[k]), -1.0);
-            // dw/dpsi: cos part k ws[k], sin part -k wc[k].
-            let dc = jscale(&ws[k], k as f64);
-            let ds = jscale(&wc[k], -(k as f64));
-            let half = 0.5 * omega_l;
-            jadd_to(&mut nc[k - 1], &dc, -half);
-            if k + 1 < H {
-                jadd_to(&mut nc[k + 1], &dc, -half);
-                jadd_to(&mut ns[k + 1], &ds, -half);
-            }
-            if k >= 2 {
-                jadd_to(&mut ns[k - 1], &ds, -half);
+        // S_{n+1} = -dw/dt - Omega_L cos psi dw/dpsi (harmonics up to top).
+        let ntop = (top + 1).min(H);
+        for k in 0..ntop {
+            for j in 0..len {
+                sc[k][j] = 0.0;
+                ss[k][j] = 0.0;
             }
         }
-        sc = nc;
-        ss = ns;
+        for k in 1..top {
+            let kf = k as f64;
+            for j in 0..len - 1 {
+                let d = (j + 1) as f64;
+                sc[k][j] -= d * wc[k][j + 1];
+                ss[k][j] -= d * ws[k][j + 1];
+            }
+            for j in 0..len {
+                // dw/dpsi: cos part k ws, sin part -k wc; times cos psi shifts k -> k +- 1.
+                let dc = half * kf * ws[k][j];
+                let ds = -half * kf * wc[k][j];
+                sc[k - 1][j] -= dc;
+                if k + 1 < H {
+                    sc[k + 1][j] -= dc;
+                    ss[k + 1][j] -= ds;
+                }
+                if k >= 2 {
+                    ss[k - 1][j] -= ds;
+                }
+            }
+        }
         // Far from the near region the series collapses fast (at a dither peak omega' = 0):
         // stop once the remainder is negligible.
-        let rest =
-            (1..top.min(H - 1) + 1).fold(0.0f64, |m, k| m.max(sc[k][0].abs()).max(ss[k][0].abs()));
-        if rest < 1e-15 * omega_taylor[0].abs() && n >= 1 {
+        let mut rest: f64 = 0.0;
+        for k in 1..ntop {
+            rest = rest.max(sc[k][0].abs()).max(ss[k][0].abs());
+        }
+        if rest < 1e-15 * omega_taylor[0].abs() {
             break;
         }
     }
@@ -263,6 +252,9 @@ impl ChebIntegral {
 
     /// `integral_{t_a}^{t} f`, for `t` in `[t_a, t_b]`.
     pub fn eval(&self, t: f64) -> f64 {
+        if self.t_b == self.t_a {
+            return 0.0;
+        }
         let x = ((2.0 * t - self.t_a - self.t_b) / (self.t_b - self.t_a)).clamp(-1.0, 1.0);
         let (mut tm, mut tj) = (1.0, x);
         let mut sign = -1.0;

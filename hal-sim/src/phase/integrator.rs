@@ -1,4 +1,4 @@
-//! The integrator: walks the planned timeline, stepping near segments with RK4 and jumping
+//! The integrator: walks the planned timeline, stepping near segments with Gauss-Legendre collocation and jumping
 //! over far segments with the near-identity expansion, and reports turnarounds (with the
 //! exact beat phase there) and, per near run, the change of the slow variable `chi`.
 //!
@@ -8,8 +8,8 @@
 //! segments between two far segments; its `chi_out - chi_in` is the lock-in phase error of
 //! that traversal with the far-field oscillation `W` removed at both ends.
 //!
-//! Dense output never changes the committed state: in a near segment it is one partial RK4
-//! step from the last committed step, in a far segment the expansion evaluated at that
+//! Dense output never changes the committed state: in a near segment it is one partial
+//! Gauss-Legendre step from the last committed step, in a far segment the expansion evaluated at that
 //! instant. So the result at any time does not depend on which other times were asked for.
 
 use super::far::{self, ChebIntegral, Oscillation, ORDER};
@@ -84,8 +84,10 @@ impl FarDrift {
         // Zeros of omega extrapolated (one Newton step) behind t_a and beyond t_b.
         let za = t_a - wa / sa;
         let zb = t_b - wb / sb;
-        let before = za < t_a && t_a - za < len;
-        let after = zb > t_b && zb - t_b < len;
+        // (Only for segments long enough that the logarithms differ.)
+        let long = len > 1e-7;
+        let before = long && za < t_a && t_a - za < len;
+        let after = long && zb > t_b && zb - t_b < len;
         match (before, after) {
             (true, true) => {
                 let m = 0.5 * (t_a + t_b);

@@ -2,12 +2,12 @@
 
 /// `(cos x, sin x)` for |x| < 1e5, to ~2 ulp of 1: Cody-Waite reduction by pi/2 and Taylor
 /// polynomials on [-pi/4, pi/4] (libm is ~3x slower and this is the integrator's inner loop).
-#[inline]
+#[inline(always)]
 pub fn fast_cos_sin(x: f64) -> (f64, f64) {
     const TWO_OVER_PI: f64 = core::f64::consts::FRAC_2_PI;
     const P1: f64 = 1.570_796_326_734_125_6; // pi/2 high part (33 bits)
     const P2: f64 = 6.077_100_506_506_192e-11; // pi/2 - P1
-                                                       // Round to nearest by the 1.5 * 2^52 trick (`f64::round` is a libm call on x86-64 v1).
+                                               // Round to nearest by the 1.5 * 2^52 trick (`f64::round` is a libm call on x86-64 v1).
     const MAGIC: f64 = 6_755_399_441_055_744.0;
     let k = (x * TWO_OVER_PI + MAGIC) - MAGIC;
     let r = (x - k * P1) - k * P2;
@@ -29,10 +29,14 @@ pub fn fast_cos_sin(x: f64) -> (f64, f64) {
                         + r2 * (1.0 / 362880.0
                             + r2 * (-1.0 / 39916800.0
                                 + r2 * (1.0 / 6227020800.0 + r2 * (-1.0 / 1307674368000.0))))))));
-    match (k as i64) & 3 {
-        0 => (c, sn),
-        1 => (-sn, c),
-        2 => (-c, -sn),
-        _ => (sn, -c),
-    }
+    // Quadrant without branches (the quadrant of a fringe phase is random: a `match`
+    // would mispredict most of the time).
+    const SIGN: [f64; 2] = [1.0, -1.0];
+    let q = (k as i64 & 3) as usize;
+    let v = [c, sn];
+    let swap = q & 1;
+    (
+        v[swap] * SIGN[((q + 1) >> 1) & 1],
+        v[1 - swap] * SIGN[q >> 1],
+    )
 }
