@@ -84,7 +84,7 @@ impl Gyro {
         let integ = Integrator::new(
             fp,
             derived.omega_l_rad_per_s,
-            &params.solver,
+            &params.solver.effective(derived.omega_l_rad_per_s),
             params.initial_psi_rad,
         );
         Ok(Self {

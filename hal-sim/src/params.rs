@@ -69,12 +69,26 @@ pub struct SolverParams {
     /// 0.5 gives ~4e-8 rad per traversal at the PHYSICS.md set). The step is
     /// `h = dtheta / (|omega| + Omega_L + sqrt(|omega'| 0.25 rad))`.
     pub step_phase_rad: f64,
-    /// Lock-in-free rate above which the far-field expansion replaces stepping, rad/s.
+    /// Lock-in-free rate above which the far-field expansion replaces stepping, rad/s. A floor:
+    /// the gyro uses at least 500 Omega_L (the far series runs in Omega_L / omega), see
+    /// [`SolverParams::effective`].
     pub far_threshold_rad_per_s: f64,
     /// Largest adiabatic parameter |omega'|/omega^2 accepted in the far region.
     pub far_max_adiabatic: f64,
     /// Length of a smooth piece (and of a noise segment) when there is no dither, s.
     pub max_piece_s: f64,
+}
+
+impl SolverParams {
+    /// The settings the integrator runs with for a lock-in of `omega_l_rad_per_s`: the far
+    /// threshold raised to 500 Omega_L where the configured one is lower (a strong lock-in
+    /// gets a wider near region instead of a far series that would not converge).
+    pub fn effective(&self, omega_l_rad_per_s: f64) -> Self {
+        Self {
+            far_threshold_rad_per_s: self.far_threshold_rad_per_s.max(500.0 * omega_l_rad_per_s),
+            ..*self
+        }
+    }
 }
 
 impl Default for SolverParams {
@@ -243,11 +257,11 @@ impl GyroParams {
             s.max_piece_s > 0.0 && s.max_piece_s <= 1.0,
             "solver.max_piece_s must be in (0, 1]",
         )?;
-        let omega_l = deg_per_h_to_beat_rad_per_s(self.lock_in_deg_per_h, sf);
         check(
-            s.far_threshold_rad_per_s.is_finite() && s.far_threshold_rad_per_s >= 500.0 * omega_l,
-            "solver.far_threshold_rad_per_s must be >= 500 Omega_L (far series in Omega_L/omega)",
+            s.far_threshold_rad_per_s.is_finite() && s.far_threshold_rad_per_s > 0.0,
+            "solver.far_threshold_rad_per_s must be positive",
         )?;
+        let omega_l = deg_per_h_to_beat_rad_per_s(self.lock_in_deg_per_h, sf);
         let (w, amp) = if self.has_dither() {
             (
                 hz_to_rad_per_s(self.dither_hz),
