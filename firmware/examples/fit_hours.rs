@@ -36,11 +36,11 @@ mod app {
         for _ in 0..CYCLES {
             u += 2.399_963_229_728_653;
             v += 1.618_033_988_749_895;
-            if u > 6.283_185_307_179_586 {
-                u -= 6.283_185_307_179_586;
+            if u > core::f64::consts::TAU {
+                u -= core::f64::consts::TAU;
             }
-            if v > 6.283_185_307_179_586 {
-                v -= 6.283_185_307_179_586;
+            if v > core::f64::consts::TAU {
+                v -= core::f64::consts::TAU;
             }
             // Cheap smooth stand-ins for cos/sin (any spread of P1, P2 will do).
             let (cu, sv) = (1.0 - u * u / 8.0, v / 6.3 - 0.5);

@@ -20,4 +20,6 @@ pub mod storage;
 mod test_rng;
 
 #[cfg(target_os = "none")]
+pub mod board;
+#[cfg(target_os = "none")]
 pub mod rt;

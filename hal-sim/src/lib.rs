@@ -7,18 +7,18 @@
 //!   the firmware reads, producing exactly the plain structs of `firmware::sample`;
 //! - [`board`]: gyro and peripherals assembled into what the firmware's interrupts receive.
 
-pub mod units;
-pub mod params;
-pub mod input;
 pub mod dither;
-pub mod noise;
-pub mod phase;
 pub mod gyro;
+pub mod input;
+pub mod noise;
+pub mod params;
+pub mod phase;
+pub mod units;
 
-pub mod photodiode;
-pub mod counter;
 pub mod clock;
+pub mod counter;
 pub mod flash;
+pub mod photodiode;
 pub mod serial;
 
 pub mod board;

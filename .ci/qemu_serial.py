@@ -1,0 +1,218 @@
+#!/usr/bin/env python3
+"""Host side of the QEMU serial test: the calibration protocol over the emulated USART1.
+
+Usage: python3 .ci/qemu_serial.py target/thumbv7em-none-eabihf/release/examples/serial_protocol
+       python3 .ci/qemu_serial.py --board target/thumbv7em-none-eabihf/release/examples/board
+
+Starts qemu-system-arm (netduinoplus2) with USART1 on a TCP socket (server, wait=on: the CPU
+starts only once this script is connected, so nothing is lost), waits for the firmware's banner,
+checks a fixed list of exchanges (one answer line per command), sends `quit` (an example-only
+hook: the firmware exits through semihosting with status 0) and checks QEMU's exit status.
+QEMU's stdout is the defmt stream: kept in a temporary file and decoded with defmt-print (if
+installed) when something fails. Every wait has a timeout; the whole run is bounded to 90 s.
+With `--board`, the ELF is the complete board image (`board::app::run`: clocks, watchdog, ADC,
+timers, DMA, the internal-flash driver): a smoke test that it comes up in QEMU and serves the
+protocol; `store` must fail cleanly with ERR 13 (QEMU does not model flash programming), and QEMU
+is killed at the end (that image has no quit hook).
+Closing line: `qemu-serial: N passed, M failed`; exit status 0 when M == 0, else 1.
+Standard library only.
+"""
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+
+BANNER = b"# rlg-readout ready"
+KEY = "c0ffee42"
+LINE_TIMEOUT_S = 5.0
+OVERALL_TIMEOUT_S = 90
+
+
+def crc16(data: bytes) -> int:
+    """CRC-16/CCITT-FALSE, as firmware::protocol::parse::crc16."""
+    crc = 0xFFFF
+    for b in data:
+        crc ^= b << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else (crc << 1)
+            crc &= 0xFFFF
+    return crc
+
+
+def with_crc(text: str) -> bytes:
+    return f"{text}*{crc16(text.encode()):04X}".encode()
+
+
+class Link:
+    def __init__(self, sock):
+        self.sock = sock
+        self.buf = b""
+
+    def read_line(self, timeout=LINE_TIMEOUT_S) -> bytes:
+        deadline = time.monotonic() + timeout
+        while b"\n" not in self.buf:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise TimeoutError(f"no complete line within {timeout} s (have {self.buf!r})")
+            self.sock.settimeout(left)
+            chunk = self.sock.recv(4096)
+            if not chunk:
+                raise ConnectionError(f"QEMU closed the serial link (have {self.buf!r})")
+            self.buf += chunk
+        line, self.buf = self.buf.split(b"\n", 1)
+        return line.rstrip(b"\r")
+
+    def ask(self, request: bytes) -> str:
+        self.sock.sendall(request + b"\n")
+        return self.read_line().decode("ascii", "replace")
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def connect(port, qemu, timeout=15.0):
+    deadline = time.monotonic() + timeout
+    while True:
+        if qemu.poll() is not None:
+            raise RuntimeError(f"QEMU exited early with status {qemu.returncode}")
+        try:
+            return socket.create_connection(("127.0.0.1", port), timeout=1.0)
+        except OSError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.05)
+
+
+def crc_answer_ok(answer: str, body: str) -> bool:
+    """`body*XXXX` with the right CRC."""
+    if "*" not in answer:
+        return False
+    text, crc = answer.rsplit("*", 1)
+    return text == body and crc == f"{crc16(text.encode()):04X}"
+
+
+def protocol_checks(exchange, link, check, qemu):
+    """The serial_protocol example: the protocol end to end, RAM-backed flash."""
+    exchange("id", b"id", lambda a: a.startswith("OK fw=") and "board=netduinoplus2" in a)
+    exchange("status", b"status",
+             lambda a: a.startswith("OK signal=") and "turnarounds=0" in a and "locked=yes" in a)
+    exchange("locked set", b"set a 1", lambda a: a.startswith("ERR 9 "))
+    exchange("wrong key", b"unlock 12345678", lambda a: a.startswith("ERR 15 "))
+    exchange("unlock", f"unlock {KEY}".encode(), lambda a: a.startswith("OK unlocked"))
+    exchange("set", b"set a 12.5", lambda a: a == "OK a=12.5")
+    exchange("get", b"get a", lambda a: a == "OK a=12.5")
+    exchange("crc request", with_crc("get a"), lambda a: crc_answer_ok(a, "OK a=12.5"))
+    exchange("bad crc", b"get a*0000", lambda a: a.startswith("ERR 6 "))
+    exchange("store", b"store", lambda a: a.startswith("OK stored seq=1 "))
+    exchange("set after store", b"set a 3", lambda a: a == "OK a=3")
+    exchange("reload", b"reload", lambda a: a == "OK coeffs=flash:1")
+    exchange("get after reload", b"get a", lambda a: a == "OK a=12.5")
+    exchange("second store, with crc", with_crc("store"),
+             lambda a: a.startswith("OK stored seq=2 ") and crc_answer_ok(a, a.rsplit("*", 1)[0]))
+    exchange("overlong line", b"x" * 300, lambda a: a.startswith("ERR 7 "))
+    exchange("binary garbage", b"\x00\xff\x01\x80garbage\x1b[A", lambda a: a.startswith("ERR 8 "))
+    exchange("unknown command", b"frobnicate", lambda a: a.startswith("ERR 1 "))
+    exchange("in step after garbage", b"id", lambda a: a.startswith("OK fw="))
+
+    # Pipelined: 50 commands in one write (~800 bytes, more than the 511-byte RX queue);
+    # every one must be answered, in order.
+    burst = 50
+    link.sock.sendall(b"".join(with_crc("get a") + b"\n" for _ in range(burst)))
+    try:
+        answers = [link.read_line().decode("ascii", "replace") for _ in range(burst)]
+        good = sum(crc_answer_ok(a, "OK a=12.5") for a in answers)
+        check("pipelined burst", good == burst, f"{good}/{burst} answers correct")
+    except (TimeoutError, ConnectionError) as e:
+        check("pipelined burst", False, str(e))
+
+    link.sock.sendall(b"quit\n")
+    try:
+        status = qemu.wait(timeout=10)
+        check("quit", status == 0, f"QEMU exit status {status}")
+    except subprocess.TimeoutExpired:
+        check("quit", False, "QEMU still running 10 s after quit")
+
+
+def board_checks(exchange):
+    """The complete board image: comes up, serves the protocol, survives a failing store."""
+    exchange("id", b"id", lambda a: a.startswith("OK fw=") and "board=rlg-readout-f405" in a)
+    exchange("status", b"status", lambda a: a.startswith("OK signal=") and "locked=yes" in a)
+    exchange("unlock", f"unlock {KEY}".encode(), lambda a: a.startswith("OK unlocked"))
+    exchange("set", b"set a 12.5", lambda a: a == "OK a=12.5")
+    exchange("store fails cleanly (no flash model)", b"store", lambda a: a.startswith("ERR 13 "))
+    exchange("alive after the store", b"get a", lambda a: a == "OK a=12.5")
+
+
+def main(elf: str, board: bool) -> int:
+    signal.signal(signal.SIGALRM, lambda *_: (_ for _ in ()).throw(TimeoutError("overall timeout")))
+    signal.alarm(OVERALL_TIMEOUT_S)
+    port = free_port()
+    log = tempfile.NamedTemporaryFile(prefix="qemu-serial-", suffix=".defmt", delete=False)
+    cmd = ["qemu-system-arm", "-machine", "netduinoplus2", "-display", "none",
+           "-semihosting-config", "enable=on,target=native", "-kernel", elf,
+           "-serial", f"tcp:127.0.0.1:{port},server=on,wait=on"]
+    qemu = subprocess.Popen(cmd, stdout=log, stderr=subprocess.PIPE)
+    passed, failed = 0, 0
+
+    def check(name, ok, detail):
+        nonlocal passed, failed
+        if ok:
+            passed += 1
+            print(f"  ok    {name}: {detail}")
+        else:
+            failed += 1
+            print(f"  FAIL  {name}: {detail}")
+
+    try:
+        link = Link(connect(port, qemu))
+        banner = link.read_line(timeout=10.0)
+        check("banner", banner == BANNER, banner.decode("ascii", "replace"))
+
+        def exchange(name, request, predicate):
+            try:
+                answer = link.ask(request)
+            except (TimeoutError, ConnectionError) as e:
+                check(name, False, f"{request[:40]!r} -> {e}")
+                return
+            check(name, predicate(answer), f"{request[:40]!r} -> {answer!r}")
+
+        if board:
+            board_checks(exchange)
+        else:
+            protocol_checks(exchange, link, check, qemu)
+    except Exception as e:  # noqa: BLE001 - any failure is a test failure, reported below
+        check("run", False, f"{type(e).__name__}: {e}")
+    finally:
+        signal.alarm(0)
+        if qemu.poll() is None:
+            qemu.kill()
+            qemu.wait(timeout=5)
+        log.close()
+        if failed:
+            err = qemu.stderr.read().decode(errors="replace") if qemu.stderr else ""
+            if err.strip():
+                print("QEMU stderr:\n" + err)
+            if shutil.which("defmt-print"):
+                with open(log.name, "rb") as f:
+                    out = subprocess.run(["defmt-print", "-e", elf], stdin=f,
+                                         capture_output=True, timeout=10)
+                print("defmt log:\n" + out.stdout.decode(errors="replace")[-4000:])
+        os.unlink(log.name)
+    print(f"qemu-serial: {passed} passed, {failed} failed")
+    return 0 if failed == 0 else 1
+
+
+if __name__ == "__main__":
+    args = sys.argv[1:]
+    board_mode = "--board" in args
+    args = [a for a in args if a != "--board"]
+    if len(args) != 1:
+        sys.exit(__doc__)
+    sys.exit(main(args[0], board_mode))

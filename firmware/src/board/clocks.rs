@@ -1,0 +1,120 @@
+//! Clock tree: SYSCLK 168 MHz from the 8 MHz HSE crystal through the main PLL.
+//!
+//! | node | value | register choice |
+//! |---|---|---|
+//! | PLL input | 8 MHz / M=4 = 2 MHz | RM0090 recommends 2 MHz at the PLL input to limit jitter |
+//! | VCO | 2 MHz x N=168 = 336 MHz | inside 100-432 MHz |
+//! | SYSCLK, HCLK | 336 / P=2 = 168 MHz | AHB prescaler 1 |
+//! | PLL48CK | 336 / Q=7 = 48 MHz | USB OTG FS ready (unused) |
+//! | APB1 | 168 / 4 = 42 MHz (max 42) | timers TIM2-TIM5 at 84 MHz (x2 rule) |
+//! | APB2 | 168 / 2 = 84 MHz (max 84) | USART1, ADC interface; ADC clock 84 / 4 = 21 MHz |
+//!
+//! Flash: 5 wait states (RM0090 table 10: 150-168 MHz at 2.7-3.6 V), prefetch, instruction and
+//! data caches on (the ART accelerator: straight-line code runs at near zero wait states). The
+//! wait states are set *before* the switch to the PLL, as the manual requires.
+//!
+//! The voltage regulator stays in its reset state, scale 1, which 168 MHz needs.
+//!
+//! A crystal that does not start must not hang the board before the watchdog runs: the HSE is
+//! waited for a bounded time, and if it never reports ready the PLL runs from the 16 MHz HSI
+//! (M=8 gives the same 2 MHz), with the poorer HSI accuracy (1 %) reported by [`init`]. The
+//! timing chain is relative (quarter periods measured in the same timer ticks), so the readout
+//! still works; the baud rate is then within the HSI's 1 %.
+//!
+//! QEMU (feature `qemu`) does not model the RCC: ready bits read 0 forever, so the waits are
+//! skipped there (the writes are harmless and ignored).
+
+use super::pac;
+
+/// Where SYSCLK comes from after [`init`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub enum ClockSource {
+    /// PLL from the 8 MHz crystal.
+    Hse,
+    /// The crystal did not start: PLL from the internal 16 MHz RC oscillator.
+    HsiFallback,
+}
+
+// RCC_CR
+const HSEON: u32 = 1 << 16;
+const HSERDY: u32 = 1 << 17;
+const PLLON: u32 = 1 << 24;
+const PLLRDY: u32 = 1 << 25;
+// RCC_PLLCFGR: PLLM[5:0], PLLN[14:6], PLLP[17:16] (00 = /2), PLLSRC[22], PLLQ[27:24]
+const PLLSRC_HSE: u32 = 1 << 22;
+const fn pllcfgr(m: u32, n: u32, q: u32, hse: bool) -> u32 {
+    m | (n << 6) | (if hse { PLLSRC_HSE } else { 0 }) | (q << 24)
+}
+// RCC_CFGR: SW[1:0] = 10 (PLL), SWS[3:2], HPRE[7:4] = 0 (/1), PPRE1[12:10] = 101 (/4),
+// PPRE2[15:13] = 100 (/2)
+const CFGR_PRESCALERS: u32 = (0b101 << 10) | (0b100 << 13);
+const SW_PLL: u32 = 0b10;
+const SWS_MASK: u32 = 0b11 << 2;
+const SWS_PLL: u32 = 0b10 << 2;
+// FLASH_ACR: LATENCY[2:0], PRFTEN 8, ICEN 9, DCEN 10
+const ACR_168MHZ: u32 = 5 | (1 << 8) | (1 << 9) | (1 << 10);
+
+/// Polls of a ready bit before giving up: about 60 ms at the 16 MHz reset clock (HSE start-up
+/// is 2 ms typical).
+const READY_POLLS: u32 = 200_000;
+
+/// Waits until `ready()`; false after [`READY_POLLS`]. Under `qemu`: true at once.
+fn wait(ready: impl Fn() -> bool) -> bool {
+    if cfg!(feature = "qemu") {
+        return true;
+    }
+    (0..READY_POLLS).any(|_| ready())
+}
+
+/// Brings SYSCLK to 168 MHz (see the module docs). Call once, first thing after reset.
+pub fn init(rcc: &pac::RCC, flash: &pac::FLASH) -> ClockSource {
+    rcc.cr().modify(|r, w| unsafe { w.bits(r.bits() | HSEON) });
+    let hse = wait(|| rcc.cr().read().bits() & HSERDY != 0);
+    let source = if hse {
+        ClockSource::Hse
+    } else {
+        rcc.cr().modify(|r, w| unsafe { w.bits(r.bits() & !HSEON) });
+        ClockSource::HsiFallback
+    };
+    let m = if hse { 4 } else { 8 };
+    rcc.pllcfgr()
+        .write(|w| unsafe { w.bits(pllcfgr(m, 168, 7, hse)) });
+    rcc.cr().modify(|r, w| unsafe { w.bits(r.bits() | PLLON) });
+    // A PLL that does not lock leaves SYSCLK on HSI (16 MHz): slow but alive.
+    let locked = wait(|| rcc.cr().read().bits() & PLLRDY != 0);
+    flash.acr().write(|w| unsafe { w.bits(ACR_168MHZ) });
+    rcc.cfgr().write(|w| unsafe { w.bits(CFGR_PRESCALERS) });
+    if locked {
+        rcc.cfgr()
+            .write(|w| unsafe { w.bits(CFGR_PRESCALERS | SW_PLL) });
+        wait(|| rcc.cfgr().read().bits() & SWS_MASK == SWS_PLL);
+    }
+    source
+}
+
+// Peripheral clock enables (RCC_AHB1ENR, APB1ENR, APB2ENR bit numbers).
+/// GPIOA, GPIOB, GPIOC, DMA2.
+pub const AHB1_GPIOA: u32 = 1 << 0;
+pub const AHB1_GPIOB: u32 = 1 << 1;
+pub const AHB1_GPIOC: u32 = 1 << 2;
+pub const AHB1_DMA2: u32 = 1 << 22;
+/// TIM2, TIM3, TIM5.
+pub const APB1_TIM2: u32 = 1 << 0;
+pub const APB1_TIM3: u32 = 1 << 1;
+pub const APB1_TIM5: u32 = 1 << 3;
+/// USART1, ADC1, ADC2.
+pub const APB2_USART1: u32 = 1 << 4;
+pub const APB2_ADC1: u32 = 1 << 8;
+pub const APB2_ADC2: u32 = 1 << 9;
+
+/// Turns on peripheral clocks (read back once: RM0090 erratum-style delay of two AHB cycles
+/// before the peripheral may be accessed).
+pub fn enable(rcc: &pac::RCC, ahb1: u32, apb1: u32, apb2: u32) {
+    rcc.ahb1enr()
+        .modify(|r, w| unsafe { w.bits(r.bits() | ahb1) });
+    rcc.apb1enr()
+        .modify(|r, w| unsafe { w.bits(r.bits() | apb1) });
+    rcc.apb2enr()
+        .modify(|r, w| unsafe { w.bits(r.bits() | apb2) });
+    let _ = rcc.apb2enr().read().bits();
+}
