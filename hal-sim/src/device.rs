@@ -23,15 +23,13 @@ use crate::gyro::Gyro;
 use crate::input::InputProfile;
 use crate::params::GyroParams;
 use firmware::calibration::validation::AcceptanceLimits;
+use firmware::protocol::endpoint;
 use firmware::protocol::execute::{DeviceLink, DeviceStatus, Executor, Identity};
 use firmware::protocol::line::{LineAssembler, LineEvent};
-use firmware::protocol::parse::{parse, strip_checksum};
-use firmware::protocol::respond::Response;
 use firmware::protocol::stream::{encode_frame, MAX_FRAME};
-use firmware::protocol::ErrorCode;
 use firmware::readout::{Readout, ReadoutConfig};
 use firmware::signal::compensation::CompensationSettings;
-use firmware::signal::output::{AveragerConfig, AveragingMode, CycleFlags, RateAverager};
+use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use firmware::storage::ReadoutPaused;
 use firmware::storage::{CalibrationRecord, CalibrationStore, Geometry, LoadReport, StoreError};
 
@@ -156,14 +154,8 @@ impl SimDevice {
         let Some(record) = self.readout.on_turnaround(&self.config, sample) else {
             return;
         };
-        let flags = record.output.flags;
-        self.status.signal_ok = !flags.contains(CycleFlags::SIGNAL_LOST);
-        if flags.contains(CycleFlags::TURNAROUND_MISSED) {
-            self.status.missed_turnarounds = self.status.missed_turnarounds.saturating_add(1);
-        }
-        if let Some(reading) = self.averager.push(&self.averager_config, record.output) {
-            self.status.rate_deg_per_h = reading.rate_deg_per_h as f32;
-        }
+        let reading = self.averager.push(&self.averager_config, record.output);
+        self.status.on_cycle(record.output.flags, reading);
         let cycle_s = record.duration_s(&self.config.cycle);
         let actions = self.executor.on_cycle(&record, cycle_s);
         if let Some(settings) = actions.stage {
@@ -176,56 +168,38 @@ impl SimDevice {
         }
     }
 
-    /// Serial bytes from the host: every completed line is executed and answered at once.
+    /// Serial bytes from the host: every completed line is executed and answered at once, by
+    /// the same `protocol::endpoint` functions the board runs.
     pub fn receive(&mut self, bytes: &[u8]) {
         for &byte in bytes {
             // Framing follows the mode the host was in when it sent the line.
             let streaming = self.executor.streaming();
-            let answer = match self.line.push(byte) {
-                None => continue,
-                Some(LineEvent::TooLong) => Response::err(ErrorCode::LineTooLong).finish(false),
-                Some(LineEvent::Garbage) => {
-                    Response::err(ErrorCode::InvalidCharacters).finish(false)
-                }
-                Some(LineEvent::Line(text)) => {
-                    let text = text.to_owned();
-                    self.execute_line(&text)
-                }
+            let Some(event) = self.line.push(byte) else {
+                continue;
             };
-            if streaming {
-                self.output.push(0);
-            }
-            self.output.extend_from_slice(answer.as_bytes());
-            if streaming {
-                self.output.push(0);
-            }
+            let event = match event {
+                LineEvent::Line(text) => OwnedEvent::Line(text.to_owned()),
+                LineEvent::TooLong => OwnedEvent::TooLong,
+                LineEvent::Garbage => OwnedEvent::Garbage,
+            };
+            self.refresh_status();
+            let mut link = Link {
+                readout: &mut self.readout,
+                flash: &mut self.flash,
+                store: &self.store,
+                status: self.status,
+                now_ms: (self.board.time_s() * 1000.0) as u32,
+                stall_s: &mut self.stall_s,
+            };
+            let answer = endpoint::answer(
+                event.as_event(),
+                &mut self.executor,
+                &self.identity,
+                &mut link,
+            );
+            let output = &mut self.output;
+            endpoint::send_answer(streaming, &answer, |b| output.extend_from_slice(b));
         }
-    }
-
-    fn execute_line(
-        &mut self,
-        text: &str,
-    ) -> heapless::String<{ firmware::protocol::respond::MAX_RESPONSE }> {
-        let (body, with_crc) = match strip_checksum(text) {
-            Ok(split) => split,
-            Err(code) => return Response::err(code).finish(false),
-        };
-        let command = match parse(body) {
-            Ok(c) => c,
-            Err(code) => return Response::err(code).finish(with_crc),
-        };
-        self.refresh_status();
-        let mut link = Link {
-            readout: &mut self.readout,
-            flash: &mut self.flash,
-            store: &self.store,
-            status: self.status,
-            now_ms: (self.board.time_s() * 1000.0) as u32,
-            stall_s: &mut self.stall_s,
-        };
-        self.executor
-            .execute(&self.identity, &mut link, command)
-            .finish(with_crc)
     }
 
     fn refresh_status(&mut self) {
@@ -243,6 +217,23 @@ impl SimDevice {
     /// Everything sent to the host since the last call.
     pub fn take_output(&mut self) -> Vec<u8> {
         std::mem::take(&mut self.output)
+    }
+}
+
+/// A line event that outlives the assembler's buffer (the device is borrowed while answering).
+enum OwnedEvent {
+    Line(String),
+    TooLong,
+    Garbage,
+}
+
+impl OwnedEvent {
+    fn as_event(&self) -> LineEvent<'_> {
+        match self {
+            Self::Line(text) => LineEvent::Line(text),
+            Self::TooLong => LineEvent::TooLong,
+            Self::Garbage => LineEvent::Garbage,
+        }
     }
 }
 

@@ -21,16 +21,15 @@ use super::usart::SerialPort;
 use super::watchdog::Watchdog;
 use super::{adc, turnaround, usart};
 use crate::calibration::validation::AcceptanceLimits;
+use crate::protocol::endpoint;
 use crate::protocol::execute::{DeviceLink, DeviceStatus, Executor, Identity};
 use crate::protocol::line::{LineAssembler, LineEvent, MAX_LINE};
-use crate::protocol::parse::{parse, strip_checksum};
-use crate::protocol::respond::{Response, MAX_RESPONSE};
+use crate::protocol::respond::MAX_RESPONSE;
 use crate::protocol::stream::{encode_frame, MAX_FRAME};
-use crate::protocol::ErrorCode;
 use crate::readout::{Readout, ReadoutConfig};
 use crate::signal::compensation::CompensationSettings;
 use crate::signal::cycle::CycleRecord;
-use crate::signal::output::{AveragerConfig, AveragingMode, CycleFlags, RateAverager};
+use crate::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use crate::storage::{
     CalibrationRecord, CalibrationStore, Geometry, LoadReport, ReadoutPaused, StoreError,
 };
@@ -204,36 +203,18 @@ impl<F: NorFlash> Service<F> {
     fn on_byte(&mut self, byte: u8) {
         // Framing follows the mode the host was in when it sent the line.
         let streaming = self.executor.streaming();
-        let answer = match self.line.push(byte) {
+        let mut copy = heapless::String::<MAX_LINE>::new();
+        let event = match self.line.push(byte) {
             None => return,
-            Some(LineEvent::TooLong) => Response::err(ErrorCode::LineTooLong).finish(false),
-            Some(LineEvent::Garbage) => Response::err(ErrorCode::InvalidCharacters).finish(false),
             Some(LineEvent::Line(text)) => {
-                let mut copy = heapless::String::<MAX_LINE>::new();
                 let _ = copy.push_str(text);
                 if self.config.intercept.is_some_and(|hook| hook(&copy)) {
                     return;
                 }
-                self.execute_line(&copy)
+                LineEvent::Line(&copy)
             }
-        };
-        if streaming {
-            self.send(&[0]);
-        }
-        self.send(answer.as_bytes());
-        if streaming {
-            self.send(&[0]);
-        }
-    }
-
-    fn execute_line(&mut self, text: &str) -> heapless::String<MAX_RESPONSE> {
-        let (body, with_crc) = match strip_checksum(text) {
-            Ok(split) => split,
-            Err(code) => return Response::err(code).finish(false),
-        };
-        let command = match parse(body) {
-            Ok(c) => c,
-            Err(code) => return Response::err(code).finish(with_crc),
+            Some(LineEvent::TooLong) => LineEvent::TooLong,
+            Some(LineEvent::Garbage) => LineEvent::Garbage,
         };
         self.refresh_status();
         let mut link = BoardLink {
@@ -243,20 +224,13 @@ impl<F: NorFlash> Service<F> {
             hardware: self.config.hardware,
             watchdog: self.watchdog.as_mut(),
         };
-        self.executor
-            .execute(&self.config.identity, &mut link, command)
-            .finish(with_crc)
+        let answer = endpoint::answer(event, &mut self.executor, &self.config.identity, &mut link);
+        endpoint::send_answer(streaming, &answer, |bytes| self.send(bytes));
     }
 
     fn on_cycle(&mut self, record: &CycleRecord) {
-        let flags = record.output.flags;
-        self.status.signal_ok = !flags.contains(CycleFlags::SIGNAL_LOST);
-        if flags.contains(CycleFlags::TURNAROUND_MISSED) {
-            self.status.missed_turnarounds = self.status.missed_turnarounds.saturating_add(1);
-        }
-        if let Some(reading) = self.averager.push(&self.averager_config, record.output) {
-            self.status.rate_deg_per_h = reading.rate_deg_per_h as f32;
-        }
+        let reading = self.averager.push(&self.averager_config, record.output);
+        self.status.on_cycle(record.output.flags, reading);
         let cycle_s = record.duration_s(&self.readout_config.cycle);
         let actions = self.executor.on_cycle(record, cycle_s);
         if let Some(settings) = actions.stage {

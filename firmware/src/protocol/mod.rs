@@ -7,6 +7,7 @@
 //! interrupt, whose state it changes only through staged settings.
 
 pub mod access;
+pub mod endpoint;
 pub mod execute;
 pub mod line;
 pub mod parse;

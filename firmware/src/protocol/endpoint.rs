@@ -1,0 +1,61 @@
+//! The serial end of the protocol, shared by the board and the simulated board: a completed
+//! line in, exactly one answer out, framed for the mode the host is in.
+//!
+//! Both `board::service` (the MCU) and hal-sim's `SimDevice` call these functions, so the line
+//! handling the simulator tests is the very code the board runs.
+
+use super::execute::{DeviceLink, DeviceStatus, Executor, Identity};
+use super::line::LineEvent;
+use super::parse::{parse, strip_checksum};
+use super::respond::{Response, MAX_RESPONSE};
+use super::ErrorCode;
+use crate::signal::output::{CycleFlags, RateReading};
+use heapless::String;
+
+/// The answer to one line event: a rejected line (too long, garbage, bad CRC, parse error) is
+/// answered without touching the device; a command is executed against it.
+pub fn answer<D: DeviceLink>(
+    event: LineEvent<'_>,
+    executor: &mut Executor,
+    identity: &Identity,
+    device: &mut D,
+) -> String<MAX_RESPONSE> {
+    let text = match event {
+        LineEvent::TooLong => return Response::err(ErrorCode::LineTooLong).finish(false),
+        LineEvent::Garbage => return Response::err(ErrorCode::InvalidCharacters).finish(false),
+        LineEvent::Line(text) => text,
+    };
+    let (body, with_crc) = match strip_checksum(text) {
+        Ok(split) => split,
+        Err(code) => return Response::err(code).finish(false),
+    };
+    match parse(body) {
+        Ok(command) => executor.execute(identity, device, command).finish(with_crc),
+        Err(code) => Response::err(code).finish(with_crc),
+    }
+}
+
+/// Sends an answer: as it is in text mode; wrapped in 0x00 delimiters when it answers a line
+/// sent while streaming, so the host's frame splitter sees it as one chunk (text has no 0x00).
+pub fn send_answer(streaming: bool, answer: &str, mut send: impl FnMut(&[u8])) {
+    if streaming {
+        send(&[0]);
+    }
+    send(answer.as_bytes());
+    if streaming {
+        send(&[0]);
+    }
+}
+
+impl DeviceStatus {
+    /// Folds one dither cycle's flags, and a new averaged rate if one is due, into the status.
+    pub fn on_cycle(&mut self, flags: CycleFlags, reading: Option<RateReading>) {
+        self.signal_ok = !flags.contains(CycleFlags::SIGNAL_LOST);
+        if flags.contains(CycleFlags::TURNAROUND_MISSED) {
+            self.missed_turnarounds = self.missed_turnarounds.saturating_add(1);
+        }
+        if let Some(reading) = reading {
+            self.rate_deg_per_h = reading.rate_deg_per_h as f32;
+        }
+    }
+}
