@@ -1,8 +1,9 @@
 //! Online tracking of a and b (issue 5, beyond the paper) against a static calibration, on the
-//! simulated gyro with a drifting photodiode phase offset eps.
+//! simulated gyro with a drifting lock-in threshold Omega_L and photodiode phase offset eps.
 //!
-//! Scenario (seeded, noise-free): 60 s outside the dead band (13.888 deg/h) while eps drifts by
-//! 0.15 rad (thermal drift, compressed in time), then 20 s inside it (2 deg/h), where the
+//! Scenario (seeded, noise-free): 60 s outside the dead band (13.888 deg/h) while Omega_L
+//! drifts by +5 % and eps by 0.15 rad (thermal drift, compressed in time), then 20 s inside it
+//! (2 deg/h), where the
 //! compensation is what makes the output follow the input at all and where tracking is frozen.
 //! Both readouts start from the exact coefficients at t = 0 and see the same simulated board.
 //! Acceptance: inside the band the tracked compensation's error is well below the static
@@ -21,13 +22,18 @@ use hal_sim::input::InputProfile;
 
 const DRIFT_END_S: f64 = 60.0;
 const EPS_DRIFT_RAD: f64 = 0.15;
+const LOCK_IN_DRIFT: f64 = 0.05;
 const INSIDE_DEG_H: f64 = 2.0;
 const MEASURE_FROM_S: f64 = 65.0;
 const END_S: f64 = 80.0;
 
 #[test]
-fn tracking_beats_a_static_fit_when_eps_drifts() {
-    let params = paper_gyro(41);
+fn tracking_beats_a_static_fit_when_lock_in_and_eps_drift() {
+    let params = hal_sim::params::GyroParams {
+        lock_in_drift_per_s: LOCK_IN_DRIFT / DRIFT_END_S,
+        lock_in_drift_until_s: DRIFT_END_S,
+        ..paper_gyro(41)
+    };
     let input = InputProfile::steps(13.888, &[(DRIFT_END_S, INSIDE_DEG_H)]);
     let gyro = Gyro::new(params, input).unwrap();
     let mut board_config = BoardConfig::for_gyro(&params);
@@ -41,13 +47,13 @@ fn tracking_beats_a_static_fit_when_eps_drifts() {
     );
 
     let omega_l = board.gyro().derived().omega_l_rad_per_s;
-    let truth = |eps: f64| {
+    let truth = |omega_l: f64, eps: f64| {
         (
             omega_l * (eps + TAU / 8.0).cos(),
             omega_l * (eps + TAU / 8.0).sin(),
         )
     };
-    let (a0, b0) = truth(params.eps_rad);
+    let (a0, b0) = truth(omega_l, params.eps_rad);
     let start = CompensationSettings {
         coefficients: Coefficients::from_rad_per_s(a0 as f32, b0 as f32).unwrap(),
         enabled: true,
@@ -103,7 +109,10 @@ fn tracking_beats_a_static_fit_when_eps_drifts() {
         }
     }
 
-    let (a_end, b_end) = truth(params.eps_rad + EPS_DRIFT_RAD);
+    let (a_end, b_end) = truth(
+        omega_l * (1.0 + LOCK_IN_DRIFT),
+        params.eps_rad + EPS_DRIFT_RAD,
+    );
     let (a_t, b_t) = tracked_at_drift_end.unwrap();
     let coefficient_error = (a_t - a_end).hypot(b_t - b_end) / omega_l;
     let fixed_err = (fixed_rate.flush(&averager_config).rate_deg_per_h - INSIDE_DEG_H).abs();

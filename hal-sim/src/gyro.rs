@@ -21,7 +21,7 @@
 use crate::input::InputProfile;
 use crate::params::{Derived, GyroParams, ParamError};
 use crate::phase::free_phase::FreePhase;
-use crate::phase::integrator::{Event, Integrator};
+use crate::phase::integrator::{Event, Integrator, LockInDrift};
 pub use crate::phase::plan::TurnaroundTime;
 use firmware::sample::TurnaroundKind;
 use std::collections::VecDeque;
@@ -81,12 +81,17 @@ impl Gyro {
     pub fn new(params: GyroParams, input: InputProfile) -> Result<Self, ParamError> {
         let derived = params.derive()?;
         let fp = FreePhase::new(&params, &derived, input);
-        let integ = Integrator::new(
+        let mut integ = Integrator::new(
             fp,
             derived.omega_l_rad_per_s,
             &params.solver.effective(derived.omega_l_rad_per_s),
             params.initial_psi_rad,
         );
+        integ.set_lock_in_drift(LockInDrift {
+            omega_l0: derived.omega_l_rad_per_s,
+            rate_per_s: params.lock_in_drift_per_s,
+            until_s: params.lock_in_drift_until_s,
+        });
         Ok(Self {
             params,
             derived,
@@ -100,6 +105,16 @@ impl Gyro {
     /// The parameters.
     pub fn params(&self) -> &GyroParams {
         &self.params
+    }
+
+    /// The lock-in threshold at `t_s`, rad/s of beat phase (drifting if the parameters say so).
+    pub fn lock_in_rad_per_s(&self, t_s: f64) -> f64 {
+        LockInDrift {
+            omega_l0: self.derived.omega_l_rad_per_s,
+            rate_per_s: self.params.lock_in_drift_per_s,
+            until_s: self.params.lock_in_drift_until_s,
+        }
+        .at(t_s)
     }
 
     /// The parameters in beat-phase units.

@@ -125,6 +125,12 @@ pub struct GyroParams {
     pub seed: u64,
     /// Beat phase at t = 0, rad.
     pub initial_psi_rad: f64,
+    /// Linear drift of the lock-in threshold (backscatter changing with temperature), relative
+    /// per second, from t = 0 until `lock_in_drift_until_s`: Omega_L(t) = Omega_L (1 + r t).
+    /// Applied per integration segment (at most ~1.3 ms long), so a drift must be slow: well
+    /// below 1e-3 relative per segment.
+    pub lock_in_drift_per_s: f64,
+    pub lock_in_drift_until_s: f64,
     /// Integrator settings.
     pub solver: SolverParams,
 }
@@ -143,6 +149,8 @@ impl Default for GyroParams {
             random_noise_dither: AmplitudeModulation::OFF,
             seed: 1,
             initial_psi_rad: 0.0,
+            lock_in_drift_per_s: 0.0,
+            lock_in_drift_until_s: 0.0,
             solver: SolverParams::default(),
         }
     }

@@ -176,11 +176,36 @@ enum State {
     },
 }
 
+/// Omega_L(t) = Omega_L0 (1 + rate min(t, until)): a slow linear drift of the lock-in
+/// threshold. With a zero rate the factor is exactly 1, so results do not change.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LockInDrift {
+    pub omega_l0: f64,
+    pub rate_per_s: f64,
+    pub until_s: f64,
+}
+
+impl LockInDrift {
+    pub fn none(omega_l0: f64) -> Self {
+        Self {
+            omega_l0,
+            rate_per_s: 0.0,
+            until_s: 0.0,
+        }
+    }
+
+    pub fn at(&self, t_s: f64) -> f64 {
+        self.omega_l0 * (1.0 + self.rate_per_s * t_s.min(self.until_s))
+    }
+}
+
 /// The fast integrator of Eq. 6.
 #[derive(Clone, Debug)]
 pub struct Integrator {
     fp: FreePhase,
+    /// Omega_L of the current segment (see [`LockInDrift`]).
     omega_l: f64,
+    drift: LockInDrift,
     dtheta: f64,
     planner: Planner,
     seg: Segment,
@@ -208,6 +233,7 @@ impl Integrator {
         let mut me = Self {
             fp,
             omega_l,
+            drift: LockInDrift::none(omega_l),
             dtheta: solver.step_phase_rad,
             planner,
             seg,
@@ -260,8 +286,16 @@ impl Integrator {
         (far::oscillation(&tay, self.omega_l), j[0])
     }
 
+    /// A slowly drifting lock-in threshold, taken constant over each segment.
+    pub fn set_lock_in_drift(&mut self, drift: LockInDrift) {
+        self.drift = drift;
+        self.omega_l = drift.at(self.seg.t_a);
+    }
+
     fn enter(&mut self, seg: Segment, phi: f64, chi_prev: Option<f64>) {
         self.seg = seg;
+        // phi is continuous across segments; only the far-field transform uses the new value.
+        self.omega_l = self.drift.at(0.5 * (seg.t_a + seg.t_b));
         if seg.far {
             let (osc, theta) = self.oscillation(seg.t_a, seg.piece);
             let chi_a = phi - osc.eval(theta + phi);
