@@ -1,0 +1,391 @@
+//! The protocol harness: arbitrary serial bytes through the firmware's own line assembler,
+//! checksum, parser and executor, against a small in-memory device, checking the promises of
+//! the protocol on every answer:
+//!
+//! - no panic, whatever the bytes;
+//! - exactly one answer per non-empty line (counted independently of the assembler), none for
+//!   empty lines or an unfinished last line;
+//! - every answer well formed: printable ASCII, at most `MAX_RESPONSE` bytes, ending in `\r\n`,
+//!   `OK` or `ERR <code> <text>` with a known code and its text, a valid CRC suffix exactly when
+//!   the request carried a valid one;
+//! - after an `ERR`, nothing observable changed (settings, stored records, streaming, and the
+//!   answers to `status`, `cal status` and `get coeffs`). Two answers are exempt by design:
+//!   `ERR 15` (a wrong key locks the board, asserted instead) and `ERR 12` (`cal result`
+//!   reporting a refused fit: solving is a one-way step of the session);
+//! - a streamed record survives `encode_frame`/`decode_frame` unchanged.
+//!
+//! Three byte values are taken out of the serial stream as events, so that one input also
+//! drives time and the readout: [`TICK`] (a minute passes: unlock timeouts, rate-limit
+//! penalties), [`CYCLES`] (dither cycles reach the executor: calibration runs, streaming, staged
+//! settings taking effect) and [`FAIL_STORE`] (the next flash store fails). Every other byte
+//! goes to the assembler, and 7 ms pass per byte.
+//!
+//! Two drivers share this file: the coverage-guided `cargo fuzz` target
+//! (`fuzz/fuzz_targets/protocol.rs`, CI via `fuzz/run.sh`, seeded from `fuzz/seeds/` with the
+//! dictionary `fuzz/protocol.dict`) and a seeded, bounded random test in `cargo test`
+//! (`host-tool/tests/protocol_fuzz.rs`, which includes this file by path and mutates the same
+//! seeds). It needs only the `firmware` crate.
+
+use firmware::calibration::validation::AcceptanceLimits;
+use firmware::protocol::execute::{DeviceLink, DeviceStatus, Executor, Identity};
+use firmware::protocol::line::{LineAssembler, LineEvent};
+use firmware::protocol::parse::{crc16, parse, strip_checksum};
+use firmware::protocol::respond::{Response, MAX_RESPONSE};
+use firmware::protocol::stream::{decode_frame, encode_frame, MAX_FRAME};
+use firmware::protocol::ErrorCode;
+use firmware::signal::compensation::CompensationSettings;
+use firmware::signal::cycle::CycleRecord;
+use firmware::signal::lockin_terms::LockinTerms;
+use firmware::signal::output::{CycleFlags, CycleOutput};
+use firmware::storage::{CalibrationRecord, DefaultsReason, LoadOutcome, LoadReport, StoreError};
+
+/// Event byte: a minute passes.
+pub const TICK: u8 = 0x01;
+/// Event byte: 400 dither cycles reach the executor.
+pub const CYCLES: u8 = 0x02;
+/// Event byte: the next store fails.
+pub const FAIL_STORE: u8 = 0x03;
+
+/// The unlock key of [`IDENTITY`].
+pub const KEY: u32 = 0xC0FF_EE42;
+
+/// The identity the harness answers `id` with.
+pub const IDENTITY: Identity = Identity {
+    firmware_version: "0.0.0-fuzz",
+    build: "fuzz",
+    board: "memory",
+    serial_number: 7,
+    key: KEY,
+    scale_factor_arcsec: 1.8655,
+};
+
+/// Every error code, for checking `ERR <n> <text>`.
+const CODES: [ErrorCode; 15] = [
+    ErrorCode::UnknownCommand,
+    ErrorCode::Syntax,
+    ErrorCode::BadNumber,
+    ErrorCode::NotFinite,
+    ErrorCode::OutOfRange,
+    ErrorCode::BadChecksum,
+    ErrorCode::LineTooLong,
+    ErrorCode::InvalidCharacters,
+    ErrorCode::Locked,
+    ErrorCode::Busy,
+    ErrorCode::WrongState,
+    ErrorCode::FitRefused,
+    ErrorCode::FlashError,
+    ErrorCode::RateLimited,
+    ErrorCode::WrongKey,
+];
+
+/// The in-memory device: settings staged and applied at the next cycle, a flash log.
+#[derive(Clone, Debug, PartialEq)]
+struct MemDevice {
+    now_ms: u32,
+    active: CompensationSettings,
+    staged: Option<CompensationSettings>,
+    stored: Vec<CalibrationRecord>,
+    fail_next_store: bool,
+}
+
+impl DeviceLink for MemDevice {
+    type FlashError = ();
+
+    fn now_ms(&self) -> u32 {
+        self.now_ms
+    }
+
+    fn status(&self) -> DeviceStatus {
+        DeviceStatus {
+            signal_ok: true,
+            dither_hz: 389.0,
+            dither_amplitude_rad: 9.5,
+            rate_deg_per_h: 13.9,
+            ..DeviceStatus::default()
+        }
+    }
+
+    fn active_settings(&self) -> CompensationSettings {
+        self.staged.unwrap_or(self.active)
+    }
+
+    fn stage_settings(&mut self, settings: CompensationSettings) {
+        self.staged = Some(settings);
+    }
+
+    fn store(&mut self, record: &CalibrationRecord) -> Result<u32, StoreError<()>> {
+        if core::mem::take(&mut self.fail_next_store) {
+            return Err(StoreError::Flash(()));
+        }
+        self.stored.push(*record);
+        Ok(self.stored.len() as u32)
+    }
+
+    fn load(&mut self) -> (CalibrationRecord, LoadReport) {
+        let outcome = match self.stored.len() {
+            0 => LoadOutcome::Defaults {
+                reason: DefaultsReason::Erased,
+            },
+            n => LoadOutcome::Loaded { sequence: n as u32 },
+        };
+        let record = self
+            .stored
+            .last()
+            .copied()
+            .unwrap_or(CalibrationRecord::DEFAULTS);
+        (record, report(outcome))
+    }
+}
+
+fn report(outcome: LoadOutcome) -> LoadReport {
+    LoadReport {
+        outcome,
+        newer_format: None,
+        rejected_records: 0,
+        damaged_bytes: 0,
+    }
+}
+
+/// What a host can observe of the device's state (at the same instant).
+#[derive(Debug, PartialEq)]
+struct Observation {
+    answers: [String; 3],
+    settings: CompensationSettings,
+    stored: Vec<CalibrationRecord>,
+    streaming: bool,
+}
+
+fn observe(executor: &Executor, device: &MemDevice) -> Observation {
+    let (mut e, mut d) = (executor.clone(), device.clone());
+    let answers = ["status", "cal status", "get coeffs"].map(|q| {
+        let command = parse(q).expect("query parses");
+        e.execute(&IDENTITY, &mut d, command)
+            .finish(false)
+            .as_str()
+            .to_owned()
+    });
+    Observation {
+        answers,
+        settings: device.active_settings(),
+        stored: device.stored.clone(),
+        streaming: executor.streaming(),
+    }
+}
+
+/// The protocol run over one byte string.
+struct Harness {
+    executor: Executor,
+    device: MemDevice,
+    line: LineAssembler,
+    cycle: u32,
+}
+
+impl Harness {
+    fn new() -> Self {
+        let report = report(LoadOutcome::Defaults {
+            reason: DefaultsReason::Erased,
+        });
+        Self {
+            executor: Executor::new(&report, None, 0, AcceptanceLimits::DEFAULT),
+            device: MemDevice {
+                now_ms: 0,
+                active: CalibrationRecord::DEFAULTS.settings,
+                staged: None,
+                stored: Vec::new(),
+                fail_next_store: false,
+            },
+            line: LineAssembler::new(),
+            cycle: 0,
+        }
+    }
+
+    /// Dither cycles with varied lock-in terms (so that fits pass or are refused); the staged
+    /// settings take effect at the first cycle boundary.
+    fn run_cycles(&mut self, n: u32) {
+        if let Some(s) = self.device.staged.take() {
+            self.device.active = s;
+        }
+        for _ in 0..n {
+            self.cycle = self.cycle.wrapping_add(1);
+            let k = self.cycle as f32;
+            let terms = LockinTerms {
+                p1_s: 2.0e-5 * (k * 0.37).sin(),
+                p2_s: 1.5e-5 * (k * 0.11 + 1.0).sin(),
+            };
+            let increment = 0x3_0000_0000i64 + (self.cycle as i64 % 97) * 0x100_0000;
+            let record = CycleRecord {
+                output: CycleOutput {
+                    increment_q32: increment,
+                    correction_q32: 0,
+                    duration_ticks: 215_938,
+                    flags: if self.cycle.is_multiple_of(211) {
+                        CycleFlags::COUNTER_GLITCH
+                    } else {
+                        CycleFlags::empty()
+                    },
+                },
+                raw_increment_q32: increment,
+                terms,
+                end_phase_q32: increment.wrapping_mul(self.cycle as i64),
+                dither_amplitude_rad: 9.5,
+                dither_hz: 389.0,
+            };
+            let actions = self.executor.on_cycle(&record, 1.0 / 389.0);
+            if let Some(settings) = actions.stage {
+                self.device.stage_settings(settings);
+            }
+            if let Some(frame) = actions.frame {
+                let mut buf = [0u8; MAX_FRAME];
+                let len = encode_frame(&frame, &mut buf);
+                assert_eq!(buf[len - 1], 0, "frame delimiter");
+                assert!(buf[..len - 1].iter().all(|&b| b != 0), "no 0x00 inside");
+                assert_eq!(decode_frame(&buf[..len - 1]), Ok(frame), "round trip");
+            }
+        }
+    }
+
+    /// Answers one assembled line as the board does.
+    fn answer(&mut self, text: &str) -> String {
+        let (body, with_crc) = match strip_checksum(text) {
+            Ok(split) => split,
+            Err(code) => return Response::err(code).finish(false).as_str().to_owned(),
+        };
+        let command = match parse(body) {
+            Ok(c) => c,
+            Err(code) => return Response::err(code).finish(with_crc).as_str().to_owned(),
+        };
+        self.executor
+            .execute(&IDENTITY, &mut self.device, command)
+            .finish(with_crc)
+            .as_str()
+            .to_owned()
+    }
+
+    fn on_event(&mut self, event: Event) {
+        let before = observe(&self.executor, &self.device);
+        let (answer, with_crc) = match &event {
+            Event::TooLong => (
+                Response::err(ErrorCode::LineTooLong)
+                    .finish(false)
+                    .as_str()
+                    .to_owned(),
+                false,
+            ),
+            Event::Garbage => (
+                Response::err(ErrorCode::InvalidCharacters)
+                    .finish(false)
+                    .as_str()
+                    .to_owned(),
+                false,
+            ),
+            Event::Line(text) => (self.answer(text), has_valid_crc(text)),
+        };
+        let code = check_answer(&answer, with_crc);
+        match (&event, code) {
+            (Event::TooLong, c) => assert_eq!(c, Some(7), "{answer:?}"),
+            (Event::Garbage, c) => assert_eq!(c, Some(8), "{answer:?}"),
+            (Event::Line(_), _) => {}
+        }
+        match code {
+            None | Some(12) => {}
+            Some(15) => {
+                let after = observe(&self.executor, &self.device);
+                assert!(after.answers[0].contains("locked=yes"), "{after:?}");
+            }
+            Some(_) => {
+                let after = observe(&self.executor, &self.device);
+                assert_eq!(
+                    before, after,
+                    "an ERR changed the state: {event:?} -> {answer}"
+                );
+            }
+        }
+    }
+}
+
+/// A completed line, owned (the assembler's borrow ends before the executor runs).
+#[derive(Debug)]
+enum Event {
+    Line(String),
+    TooLong,
+    Garbage,
+}
+
+/// Whether a line ends in a valid `*XXXX` suffix (independently of the firmware's parser).
+fn has_valid_crc(line: &str) -> bool {
+    let Some((body, suffix)) = line.rsplit_once('*') else {
+        return false;
+    };
+    let suffix = suffix.trim_end_matches([' ', '\t']);
+    suffix.len() == 4
+        && suffix.bytes().all(|b| b.is_ascii_hexdigit())
+        && u16::from_str_radix(suffix, 16).ok() == Some(crc16(body.as_bytes()))
+}
+
+/// Checks an answer's form; returns its error code (`None` for `OK`).
+pub fn check_answer(answer: &str, with_crc: bool) -> Option<u8> {
+    assert!(answer.len() <= MAX_RESPONSE, "too long: {answer:?}");
+    let line = answer.strip_suffix("\r\n").expect("ends in CRLF");
+    assert!(
+        line.bytes().all(|b| (0x20..0x7f).contains(&b)),
+        "printable: {answer:?}"
+    );
+    let body = if with_crc {
+        let (body, crc) = line.rsplit_once('*').expect("CRC suffix");
+        assert_eq!(crc, format!("{:04X}", crc16(body.as_bytes())), "{answer:?}");
+        body
+    } else {
+        assert!(!line.contains('*'), "no CRC suffix expected: {answer:?}");
+        line
+    };
+    let body = body.strip_suffix('~').unwrap_or(body);
+    if body == "OK" || body.starts_with("OK ") {
+        return None;
+    }
+    let rest = body.strip_prefix("ERR ").expect("OK or ERR");
+    let (number, text) = rest.split_once(' ').expect("ERR <code> <text>");
+    let code: u8 = number.parse().expect("numeric code");
+    let known = CODES
+        .iter()
+        .find(|c| c.code() == code)
+        .unwrap_or_else(|| panic!("unknown code in {answer:?}"));
+    assert!(text.starts_with(known.text()), "{answer:?}");
+    Some(code)
+}
+
+/// Runs the protocol over `data` and checks every answer (panics on a broken promise).
+pub fn check(data: &[u8]) {
+    let mut h = Harness::new();
+    let (mut nonempty_lines, mut events) = (0usize, 0usize);
+    let mut line_bytes = 0usize; // bytes of the current line, a lone trailing '\r' excepted
+    let mut pending_cr = false;
+    for &byte in data {
+        match byte {
+            TICK => h.device.now_ms = h.device.now_ms.wrapping_add(60_000),
+            CYCLES => h.run_cycles(400),
+            FAIL_STORE => h.device.fail_next_store = true,
+            _ => {
+                h.device.now_ms = h.device.now_ms.wrapping_add(7);
+                if byte == b'\n' {
+                    nonempty_lines += (line_bytes > 0) as usize;
+                    line_bytes = 0;
+                    pending_cr = false;
+                } else {
+                    // A '\r' counts only once something follows it on the line.
+                    line_bytes += pending_cr as usize;
+                    pending_cr = byte == b'\r';
+                    line_bytes += (byte != b'\r') as usize;
+                }
+                let event = match h.line.push(byte) {
+                    None => continue,
+                    Some(LineEvent::Line(text)) => Event::Line(text.to_owned()),
+                    Some(LineEvent::TooLong) => Event::TooLong,
+                    Some(LineEvent::Garbage) => Event::Garbage,
+                };
+                events += 1;
+                h.on_event(event);
+            }
+        }
+    }
+    assert_eq!(events, nonempty_lines, "one answer per non-empty line");
+}

@@ -1,0 +1,23 @@
+//! `rlg-cal`: the host side of the readout board's serial calibration protocol.
+//!
+//! - [`link`]: the byte pipe: a serial port or pty (`serialport` crate), TCP, or the simulated
+//!   board in this process ([`link::SimLink`], on simulated time).
+//! - [`client`]: one command out with its CRC suffix, exactly one checked answer back; `ERR`
+//!   answers become typed errors with the code and text; timeouts; stream frames kept apart.
+//! - [`ops`]: calibration runs with progress, streaming sessions.
+//! - [`capture`]: stream frames to records, lost-frame counts, CSV and SVG.
+//! - [`sweep`]: a rotary-table sweep on the simulated board, through the protocol.
+//! - [`serve`]: the simulated board served on TCP or a pty for any serial client.
+//! - [`sim`]: booting the simulated board.
+//!
+//! The protocol itself (commands, answers, error codes, frames, access control) is described
+//! in `docs/protocol.md`; its implementation is the firmware's `protocol` module, which this
+//! crate reuses for the CRC, the frame decoder and the error codes.
+
+pub mod capture;
+pub mod client;
+pub mod link;
+pub mod ops;
+pub mod serve;
+pub mod sim;
+pub mod sweep;

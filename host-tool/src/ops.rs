@@ -1,0 +1,129 @@
+//! Multi-command operations: what the subcommands do beyond one exchange, on any link.
+
+use crate::capture::{Capture, RateScale};
+use crate::client::{Answer, Client, ClientError};
+use crate::link::Link;
+use std::time::Duration;
+
+/// Unlocks protected commands with `key` (hex, as the board expects it).
+pub fn unlock<L: Link>(client: &mut Client<L>, key: &str) -> Result<Answer, ClientError> {
+    client.command(&format!("unlock {key}"))
+}
+
+/// The board's scale factor from `id`, for rates in deg/h.
+pub fn rate_scale<L: Link>(
+    client: &mut Client<L>,
+    timer_hz: f64,
+) -> Result<RateScale, ClientError> {
+    let id = client.command("id")?;
+    Ok(RateScale {
+        scale_factor_arcsec: id.parse_field("sf_arcsec")?,
+        timer_hz,
+    })
+}
+
+/// One calibration run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CalibrateOptions {
+    pub cycles: u32,
+    pub warmup_cycles: u32,
+    /// Between two `cal status` polls.
+    pub poll: Duration,
+    /// A run whose cycle count does not move for this long has failed (signal lost?).
+    pub stall_timeout: Duration,
+}
+
+impl CalibrateOptions {
+    pub fn new(cycles: u32, warmup_cycles: u32) -> Self {
+        Self {
+            cycles,
+            warmup_cycles,
+            poll: Duration::from_millis(250),
+            stall_timeout: Duration::from_secs(10),
+        }
+    }
+}
+
+/// Starts a run, polls `cal status` until it is complete (reporting `(done, total)` cycles),
+/// and returns `cal result` (an `ERR 12` if the fit is refused).
+pub fn calibrate<L: Link>(
+    client: &mut Client<L>,
+    options: &CalibrateOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Answer, ClientError> {
+    let total = options.cycles as u64 + options.warmup_cycles as u64;
+    client.command(&format!(
+        "cal start {} {}",
+        options.cycles, options.warmup_cycles
+    ))?;
+    let (mut last_done, mut last_change) = (u64::MAX, client.elapsed());
+    loop {
+        client.pause(options.poll)?;
+        let status = client.command("cal status")?;
+        match status.field("cal") {
+            Some("running") => {
+                let left = status.parse_field::<u64>("warmup_left")?
+                    + status.parse_field::<u64>("cycles_left")?;
+                let done = total.saturating_sub(left);
+                progress(done, total);
+                if done != last_done {
+                    (last_done, last_change) = (done, client.elapsed());
+                } else if client.elapsed() - last_change > options.stall_timeout {
+                    return Err(unexpected(
+                        &status,
+                        "the run makes no progress (signal lost?)",
+                    ));
+                }
+            }
+            Some("run_done") => {
+                progress(total, total);
+                break;
+            }
+            _ => return Err(unexpected(&status, "the run ended without completing")),
+        }
+    }
+    client.command("cal result")
+}
+
+fn unexpected(answer: &Answer, what: &str) -> ClientError {
+    ClientError::Unexpected {
+        command: answer.command.clone(),
+        answer: answer.text.clone(),
+        what: what.to_owned(),
+    }
+}
+
+/// Streams every `divider`-th cycle for `duration` on the link's clock, then stops the stream
+/// (also after an error); `progress` gets the elapsed fraction.
+pub fn stream<L: Link>(
+    client: &mut Client<L>,
+    divider: u16,
+    duration: Duration,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Capture, ClientError> {
+    client.command(&format!("stream on {divider}"))?;
+    let mut capture = Capture::new(divider);
+    let start = client.elapsed();
+    let result = (|| -> Result<(), ClientError> {
+        loop {
+            let elapsed = client.elapsed().saturating_sub(start);
+            if elapsed >= duration {
+                return Ok(());
+            }
+            progress(elapsed.as_secs_f64() / duration.as_secs_f64());
+            client.poll((duration - elapsed).min(Duration::from_millis(100)))?;
+            drain_frames(client, &mut capture);
+        }
+    })();
+    let stopped = client.command("stream off");
+    drain_frames(client, &mut capture);
+    result?;
+    stopped?;
+    Ok(capture)
+}
+
+fn drain_frames<L: Link>(client: &mut Client<L>, capture: &mut Capture) {
+    for chunk in client.take_frames() {
+        capture.push_chunk(&chunk);
+    }
+}

@@ -1,0 +1,239 @@
+//! A rotary-table sweep on the simulated board, in process, through the protocol.
+//!
+//! The gyro's sensitive axis lies horizontal on a table at latitude `L`; at azimuth `alpha` it
+//! sees `Omega_E cos(L) cos(alpha)` of the Earth rate (hal-sim's `InputProfile::rotary_table`).
+//! For each azimuth the board is powered up on the same simulated flash, left to settle, and
+//! its rate read from the stream (mean compensated and raw rate over the streamed cycles) or
+//! from `status` (the board's own one-second averages). With a calibration, the board is first
+//! calibrated at one azimuth through the protocol (`unlock`, `cal start`, `cal result`,
+//! `cal accept`, `store`), so every later boot runs with the stored coefficients.
+
+use crate::capture::RateScale;
+use crate::client::{Answer, Client, ClientError};
+use crate::link::SimLink;
+use crate::ops::{self, CalibrateOptions};
+use crate::sim::{self, SimInput};
+use hal_sim::board::TIMER_HZ;
+use hal_sim::flash::CalibrationFlash;
+use hal_sim::input::earth_rate_on_horizontal_axis_deg_per_h;
+use hal_sim::units::EARTH_RATE_SOLAR_DEG_PER_H;
+use rlg_sim::plot::{Figure, Panel, Series, Style};
+use std::io::{self, Write};
+use std::time::Duration;
+
+/// Where the measured rate comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RateSource {
+    /// Mean over the streamed cycles (compensated and raw).
+    Stream,
+    /// Mean of `status`'s `rate_deg_h` (one-second averages), polled once a second.
+    Status,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct SweepOptions {
+    pub latitude_deg: f64,
+    pub azimuths_deg: Vec<f64>,
+    /// Before measuring, after power-up.
+    pub settle: Duration,
+    pub measure: Duration,
+    pub rate_from: RateSource,
+    /// Stream every n-th cycle.
+    pub divider: u16,
+    /// Calibrate first at this azimuth.
+    pub calibrate: Option<(CalibrateOptions, f64)>,
+    pub seed: u64,
+}
+
+/// One azimuth.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SweepPoint {
+    pub azimuth_deg: f64,
+    pub expected_deg_per_h: f64,
+    /// The board's output (compensated when compensation is on).
+    pub measured_deg_per_h: f64,
+    /// Before compensation (stream only).
+    pub raw_deg_per_h: Option<f64>,
+    pub frames: usize,
+    pub lost_frames: u64,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct SweepReport {
+    pub latitude_deg: f64,
+    /// `cal result` of the calibration run, if one was made.
+    pub calibration: Option<Answer>,
+    pub points: Vec<SweepPoint>,
+}
+
+/// Runs the sweep; `progress` gets a line per step.
+pub fn sweep(
+    options: &SweepOptions,
+    progress: &mut dyn FnMut(&str),
+) -> Result<SweepReport, ClientError> {
+    let mut flash = CalibrationFlash::default();
+    let mut boot_count = 0;
+    let table = |azimuth_deg| SimInput::RotaryTable {
+        latitude_deg: options.latitude_deg,
+        azimuth_deg,
+    };
+    let mut calibration = None;
+    if let Some((cal, azimuth)) = &options.calibrate {
+        progress(&format!("calibrating at azimuth {azimuth} deg"));
+        let device = sim::boot(table(*azimuth), options.seed, flash, boot_count)?;
+        boot_count += 1;
+        let mut client = Client::new(SimLink::new(device));
+        client.pause(options.settle)?;
+        ops::unlock(&mut client, &sim::sim_key())?;
+        calibration = Some(ops::calibrate(&mut client, cal, &mut |_, _| {})?);
+        client.command("cal accept")?;
+        client.command("store")?;
+        flash = client.into_link().into_device().power_off();
+    }
+    let mut points = Vec::new();
+    for &azimuth_deg in &options.azimuths_deg {
+        let device = sim::boot(table(azimuth_deg), options.seed, flash, boot_count)?;
+        boot_count += 1;
+        let mut client = Client::new(SimLink::new(device));
+        client.pause(options.settle)?;
+        let mut point = measure(&mut client, options)?;
+        point.azimuth_deg = azimuth_deg;
+        point.expected_deg_per_h = earth_rate_on_horizontal_axis_deg_per_h(
+            EARTH_RATE_SOLAR_DEG_PER_H,
+            options.latitude_deg.to_radians(),
+            azimuth_deg.to_radians(),
+        );
+        progress(&format!(
+            "azimuth {azimuth_deg:>6.1} deg: expected {:+.4} deg/h, measured {:+.4} deg/h",
+            point.expected_deg_per_h, point.measured_deg_per_h
+        ));
+        points.push(point);
+        flash = client.into_link().into_device().power_off();
+    }
+    Ok(SweepReport {
+        latitude_deg: options.latitude_deg,
+        calibration,
+        points,
+    })
+}
+
+fn measure(
+    client: &mut Client<SimLink>,
+    options: &SweepOptions,
+) -> Result<SweepPoint, ClientError> {
+    let mut point = SweepPoint {
+        azimuth_deg: 0.0,
+        expected_deg_per_h: 0.0,
+        measured_deg_per_h: f64::NAN,
+        raw_deg_per_h: None,
+        frames: 0,
+        lost_frames: 0,
+    };
+    match options.rate_from {
+        RateSource::Stream => {
+            let scale: RateScale = ops::rate_scale(client, TIMER_HZ)?;
+            let capture = ops::stream(client, options.divider, options.measure, &mut |_| {})?;
+            let (compensated, raw) = capture.mean_rates(&scale);
+            point.measured_deg_per_h = compensated;
+            point.raw_deg_per_h = Some(raw);
+            point.frames = capture.records.len();
+            point.lost_frames = capture.lost();
+        }
+        RateSource::Status => {
+            let readings = options.measure.as_secs().max(1);
+            let mut sum = 0.0;
+            for _ in 0..readings {
+                client.pause(Duration::from_secs(1))?;
+                sum += client.command("status")?.parse_field::<f64>("rate_deg_h")?;
+            }
+            point.measured_deg_per_h = sum / readings as f64;
+        }
+    }
+    Ok(point)
+}
+
+impl SweepReport {
+    /// One row per azimuth.
+    pub fn write_csv(&self, mut out: impl Write) -> io::Result<()> {
+        writeln!(
+            out,
+            "azimuth_deg,expected_deg_h,measured_deg_h,error_deg_h,raw_deg_h,frames,lost_frames"
+        )?;
+        for p in &self.points {
+            let raw = p
+                .raw_deg_per_h
+                .map(|r| format!("{r:.6}"))
+                .unwrap_or_default();
+            writeln!(
+                out,
+                "{},{:.6},{:.6},{:.6},{raw},{},{}",
+                p.azimuth_deg,
+                p.expected_deg_per_h,
+                p.measured_deg_per_h,
+                p.measured_deg_per_h - p.expected_deg_per_h,
+                p.frames,
+                p.lost_frames
+            )?;
+        }
+        out.flush()
+    }
+
+    /// Measured and expected rate over azimuth, with the error below.
+    pub fn svg(&self) -> String {
+        let series =
+            |label: &str, color, style, pick: &dyn Fn(&SweepPoint) -> Option<f64>| Series {
+                label: label.to_owned(),
+                points: self
+                    .points
+                    .iter()
+                    .filter_map(|p| pick(p).map(|v| (p.azimuth_deg, v)))
+                    .collect(),
+                color,
+                style,
+            };
+        let mut rates = vec![
+            series("expected", "#444444", Style::DashedLine, &|p| {
+                Some(p.expected_deg_per_h)
+            }),
+            series("measured", "#1f77b4", Style::LineAndMarkers, &|p| {
+                Some(p.measured_deg_per_h)
+            }),
+        ];
+        if self.points.iter().any(|p| p.raw_deg_per_h.is_some()) {
+            rates.push(series("raw", "#d62728", Style::Markers, &|p| {
+                p.raw_deg_per_h
+            }));
+        }
+        Figure {
+            title: format!(
+                "Rotary-table sweep at latitude {} deg{}",
+                self.latitude_deg,
+                if self.calibration.is_some() {
+                    " (calibrated)"
+                } else {
+                    ""
+                }
+            ),
+            x_label: "table azimuth (deg)".into(),
+            panels: vec![
+                Panel {
+                    title: "rate".into(),
+                    y_label: "deg/h".into(),
+                    series: rates,
+                    weight: 2.0,
+                },
+                Panel {
+                    title: "measured - expected".into(),
+                    y_label: "deg/h".into(),
+                    series: vec![series("error", "#1f77b4", Style::LineAndMarkers, &|p| {
+                        Some(p.measured_deg_per_h - p.expected_deg_per_h)
+                    })],
+                    weight: 1.0,
+                },
+            ],
+            width_px: 900.0,
+            height_px: 650.0,
+        }
+        .to_svg()
+    }
+}

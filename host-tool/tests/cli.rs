@@ -1,0 +1,205 @@
+//! The `rlg-cal` binary: help, exit codes, files written, and a served board driven by a
+//! second `rlg-cal` process over loopback TCP and a pty.
+
+use std::io::{BufRead, BufReader};
+use std::net::TcpListener;
+use std::path::PathBuf;
+use std::process::{Child, Command, Output, Stdio};
+
+fn rlg_cal(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rlg-cal"))
+        .args(args)
+        .stdin(Stdio::null())
+        .output()
+        .unwrap()
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// (exit code, stdout, stderr)
+fn run(args: &[&str]) -> (i32, String, String) {
+    let out = rlg_cal(args);
+    (
+        out.status.code().unwrap_or(-1),
+        text(&out.stdout),
+        text(&out.stderr),
+    )
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rlg-cal-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+#[test]
+fn help_documents_commands_and_exit_codes() {
+    let (code, out, _) = run(&["--help"]);
+    assert_eq!(code, 0);
+    for word in [
+        "calibrate",
+        "stream",
+        "sweep",
+        "serve-sim",
+        "Exit status",
+        "3  connection",
+    ] {
+        assert!(out.contains(word), "{word} in --help");
+    }
+    let (code, out, _) = run(&["calibrate", "--help"]);
+    assert_eq!(code, 0);
+    assert!(out.contains("--accept") && out.contains("--warmup"));
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    for args in [
+        &[][..],
+        &["status"],
+        &["--sim", "--tcp", "127.0.0.1:1", "status"],
+        &["--sim", "set", "c", "1"],
+        &["--sim", "set", "a", "twelve"],
+        &["--sim", "calibrate", "--store"],
+        &["--sim", "sweep"],
+    ] {
+        let (code, _, err) = run(args);
+        assert_eq!(code, 2, "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn the_board_refusing_exits_1_and_says_why() {
+    let (code, _, err) = run(&["--sim", "set", "a", "1"]);
+    assert_eq!(code, 1);
+    assert!(err.contains("ERR 9 locked"), "{err}");
+    let (code, _, err) = run(&["--sim", "--key", "c0ffee42", "set", "a", "NaN"]);
+    assert_eq!(code, 1);
+    assert!(err.contains("ERR 4"), "{err}");
+    let (code, out, _) = run(&["--sim", "--key", "c0ffee42", "set", "b", "-344.123456"]);
+    assert_eq!((code, out.trim()), (0, "b=-344.12344"));
+}
+
+#[test]
+fn no_board_exits_3() {
+    let port = {
+        let l = TcpListener::bind("127.0.0.1:0").unwrap();
+        l.local_addr().unwrap().port()
+    }; // closed again: nobody listens there now
+    let address = format!("127.0.0.1:{port}");
+    let (code, _, err) = run(&["--tcp", &address, "status"]);
+    assert_eq!(code, 3, "{err}");
+    let (code, _, err) = run(&["--port", "/dev/nonexistent-tty", "status"]);
+    assert_eq!(code, 3, "{err}");
+}
+
+#[test]
+fn calibrate_with_accept_and_store() {
+    let (code, out, err) = run(&[
+        "--sim",
+        "--key",
+        "c0ffee42",
+        "calibrate",
+        "--cycles",
+        "3000",
+        "--warmup",
+        "100",
+        "--accept",
+        "--store",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("lock_in_deg_h=") && out.contains("comp=on"),
+        "{out}"
+    );
+    assert!(out.contains("stored seq=1"), "{out}");
+}
+
+#[test]
+fn stream_writes_csv_and_svg() {
+    let (csv, svg) = (scratch("stream.csv"), scratch("stream.svg"));
+    let (code, out, err) = run(&[
+        "--sim",
+        "stream",
+        "--seconds",
+        "1",
+        "--divider",
+        "2",
+        "--csv",
+        csv.to_str().unwrap(),
+        "--svg",
+        svg.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("lost=0 bad=0"), "{out}");
+    let rows = std::fs::read_to_string(&csv).unwrap().lines().count();
+    assert!((190..=200).contains(&rows), "{rows} rows");
+    assert!(std::fs::read_to_string(&svg).unwrap().starts_with("<svg"));
+}
+
+#[test]
+fn sweep_prints_one_row_per_azimuth() {
+    let csv = scratch("sweep.csv");
+    let (code, out, err) = run(&[
+        "sweep",
+        "--azimuths",
+        "0,90,180",
+        "--seconds",
+        "1",
+        "--calibrate",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let rows: Vec<&str> = out.lines().filter(|l| !l.starts_with('#')).collect();
+    assert_eq!(rows.len(), 4, "{out}");
+    assert!(rows[0].starts_with("azimuth_deg,expected_deg_h,measured_deg_h"));
+    // Calibrated: within 0.01 deg/h of the Earth-rate projection.
+    for row in &rows[1..] {
+        let error: f64 = row.split(',').nth(3).unwrap().parse().unwrap();
+        assert!(error.abs() < 0.01, "{row}");
+    }
+    assert_eq!(std::fs::read_to_string(&csv).unwrap().lines().count(), 4);
+}
+
+/// `serve-sim` in a child process; returns it and its first stdout line (address or path).
+fn serve_sim(args: &[&str]) -> (Child, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_rlg-cal"))
+        .arg("serve-sim")
+        .args(args)
+        .args(["--seconds", "15", "--speed", "2"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    (child, line.trim().to_owned())
+}
+
+#[test]
+fn a_served_board_talks_to_a_second_process() {
+    let (mut tcp_server, address) = serve_sim(&["--tcp", "127.0.0.1:0"]);
+    let (mut pty_server, path) = serve_sim(&["--pty"]);
+    assert!(address.starts_with("127.0.0.1:"), "{address}");
+    assert!(path.starts_with("/dev/pts/"), "{path}");
+    let over_tcp = run(&["--tcp", &address, "--key", "c0ffee42", "set", "a", "12.5"]);
+    let again = run(&["--tcp", &address, "get", "a"]);
+    let over_pty = run(&["--port", &path, "--baud", "460800", "id"]);
+    tcp_server.kill().unwrap();
+    pty_server.kill().unwrap();
+    let _ = (tcp_server.wait(), pty_server.wait());
+    assert_eq!(
+        (over_tcp.0, over_tcp.1.trim()),
+        (0, "a=12.5"),
+        "{}",
+        over_tcp.2
+    );
+    assert_eq!((again.0, again.1.trim()), (0, "a=12.5"), "{}", again.2);
+    assert_eq!(over_pty.0, 0, "{}", over_pty.2);
+    assert!(over_pty.1.contains("serial=4242"), "{}", over_pty.1);
+}
