@@ -6,7 +6,8 @@
 //! - Wrong keys are rate-limited: after [`AccessConfig::free_attempts`] wrong keys, each further
 //!   attempt must wait a penalty that doubles per wrong key (capped); an attempt during the
 //!   penalty is refused without being checked (`ERR 14`), so guessing a 32-bit key over a
-//!   serial line takes geological time. A correct key resets the count.
+//!   serial line takes geological time. A correct key resets the count. A wrong key also locks
+//!   a board that was unlocked: whoever types it is not to be trusted with the open session.
 //! - Reads never need an unlock.
 //!
 //! Time is a millisecond tick passed in by the caller (wrapping `u32`, 49 days), so this is

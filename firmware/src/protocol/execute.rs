@@ -12,7 +12,9 @@
 //!   `cal accept`, `store`, `reload`, `defaults`) needs one, and extends it when it succeeds;
 //! - while a calibration run collects cycles, those commands answer `ERR 10` (busy): the run's
 //!   data would no longer match the coefficients;
-//! - a refused command changes nothing.
+//! - a refused command changes nothing, with one deliberate exception: `cal result` on a
+//!   completed run solves the fit, and a fit that fails its checks is answered `ERR 12` while
+//!   the session moves to "refused" (the refusal *is* the result; `cal status` reports it).
 
 use super::access::{Access, AccessConfig, UnlockOutcome};
 use super::parse::{Coefficient, Command};
@@ -279,11 +281,14 @@ impl Executor {
                 self.tracking = on.then(|| {
                     TrackingLoop::new(&self.tracking_config, device.active_settings().coefficients)
                 });
-                r.field(format_args!(
-                    "track={} memory_cycles={}",
-                    if on { "on" } else { "off" },
-                    self.tracking_config.tracking.memory_cycles
-                ));
+                if on {
+                    r.field(format_args!(
+                        "track=on memory_cycles={}",
+                        self.tracking_config.tracking.memory_cycles
+                    ));
+                } else {
+                    r.field(format_args!("track=off"));
+                }
             }
             Command::CalStart {
                 cycles,
