@@ -1,26 +1,35 @@
-//! Self-check of the turnaround prediction (`board::turnaround::Scheduler`) on the MCU in QEMU:
+//! Self-check of the turnaround prediction on the MCU in QEMU:
 //! `cargo fw-run --example turnaround_schedule` (exit status 0 = all checks pass).
 //!
-//! The scheduler is plain logic (edge times in, compare time out) but lives in the target-only
-//! board module, so it is checked here, on synthetic pick-off edges in 84 MHz ticks:
+//! The scheduler is plain logic (`signal::turnaround_schedule`, unit-tested on the host); this
+//! checks the same code compiled for the M4F with the board's settings
+//! (`board::turnaround::scheduler_config`: its delays and pick-off polarity) and its counters,
+//! on synthetic pick-off edges in 84 MHz ticks:
 //! - a comparator threshold offset (rising edges late, falling edges early by the same amount)
 //!   and the fixed pick-off delay cancel: the compare lands on the true extremum minus the ADC
 //!   aperture delay, to a tick, across the 32-bit wrap of the timer;
 //! - the input-rate shift moves "+" turnarounds earlier and "-" turnarounds later;
 //! - a slowly drifting dither period costs only a few ticks;
-//! - a lost edge or an implausible interval yields no compare until the history is rebuilt;
-//! - `rate_shift_ticks` for 1 deg/s at the PHYSICS.md parameter set (~1.34 us = 112 ticks).
+//! - a lost edge or an implausible interval yields no compare until the history is rebuilt, and
+//!   the board's wrapper counts the implausible one in `IMPLAUSIBLE`;
+//! - `rate_shift_ticks` for 1 deg/s at the PHYSICS.md parameter set (~1.34 us = 112 ticks), from
+//!   a cycle record as the cycle task computes it.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
 mod app {
-    use firmware::board::turnaround::{
-        rate_shift_ticks, Edge, Scheduler, AFTER_RISING_EDGE, APERTURE_DELAY_TICKS,
-        PICKOFF_DELAY_TICKS,
-    };
+    use core::sync::atomic::Ordering;
+    use firmware::board::turnaround::{self, scheduler_config, IMPLAUSIBLE};
     use firmware::sample::TurnaroundKind;
+    use firmware::signal::compensation::Q32_PER_FRINGE;
+    use firmware::signal::cycle::CycleRecord;
+    use firmware::signal::output::CycleOutput;
+    use firmware::signal::turnaround_schedule::{
+        opposite, rate_shift_ticks, Edge, Scheduler, SchedulerConfig,
+    };
 
     const TIMER_HZ: u32 = 84_000_000;
+    const CONFIG: SchedulerConfig = scheduler_config(TIMER_HZ, 200, 1500);
     /// One dither period at 389 Hz, ticks (rounded to even, so T/4 is exact).
     const PERIOD: u32 = 215_936;
     /// Comparator threshold offset as a time shift of the edges, ticks (8.3 us).
@@ -58,17 +67,17 @@ mod app {
         let mut period = PERIOD as i32;
         for _ in 0..cycles {
             let half = (period / 2) as u32;
-            let rise = t.wrapping_add(OFFSET + PICKOFF_DELAY_TICKS);
-            let fall = t.wrapping_add(half - OFFSET + PICKOFF_DELAY_TICKS);
+            let rise = t.wrapping_add(OFFSET + CONFIG.pickoff_delay_ticks);
+            let fall = t.wrapping_add(half - OFFSET + CONFIG.pickoff_delay_ticks);
             for (edge, at, extremum) in [
                 (Edge::Rising, rise, t.wrapping_add(half / 2)),
                 (Edge::Falling, fall, t.wrapping_add(half + half / 2)),
             ] {
-                if let Some(c) = s.on_edge(edge, at, shift) {
+                if let Some(c) = s.on_edge(&CONFIG, edge, at, shift).schedule {
                     let expect_kind = if edge == Edge::Rising {
-                        AFTER_RISING_EDGE
+                        CONFIG.after_rising_edge
                     } else {
-                        opposite(AFTER_RISING_EDGE)
+                        opposite(CONFIG.after_rising_edge)
                     };
                     let sign = if c.kind == TurnaroundKind::Plus {
                         -1
@@ -76,7 +85,7 @@ mod app {
                         1
                     };
                     let want = extremum
-                        .wrapping_sub(APERTURE_DELAY_TICKS)
+                        .wrapping_sub(CONFIG.aperture_delay_ticks)
                         .wrapping_add_signed(sign * shift);
                     let err = c.compare_ticks.wrapping_sub(want) as i32 as i64;
                     if c.kind != expect_kind {
@@ -93,17 +102,26 @@ mod app {
         (worst, n, t)
     }
 
-    fn opposite(k: TurnaroundKind) -> TurnaroundKind {
-        match k {
-            TurnaroundKind::Plus => TurnaroundKind::Minus,
-            TurnaroundKind::Minus => TurnaroundKind::Plus,
+    /// A cycle record of `fringes` per 389 Hz cycle with the measured dither `amplitude_rad`.
+    fn record(fringes: f32, amplitude_rad: f32) -> CycleRecord {
+        CycleRecord {
+            output: CycleOutput {
+                increment_q32: (fringes as f64 * Q32_PER_FRINGE) as i64,
+                duration_ticks: TIMER_HZ / 389,
+                ..Default::default()
+            },
+            raw_increment_q32: 0,
+            terms: Default::default(),
+            end_phase_q32: 0,
+            dither_amplitude_rad: amplitude_rad,
+            dither_hz: 389.0,
         }
     }
 
     #[cortex_m_rt::entry]
     fn main() -> ! {
         let mut c = Checks { failed: 0, run: 0 };
-        let new = || Scheduler::new(TIMER_HZ, 200, 1500);
+        let new = Scheduler::new;
 
         // Threshold offset and pick-off delay cancel, across the 32-bit wrap.
         let mut s = new();
@@ -135,8 +153,10 @@ mod app {
         // A lost falling edge: two rising edges in a row give nothing, then it recovers.
         let mut s = new();
         let (_, _, t) = run_cycles(&mut s, 1_000, 3, 0, 0);
-        let r1 = s.on_edge(Edge::Rising, t + OFFSET, 0);
-        let r2 = s.on_edge(Edge::Rising, t + PERIOD + OFFSET, 0);
+        let r1 = s.on_edge(&CONFIG, Edge::Rising, t + OFFSET, 0).schedule;
+        let r2 = s
+            .on_edge(&CONFIG, Edge::Rising, t + PERIOD + OFFSET, 0)
+            .schedule;
         c.check(
             "no compare after a lost edge",
             r2.is_none(),
@@ -152,29 +172,40 @@ mod app {
             0,
         );
 
-        // A glitch: an interval of 10 ticks is implausible.
+        // A glitch: an interval of 10 ticks is implausible; the board's wrapper counts it.
         let mut s = new();
         let (_, _, t) = run_cycles(&mut s, 1_000, 3, 0, 0);
-        let _ = s.on_edge(Edge::Rising, t + OFFSET, 0);
-        let g = s.on_edge(Edge::Falling, t + OFFSET + 10, 0);
+        let _ = s.on_edge(&CONFIG, Edge::Rising, t + OFFSET, 0);
+        let g = s.on_edge(&CONFIG, Edge::Falling, t + OFFSET + 10, 0);
         c.check(
             "no compare after a glitch",
-            g.is_none(),
-            g.is_some() as i64,
+            g.implausible && g.schedule.is_none(),
+            g.schedule.is_some() as i64,
             0,
+        );
+        let mut board = turnaround::Scheduler::new(TIMER_HZ, 200, 1500);
+        let before = IMPLAUSIBLE.load(Ordering::Relaxed);
+        let _ = board.on_edge(Edge::Rising, 1_000, 0);
+        let b = board.on_edge(Edge::Falling, 1_010, 0);
+        let counted = IMPLAUSIBLE.load(Ordering::Relaxed).wrapping_sub(before) as i64;
+        c.check(
+            "board counts the implausible edge",
+            b.is_none() && counted == 1,
+            counted,
+            1,
         );
 
         // 1 deg/s of input at SF 1.8655 arcsec/pulse, 450 arcsec amplitude, 389 Hz.
-        let rate = 3600.0 / 1.8655 * core::f32::consts::TAU;
+        let per_cycle = 3600.0 / 1.8655 / 389.0;
         let amplitude = 450.0 / 1.8655 * core::f32::consts::TAU;
-        let shift = rate_shift_ticks(rate, amplitude, 389.0) as i64;
+        let shift = rate_shift_ticks(&record(per_cycle, amplitude), TIMER_HZ) as i64;
         c.check(
             "rate shift, 1 deg/s (ticks)",
             (110..=115).contains(&shift),
             shift,
             112,
         );
-        let none = rate_shift_ticks(rate, 0.0, 389.0) as i64;
+        let none = rate_shift_ticks(&record(per_cycle, 0.0), TIMER_HZ) as i64;
         c.check("no dither: no shift", none == 0, none, 0);
 
         defmt::info!(

@@ -9,23 +9,85 @@
 //! - the [`TurnaroundSample`] latched at the turnaround (encoder register, both ADC channels,
 //!   capture timer), built by [`latch_turnaround`].
 //!
-//! The latch instant is the exact turnaround (the zero of dither plus input rate) plus a
-//! configurable timing error and jitter, standing in for the board's capture/compare scheduling
-//! (PHYSICS.md pitfall 2: aim for ~1 us). The gyro's truth (turnaround phase, per-traversal
-//! lock-in error) stays available through [`SimBoard::gyro`] for tests.
+//! The latch instant ([`LatchTiming`], PHYSICS.md pitfall 2: aim for ~1 us) is either
+//! - [`LatchTiming::Exact`] (the default): the exact turnaround (the zero of dither plus input
+//!   rate), standing in for a perfect capture/compare scheduling; or
+//! - [`LatchTiming::Scheduled`]: what the board does. The pick-off comparator's edges are found
+//!   on the analytic dither pick-off ([`Gyro::dither_pickoff_arcsec`] against the comparator
+//!   threshold: bracketing in steps of T/32, then bisection to 10 ps), delayed by the pick-off
+//!   path and captured by the 84 MHz timer ([`CaptureTimer`], whole ticks), and fed to the
+//!   firmware's own [`Scheduler`] (`firmware::signal::turnaround_schedule`) with the input-rate
+//!   shift that [`rate_shift_ticks`] computes from the latest [`CycleRecord`] the caller hands
+//!   back ([`SimBoard::on_cycle`]). The latch is taken at the sampling instant: the compare
+//!   instant plus the ADC aperture delay the scheduler subtracted, so a model whose delays match
+//!   the scheduler's lands on the turnaround up to the capture's tick quantisation (the capture
+//!   and the half-interval round down: about -11 ns on average, within +-35 ns at +-1 deg/s with
+//!   a 5 % threshold offset and 1 % amplitude jitter, `tests/board_schedule.rs`). (On the board
+//!   the encoder count is latched at the compare, ~0.85 us earlier; the count-plus-fraction
+//!   resolver absorbs that, so one instant is used for both here.) A turnaround without a usable
+//!   schedule (no history yet after start, an implausible edge, no edge at all, a compare that
+//!   does not point at this turnaround) falls back to the exact turnaround and is counted in
+//!   [`LatchStats`]: the simulation never hangs.
+//!
+//! In both modes [`BoardConfig::latch_offset_s`] and [`BoardConfig::latch_jitter_rms_s`] add a
+//! residual timing error on top (an uncalibrated fixed delay, trigger jitter). The gyro's truth
+//! (turnaround phase, per-traversal lock-in error) stays available through [`SimBoard::gyro`]
+//! for tests, and each latch's true turnaround through [`SimBoard::last_latch`].
 
 use crate::clock::CaptureTimer;
 use crate::counter::{latch_turnaround, CounterConfig, QuadratureCounter};
 use crate::gyro::Gyro;
+use crate::gyro::TurnaroundTime;
 use crate::params::GyroParams;
 use crate::photodiode::{PhotodiodeConfig, Photodiodes};
-use firmware::sample::TurnaroundSample;
+use firmware::sample::{TurnaroundKind, TurnaroundSample};
+use firmware::signal::cycle::CycleRecord;
+use firmware::signal::turnaround_schedule::{rate_shift_ticks, Edge, Scheduler, SchedulerConfig};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 /// Capture-timer frequency of the STM32F405's 32-bit TIM2/TIM5 (APB1 timer clock), Hz.
 pub const TIMER_HZ: f64 = 84e6;
+
+/// How the turnaround latch is timed.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum LatchTiming {
+    /// At the exact turnaround (zero of dither plus input rate).
+    #[default]
+    Exact,
+    /// From the pick-off comparator's edges through the firmware's scheduler, as on the board.
+    Scheduled {
+        /// Comparator threshold, arcsec of pick-off (dither angle); 0 = an ideal zero-crossing
+        /// detector. The half-interval prediction cancels it.
+        comparator_offset_arcsec: f64,
+        /// Pick-off path (comparator, input filter, resynchronisation): edge to capture, ticks.
+        /// The scheduler subtracts the same value (a calibrated board).
+        pickoff_delay_ticks: u32,
+        /// Compare match to the sampling instant (ADC trigger latency + sampling time), ticks.
+        /// The scheduler subtracts the same value.
+        aperture_delay_ticks: u32,
+        /// Apply the input-rate shift Omega_i/|psi_ddot| (false: latch at the pick-off's
+        /// extremum, PHYSICS.md pitfall 3).
+        rate_shift: bool,
+    },
+}
+
+impl LatchTiming {
+    /// Scheduled from the pick-off with the board's nominal delays (18 ticks pick-off path, 70
+    /// ticks ADC aperture: `firmware::board::turnaround`) and the rate shift on.
+    pub const fn scheduled(comparator_offset_arcsec: f64) -> Self {
+        Self::Scheduled {
+            comparator_offset_arcsec,
+            pickoff_delay_ticks: 18,
+            aperture_delay_ticks: 70,
+            rate_shift: true,
+        }
+    }
+}
+
+/// Dither frequencies the simulated scheduler accepts, Hz (the board's range).
+const SCHEDULER_DITHER_HZ: (u32, u32) = (200, 1500);
 
 /// The board around the gyro.
 #[derive(Clone, Debug)]
@@ -36,9 +98,13 @@ pub struct BoardConfig {
     pub timer_hz: f64,
     /// Rate of the free-running photodiode conversions for the Lissajous fit, Hz.
     pub lissajous_rate_hz: f64,
-    /// Constant error of the latch instant against the true turnaround, s.
+    /// How the latch instant is found.
+    pub latch: LatchTiming,
+    /// Constant error of the latch instant, s: against the true turnaround ([`LatchTiming::Exact`])
+    /// or the scheduled sampling instant ([`LatchTiming::Scheduled`]: a residual uncalibrated
+    /// delay).
     pub latch_offset_s: f64,
-    /// RMS jitter of the latch instant, s.
+    /// RMS jitter of the latch instant, s (on top, in both modes).
     pub latch_jitter_rms_s: f64,
     /// Drift of the photodiode phase offset eps (thermal, ageing), rad/s, applied from t = 0
     /// until `eps_drift_until_s`: the photodiodes see psi - eps(t).
@@ -56,6 +122,7 @@ impl BoardConfig {
             counter: CounterConfig::default(),
             timer_hz: TIMER_HZ,
             lissajous_rate_hz: 12_345.0,
+            latch: LatchTiming::Exact,
             latch_offset_s: 0.0,
             latch_jitter_rms_s: 0.0,
             eps_drift_rad_per_s: 0.0,
@@ -73,6 +140,43 @@ pub enum BoardError {
     Config(&'static str),
 }
 
+/// How the turnarounds were latched so far ([`LatchTiming::Scheduled`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LatchStats {
+    /// Pick-off edges found and fed to the scheduler.
+    pub edges: u64,
+    /// Edges the scheduler found implausible (glitch or gap).
+    pub implausible_edges: u64,
+    /// Latches at the scheduled instant.
+    pub scheduled: u64,
+    /// Latches that fell back to the exact turnaround (no schedule, or one not pointing at it).
+    pub fallbacks: u64,
+}
+
+/// One latch and its truth.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LatchRecord {
+    /// When the photodiodes were sampled and the count latched, s.
+    pub latch_s: f64,
+    /// The true turnaround it was meant for (zero of dither + input rate).
+    pub turnaround: TurnaroundTime,
+    /// True if taken at the scheduled instant (false: exact, or a fallback).
+    pub scheduled: bool,
+}
+
+/// The pick-off side of a scheduled latch.
+#[derive(Clone, Copy, Debug)]
+struct Pickoff {
+    threshold_arcsec: f64,
+    pickoff_delay_s: f64,
+    aperture_delay_s: f64,
+    rate_shift: bool,
+    config: SchedulerConfig,
+    scheduler: Scheduler,
+    /// Where the next edge search starts: just after the last edge, s.
+    cursor_s: f64,
+}
+
 /// The simulated board.
 pub struct SimBoard {
     gyro: Gyro,
@@ -84,6 +188,10 @@ pub struct SimBoard {
     rng: ChaCha8Rng,
     next_lissajous_s: f64,
     time_s: f64,
+    pickoff: Option<Pickoff>,
+    rate_shift_ticks: i32,
+    stats: LatchStats,
+    last_latch: Option<LatchRecord>,
 }
 
 impl SimBoard {
@@ -100,6 +208,7 @@ impl SimBoard {
         if !(config.latch_offset_s.is_finite() && config.latch_jitter_rms_s >= 0.0) {
             return Err(BoardError::Config("latch timing must be finite"));
         }
+        let pickoff = Self::pickoff(&config)?;
         let eps_rad = gyro.params().eps_rad;
         let psi_h0 = gyro.advance_to(0.0) - eps_rad;
         let counter = QuadratureCounter::new(&config.photodiodes, config.counter, psi_h0)
@@ -110,6 +219,10 @@ impl SimBoard {
             timer: CaptureTimer::new(config.timer_hz),
             next_lissajous_s: 0.5 / config.lissajous_rate_hz,
             time_s: 0.0,
+            pickoff,
+            rate_shift_ticks: 0,
+            stats: LatchStats::default(),
+            last_latch: None,
             eps_rad,
             counter,
             config,
@@ -117,19 +230,87 @@ impl SimBoard {
         })
     }
 
+    fn pickoff(config: &BoardConfig) -> Result<Option<Pickoff>, BoardError> {
+        let LatchTiming::Scheduled {
+            comparator_offset_arcsec,
+            pickoff_delay_ticks,
+            aperture_delay_ticks,
+            rate_shift,
+        } = config.latch
+        else {
+            return Ok(None);
+        };
+        if !(comparator_offset_arcsec.is_finite() && config.timer_hz < u32::MAX as f64) {
+            return Err(BoardError::Config(
+                "comparator threshold must be finite, the timer below 2^32 Hz",
+            ));
+        }
+        let timer_hz = config.timer_hz.round() as u32;
+        Ok(Some(Pickoff {
+            threshold_arcsec: comparator_offset_arcsec,
+            pickoff_delay_s: pickoff_delay_ticks as f64 / config.timer_hz,
+            aperture_delay_s: aperture_delay_ticks as f64 / config.timer_hz,
+            rate_shift,
+            config: SchedulerConfig::for_dither_range(
+                timer_hz,
+                SCHEDULER_DITHER_HZ.0,
+                SCHEDULER_DITHER_HZ.1,
+                pickoff_delay_ticks,
+                aperture_delay_ticks,
+                // The pick-off reads the dither angle in the sense of the beat phase: after a
+                // rising edge comes a maximum, a "-" turnaround (as `board::turnaround`).
+                TurnaroundKind::Minus,
+            ),
+            scheduler: Scheduler::new(),
+            cursor_s: 0.0,
+        }))
+    }
+
     /// Runs to the next turnaround: fills `lissajous` with the conversions taken on the way and
     /// returns the turnaround latch.
     pub fn next_half_cycle(&mut self, lissajous: &mut Vec<(u16, u16)>) -> TurnaroundSample {
         lissajous.clear();
-        let turnaround = self.gyro.upcoming_turnaround();
+        let (kind, latch_s, record) = match self.pickoff {
+            None => {
+                let turnaround = self.gyro.upcoming_turnaround();
+                let latch_s = self.with_latch_error(turnaround.time_s).max(self.time_s);
+                let record = LatchRecord {
+                    latch_s,
+                    turnaround,
+                    scheduled: false,
+                };
+                (turnaround.kind, latch_s, record)
+            }
+            Some(pickoff) => self.scheduled_latch(pickoff, lissajous),
+        };
+        self.last_latch = Some(record);
+        self.sample_lissajous_until(latch_s, lissajous);
+        let psi_h = self.gyro.advance_to(latch_s) - self.eps_at(latch_s);
+        self.time_s = latch_s;
+        latch_turnaround(
+            kind,
+            latch_s,
+            psi_h,
+            &mut self.counter,
+            &mut self.photodiodes,
+            &self.timer,
+        )
+    }
+
+    /// `t_s` plus the residual error of the latch instant (offset and a jitter draw), s.
+    fn with_latch_error(&mut self, t_s: f64) -> f64 {
         let jitter: f64 = if self.config.latch_jitter_rms_s > 0.0 {
             let z: f64 = StandardNormal.sample(&mut self.rng);
             z * self.config.latch_jitter_rms_s
         } else {
             0.0
         };
-        let latch_s = (turnaround.time_s + self.config.latch_offset_s + jitter).max(self.time_s);
-        while self.next_lissajous_s < latch_s {
+        t_s + self.config.latch_offset_s + jitter
+    }
+
+    /// The free-running conversions before `until_s`.
+    fn sample_lissajous_until(&mut self, until_s: f64, lissajous: &mut Vec<(u16, u16)>) {
+        while self.next_lissajous_s < until_s {
             let psi_h =
                 self.gyro.advance_to(self.next_lissajous_s) - self.eps_at(self.next_lissajous_s);
             self.counter.advance_to(psi_h);
@@ -137,16 +318,125 @@ impl SimBoard {
             lissajous.push((codes.a_code, codes.b_code));
             self.next_lissajous_s += 1.0 / self.config.lissajous_rate_hz;
         }
-        let psi_h = self.gyro.advance_to(latch_s) - self.eps_at(latch_s);
-        self.time_s = latch_s;
-        latch_turnaround(
-            turnaround.kind,
+    }
+
+    /// The next pick-off edge, its capture and its schedule; the kind and instant of the latch.
+    /// Runs the gyro (and the Lissajous stream) up to the edge.
+    fn scheduled_latch(
+        &mut self,
+        mut pickoff: Pickoff,
+        lissajous: &mut Vec<(u16, u16)>,
+    ) -> (TurnaroundKind, f64, LatchRecord) {
+        let period_s = 1.0 / self.gyro.params().dither_hz;
+        let mut schedule = None;
+        match self.next_edge(&pickoff, period_s) {
+            Some((edge, edge_s)) => {
+                pickoff.cursor_s = edge_s;
+                self.stats.edges += 1;
+                self.sample_lissajous_until(edge_s, lissajous);
+                if edge_s > self.gyro.t_s() {
+                    self.gyro.advance_to(edge_s);
+                }
+                let capture_s = edge_s + pickoff.pickoff_delay_s;
+                let capture_ticks = self.timer.ticks_at(capture_s);
+                let shift = if pickoff.rate_shift {
+                    self.rate_shift_ticks
+                } else {
+                    0
+                };
+                let outcome =
+                    pickoff
+                        .scheduler
+                        .on_edge(&pickoff.config, edge, capture_ticks, shift);
+                self.stats.implausible_edges += outcome.implausible as u64;
+                schedule = outcome.schedule.map(|s| {
+                    let compare_s = self.timer.time_of_ticks_s(s.compare_ticks, capture_s);
+                    (s.kind, compare_s, compare_s + pickoff.aperture_delay_s)
+                });
+            }
+            // No edge for a whole period (no dither, or a threshold beyond the amplitude).
+            None => pickoff.cursor_s += period_s,
+        }
+        self.pickoff = Some(pickoff);
+        let turnaround = self.gyro.upcoming_turnaround();
+        let on_time = schedule.filter(|&(kind, compare_s, sample_s)| {
+            kind == turnaround.kind
+                && compare_s > self.gyro.t_s()
+                && (sample_s - turnaround.time_s).abs() < period_s / 8.0
+        });
+        let (kind, at_s, scheduled) = match on_time {
+            Some((kind, _, sample_s)) => {
+                self.stats.scheduled += 1;
+                (kind, sample_s, true)
+            }
+            None => {
+                self.stats.fallbacks += 1;
+                (turnaround.kind, turnaround.time_s, false)
+            }
+        };
+        let latch_s = self.with_latch_error(at_s).max(self.gyro.t_s());
+        let record = LatchRecord {
             latch_s,
-            psi_h,
-            &mut self.counter,
-            &mut self.photodiodes,
-            &self.timer,
-        )
+            turnaround,
+            scheduled,
+        };
+        (kind, latch_s, record)
+    }
+
+    /// The first crossing of the comparator threshold by the pick-off after the search cursor,
+    /// within one dither period: bracketed in steps of T/32, then bisected to 10 ps. Returns the
+    /// first instant on the far side (so the next search starts past it).
+    fn next_edge(&self, pickoff: &Pickoff, period_s: f64) -> Option<(Edge, f64)> {
+        if !(self.gyro.free_phase().dither().is_on() && period_s.is_finite()) {
+            return None;
+        }
+        let above = |t: f64| self.gyro.dither_pickoff_arcsec(t) >= pickoff.threshold_arcsec;
+        let step = period_s / 32.0;
+        let mut a = pickoff.cursor_s;
+        let side = above(a);
+        for _ in 0..32 {
+            let mut b = a + step;
+            if above(b) == side {
+                a = b;
+                continue;
+            }
+            // 10 ps, or adjacent floats (after ~1e5 s of simulated time).
+            while b - a > 1e-11 {
+                let m = 0.5 * (a + b);
+                if m <= a || m >= b {
+                    break;
+                }
+                if above(m) == side {
+                    a = m;
+                } else {
+                    b = m;
+                }
+            }
+            let edge = if side { Edge::Falling } else { Edge::Rising };
+            return Some((edge, b));
+        }
+        None
+    }
+
+    /// Hands the board the cycle the firmware just closed: its input-rate shift times the next
+    /// scheduled turnarounds (as the board's cycle task publishes it to the pick-off handler).
+    pub fn on_cycle(&mut self, record: &CycleRecord) {
+        self.rate_shift_ticks = rate_shift_ticks(record, self.config.timer_hz.round() as u32);
+    }
+
+    /// The input-rate shift in use, ticks (Omega_i/|psi_ddot|, from the last [`Self::on_cycle`]).
+    pub fn rate_shift_ticks(&self) -> i32 {
+        self.rate_shift_ticks
+    }
+
+    /// How the turnarounds were latched so far.
+    pub fn latch_stats(&self) -> LatchStats {
+        self.stats
+    }
+
+    /// The last latch and the true turnaround it was meant for.
+    pub fn last_latch(&self) -> Option<LatchRecord> {
+        self.last_latch
     }
 
     /// The photodiode phase offset at `t_s`, rad.

@@ -154,6 +154,7 @@ impl SimDevice {
         let Some(record) = self.readout.on_turnaround(&self.config, sample) else {
             return;
         };
+        self.board.on_cycle(&record);
         let reading = self.averager.push(&self.averager_config, record.output);
         self.status.on_cycle(record.output.flags, reading);
         let cycle_s = record.duration_s(&self.config.cycle);

@@ -91,6 +91,7 @@ pub fn run_constant_rate(
             return Ok(());
         }
         if let Some(record) = readout.on_turnaround(&config, sample) {
+            board.on_cycle(&record);
             if board.time_s() > length.warmup_s {
                 on_cycle(&config, &record);
             }

@@ -52,7 +52,6 @@ use super::{adc, clocks, encoder, flash, pac, turnaround, usart, watchdog, Owned
 use crate::protocol::execute::Identity;
 use crate::readout::{Readout, ReadoutConfig};
 use crate::sample::TurnaroundSample;
-use crate::signal::compensation::Q32_PER_FRINGE;
 use crate::signal::cycle::CycleRecord;
 use crate::storage::Geometry;
 use pac::Interrupt;
@@ -224,7 +223,7 @@ pub mod isr {
         READOUT.lock(|task| {
             while let Some(sample) = task.samples.dequeue() {
                 if let Some(record) = task.readout.on_turnaround(&task.config, sample) {
-                    publish_rate_shift(&record);
+                    turnaround::publish_rate_shift(&record);
                     if task.records.enqueue(record).is_err() {
                         RECORDS_DROPPED.fetch_add(1, Ordering::Relaxed);
                     }
@@ -233,19 +232,6 @@ pub mod isr {
             let (config, readout) = (&task.config, &mut task.readout);
             adc::take_ready_blocks(|a, b| readout.on_lissajous_sample(config, a, b));
         });
-    }
-
-    /// The input-rate shift of the next turnarounds, from this cycle (PHYSICS.md pitfall 3).
-    fn publish_rate_shift(record: &CycleRecord) {
-        let duration_s = record.output.duration_ticks as f32 / super::super::TIMER_HZ as f32;
-        let fringes = (record.output.increment_q32 as f64 / Q32_PER_FRINGE) as f32;
-        let rate_rad_per_s = fringes * core::f32::consts::TAU / duration_s;
-        let shift = turnaround::rate_shift_ticks(
-            rate_rad_per_s,
-            record.dither_amplitude_rad,
-            record.dither_hz,
-        );
-        turnaround::RATE_SHIFT_TICKS.store(shift, Ordering::Relaxed);
     }
 }
 

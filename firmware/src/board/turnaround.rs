@@ -15,48 +15,31 @@
 //! ADC JEOC IRQ (priority 0): ADC1.JDR1, ADC2.JDR1, TIM5.CCR3, TIM2.CCR1 -> TurnaroundSample
 //! ```
 //!
-//! # Prediction (PHYSICS.md pitfalls 2 and 3)
-//! A turnaround lies a quarter period after a zero crossing of the dither angle. A comparator
-//! threshold offset makes rising crossings late and falling ones early by the same amount (or
-//! the reverse), so "crossing + T/4" would be off by that amount with alternating sign. Half the
-//! previous interval of the same polarity cancels it exactly: after a rising edge at t_r,
-//! `t_r + high/2` (high = previous rising-to-falling interval) is the midpoint of that pulse, i.e.
-//! the angle maximum, whatever the threshold. Only a slowly varying dither is assumed (a high-Q
-//! resonator: period and amplitude change little in one cycle).
+//! # Prediction
+//! The prediction itself is plain logic in [`crate::signal::turnaround_schedule`] (host-tested,
+//! and the same code drives the simulated board's latch in `hal-sim`): half the previous
+//! same-polarity interval after each edge (which cancels a comparator threshold offset), the
+//! input-rate shift with opposite signs at "+" and "-" (PHYSICS.md pitfall 3), minus the fixed
+//! delays; its module docs carry the derivation and the expected timing error. This module binds
+//! it to the board: the fixed delays ([`PICKOFF_DELAY_TICKS`], [`APERTURE_DELAY_TICKS`]) and the
+//! pick-off polarity ([`AFTER_RISING_EDGE`]) as constants, the rate shift published by the cycle
+//! task through [`RATE_SHIFT_TICKS`] (an atomic word, [`publish_rate_shift`]), and the counters
+//! ([`IMPLAUSIBLE`], [`LATE`], ...).
 //!
-//! The input rate moves the turnaround (pitfall 3): the lock-in-free rate Omega_i + psi_ddot (t -
-//! t_p) is zero at `t_p - Omega_i/psi_ddot` for a "+" turnaround and `t_p + Omega_i/|psi_ddot|`
-//! for a "-" one. The readout task computes `Omega_i/|psi_ddot|` in timer ticks from each cycle's
-//! rate and measured dither and publishes it through [`RATE_SHIFT_TICKS`] (an atomic word); at
-//! 1 deg/s of input it is 1.3 us, at Earth rate 6 ns.
-//!
-//! Fixed delays subtracted (constants, to be calibrated on a board with the PA15 test point):
-//! the pick-off path ([`PICKOFF_DELAY_TICKS`]: comparator, 95 ns input filter, resynchronisation)
-//! and the ADC aperture ([`APERTURE_DELAY_TICKS`]: injected trigger latency 2-3 ADC clocks plus
-//! the 15-clock sampling time; the hold happens at the end of sampling, so the compare fires that
-//! much early and the *sampling* instant lands on the turnaround). The encoder latch then comes
-//! ~0.85 us before the turnaround: at psi_ddot ~ 9e9 rad/s^2 the beat phase differs by
-//! 9e9 x (0.85e-6)^2 / 2 = 3e-3 rad between the two instants, far inside the quarter fringe the
-//! count-plus-fraction resolver tolerates.
-//!
-//! # Expected timing error (to be measured on the board)
-//! | source | size |
-//! |---|---|
-//! | timer resolution (84 MHz) | +-6 ns |
-//! | input filter + resynchronisation, pick-off edge | 95 ns fixed, +-12 ns jitter |
-//! | injected trigger latency (2-3 ADC clocks at 21 MHz) | 119 ns mean, +-24 ns jitter |
-//! | comparator noise at the zero crossing (sigma_v / slope) | ~10-50 ns (pick-off noise) |
-//! | dither period change within one cycle (high-Q resonator) | < 10 ns |
-//! | pick-off phase lag vs the true angle, comparator delay | fixed: calibrate once |
-//! | rate shift taken from the previous cycle | (rate change per cycle) / psi_ddot: 0 for a steady rate |
-//!
-//! So about +-0.1 us random error once the fixed terms are calibrated, against the ~1 us
-//! PHYSICS.md asks for; an uncalibrated fixed term of 0.5 us costs psi_ddot dt^2/2 ~ 1e-3 rad.
+//! The delays, to be calibrated on a board with the PA15 test point: the pick-off path
+//! (comparator, 95 ns input filter, resynchronisation) and the ADC aperture (injected trigger
+//! latency 2-3 ADC clocks plus the 15-clock sampling time; the hold happens at the end of
+//! sampling, so the compare fires that much early and the *sampling* instant lands on the
+//! turnaround). About +-0.1 us random error once they are calibrated, against the ~1 us
+//! PHYSICS.md asks for.
 
 use core::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, AtomicU8, Ordering};
 
 use super::pac;
 use crate::sample::{TurnaroundKind, TurnaroundSample};
+use crate::signal::cycle::CycleRecord;
+use crate::signal::turnaround_schedule::{self as schedule, SchedulerConfig};
+pub use crate::signal::turnaround_schedule::{Edge, Schedule};
 
 /// Pick-off comparator delay + input filter + resynchronisation, ticks (84 MHz). Nominal: 100 ns
 /// comparator, 95 ns filter, 2 clocks. Calibrate on the board.
@@ -133,99 +116,49 @@ fn park(tim: &pac::tim2::RegisterBlock, now: u32) {
         .write(|w| unsafe { w.bits(now.wrapping_add(1 << 31)) });
 }
 
-/// A pick-off edge.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Edge {
-    Rising,
-    Falling,
+/// The prediction with this board's delays and polarity for a dither between `min_hz` and
+/// `max_hz`.
+pub const fn scheduler_config(timer_hz: u32, min_hz: u32, max_hz: u32) -> SchedulerConfig {
+    SchedulerConfig::for_dither_range(
+        timer_hz,
+        min_hz,
+        max_hz,
+        PICKOFF_DELAY_TICKS,
+        APERTURE_DELAY_TICKS,
+        AFTER_RISING_EDGE,
+    )
 }
 
-/// Where and which turnaround to fire.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Schedule {
-    pub compare_ticks: u32,
-    pub kind: TurnaroundKind,
-}
-
-/// The prediction (plain logic: edges and a rate shift in, a compare time out).
+/// The pick-off handler's prediction: the plain-logic scheduler and this board's settings;
+/// implausible edges are counted in [`IMPLAUSIBLE`].
 #[derive(Clone, Copy, Debug)]
 pub struct Scheduler {
-    last: Option<(Edge, u32)>,
-    /// Previous rising-to-falling and falling-to-rising intervals, ticks.
-    high_ticks: Option<u32>,
-    low_ticks: Option<u32>,
-    /// Plausible half period, ticks.
-    min_half_ticks: u32,
-    max_half_ticks: u32,
+    config: SchedulerConfig,
+    state: schedule::Scheduler,
 }
 
 impl Scheduler {
     /// For a dither between `min_hz` and `max_hz`.
     pub const fn new(timer_hz: u32, min_hz: u32, max_hz: u32) -> Self {
         Self {
-            last: None,
-            high_ticks: None,
-            low_ticks: None,
-            // Half periods, with room for a pick-off duty cycle of 30/70.
-            min_half_ticks: timer_hz / max_hz * 3 / 10,
-            max_half_ticks: timer_hz / min_hz * 7 / 10,
+            config: scheduler_config(timer_hz, min_hz, max_hz),
+            state: schedule::Scheduler::new(),
         }
     }
 
     /// Forgets the edge history (after a pause: the next full cycle rebuilds it).
     pub fn reset(&mut self) {
-        *self = Self::new_like(self);
-    }
-
-    const fn new_like(s: &Self) -> Self {
-        Self {
-            last: None,
-            high_ticks: None,
-            low_ticks: None,
-            min_half_ticks: s.min_half_ticks,
-            max_half_ticks: s.max_half_ticks,
-        }
+        self.state.reset();
     }
 
     /// One edge at `t` (ticks); `rate_shift` = Omega_i/|psi_ddot| in ticks. Returns the compare.
+    #[inline(always)]
     pub fn on_edge(&mut self, edge: Edge, t: u32, rate_shift: i32) -> Option<Schedule> {
-        if let Some((previous, t0)) = self.last {
-            let interval = t.wrapping_sub(t0);
-            let plausible = (self.min_half_ticks..=self.max_half_ticks).contains(&interval);
-            match (previous, edge) {
-                _ if !plausible => {
-                    // A glitch or a gap: neither this edge nor the history can be trusted.
-                    IMPLAUSIBLE.fetch_add(1, Ordering::Relaxed);
-                    (self.high_ticks, self.low_ticks) = (None, None);
-                }
-                (Edge::Rising, Edge::Falling) => self.high_ticks = Some(interval),
-                (Edge::Falling, Edge::Rising) => self.low_ticks = Some(interval),
-                // Two edges of one polarity: a lost edge; start over.
-                _ => (self.high_ticks, self.low_ticks) = (None, None),
-            }
+        let outcome = self.state.on_edge(&self.config, edge, t, rate_shift);
+        if outcome.implausible {
+            IMPLAUSIBLE.fetch_add(1, Ordering::Relaxed);
         }
-        self.last = Some((edge, t));
-        let (half_same_polarity, kind) = match edge {
-            Edge::Rising => (self.high_ticks?, AFTER_RISING_EDGE),
-            Edge::Falling => (self.low_ticks?, opposite(AFTER_RISING_EDGE)),
-        };
-        let shift = match kind {
-            TurnaroundKind::Plus => -rate_shift,
-            TurnaroundKind::Minus => rate_shift,
-        };
-        let quarter = (half_same_polarity / 2) as i32;
-        let lead = quarter + shift - (PICKOFF_DELAY_TICKS + APERTURE_DELAY_TICKS) as i32;
-        Some(Schedule {
-            compare_ticks: t.wrapping_add_signed(lead),
-            kind,
-        })
-    }
-}
-
-fn opposite(kind: TurnaroundKind) -> TurnaroundKind {
-    match kind {
-        TurnaroundKind::Plus => TurnaroundKind::Minus,
-        TurnaroundKind::Minus => TurnaroundKind::Plus,
+        outcome.schedule
     }
 }
 
@@ -306,18 +239,17 @@ pub fn latch(
     })
 }
 
-/// Input-rate shift in ticks from one cycle's measurements: `Omega_i / |psi_ddot|` with
-/// `psi_ddot = amplitude * (2 pi f)^2` (PHYSICS.md). Clamped to +-T/16: beyond that the
-/// parabolic turnaround model no longer holds anyway.
+/// Publishes the input-rate shift of the next turnarounds from one cycle (the cycle task, after
+/// each record; PHYSICS.md pitfall 3).
+pub fn publish_rate_shift(record: &CycleRecord) {
+    let shift = schedule::rate_shift_ticks(record, super::TIMER_HZ);
+    RATE_SHIFT_TICKS.store(shift, Ordering::Relaxed);
+}
+
+/// Input-rate shift in ticks of this board's timer for a rate (rad/s of beat phase) and a
+/// measured dither ([`schedule::shift_ticks_for_rate`]).
 pub fn rate_shift_ticks(rate_rad_per_s: f32, amplitude_rad: f32, dither_hz: f32) -> i32 {
-    let w = core::f32::consts::TAU * dither_hz;
-    let psi_ddot = amplitude_rad * w * w;
-    if !(psi_ddot.is_finite() && psi_ddot > 0.0 && rate_rad_per_s.is_finite() && dither_hz > 0.0) {
-        return 0;
-    }
-    let limit = super::TIMER_HZ as f32 / dither_hz / 16.0;
-    let ticks = rate_rad_per_s / psi_ddot * super::TIMER_HZ as f32;
-    ticks.clamp(-limit, limit) as i32
+    schedule::shift_ticks_for_rate(rate_rad_per_s, amplitude_rad, dither_hz, super::TIMER_HZ)
 }
 
 /// The readout pauses (TIM2's interrupt is masked by the caller): park the compare, drop

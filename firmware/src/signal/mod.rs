@@ -9,3 +9,4 @@ pub mod lissajous;
 pub mod lockin_terms;
 pub mod output;
 pub mod quadrature;
+pub mod turnaround_schedule;
