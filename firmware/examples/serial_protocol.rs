@@ -132,6 +132,7 @@ mod app {
                 serial_number: 4242,
                 key: 0xC0FF_EE42,
                 scale_factor_arcsec: 1.8655,
+                capture_timer_hz: 84_000_000,
             },
             geometry: Geometry {
                 base_offset: 0,

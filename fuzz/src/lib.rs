@@ -57,6 +57,7 @@ pub const IDENTITY: Identity = Identity {
     serial_number: 7,
     key: KEY,
     scale_factor_arcsec: 1.8655,
+    capture_timer_hz: 84_000_000,
 };
 
 /// Every error code, for checking `ERR <n> <text>`.

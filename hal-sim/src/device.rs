@@ -60,6 +60,7 @@ pub const SIM_IDENTITY: Identity = Identity {
     serial_number: 4242,
     key: 0xC0FF_EE42,
     scale_factor_arcsec: 1.8655,
+    capture_timer_hz: 84_000_000,
 };
 
 impl SimDevice {

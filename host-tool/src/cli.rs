@@ -178,9 +178,9 @@ pub struct StreamArgs {
     /// Stream every n-th cycle (1 = every cycle; needs about 18 kB/s at 389 Hz).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..))]
     pub divider: u16,
-    /// The board's capture-timer frequency, Hz (for cycle durations).
-    #[arg(long, default_value_t = rlg_cal::capture::DEFAULT_TIMER_HZ)]
-    pub timer_hz: f64,
+    /// Override the capture-timer frequency the board reports in `id`, Hz.
+    #[arg(long)]
+    pub timer_hz: Option<f64>,
 }
 
 #[derive(Debug, Args)]

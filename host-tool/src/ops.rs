@@ -10,12 +10,17 @@ pub fn unlock<L: Link>(client: &mut Client<L>, key: &str) -> Result<Answer, Clie
     client.command(&format!("unlock {key}"))
 }
 
-/// The board's scale factor from `id`, for rates in deg/h.
+/// The board's scale factor and capture-timer frequency from `id`, for rates in deg/h.
+/// `timer_hz` overrides the board's (firmware older than the `timer_hz` field needs it).
 pub fn rate_scale<L: Link>(
     client: &mut Client<L>,
-    timer_hz: f64,
+    timer_hz: Option<f64>,
 ) -> Result<RateScale, ClientError> {
     let id = client.command("id")?;
+    let timer_hz = match timer_hz {
+        Some(hz) => hz,
+        None => id.parse_field("timer_hz")?,
+    };
     Ok(RateScale {
         scale_factor_arcsec: id.parse_field("sf_arcsec")?,
         timer_hz,

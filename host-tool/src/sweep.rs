@@ -13,7 +13,6 @@ use crate::client::{Answer, Client, ClientError};
 use crate::link::SimLink;
 use crate::ops::{self, CalibrateOptions};
 use crate::sim::{self, SimInput};
-use hal_sim::board::TIMER_HZ;
 use hal_sim::flash::CalibrationFlash;
 use hal_sim::input::earth_rate_on_horizontal_axis_deg_per_h;
 use hal_sim::units::EARTH_RATE_SOLAR_DEG_PER_H;
@@ -131,7 +130,7 @@ fn measure(
     };
     match options.rate_from {
         RateSource::Stream => {
-            let scale: RateScale = ops::rate_scale(client, TIMER_HZ)?;
+            let scale: RateScale = ops::rate_scale(client, None)?;
             let capture = ops::stream(client, options.divider, options.measure, &mut |_| {})?;
             let (compensated, raw) = capture.mean_rates(&scale);
             point.measured_deg_per_h = compensated;

@@ -188,7 +188,11 @@ fn a_run_aborted_meanwhile_is_a_failed_run() {
 #[test]
 fn stream_capture_and_commands_while_streaming() {
     let mut c = board(10.0, CalibrationFlash::default(), 0);
-    let scale = ops::rate_scale(&mut c, DEFAULT_TIMER_HZ).unwrap();
+    let scale = ops::rate_scale(&mut c, None).unwrap();
+    assert_eq!(
+        scale.timer_hz, DEFAULT_TIMER_HZ,
+        "the board reports its timer"
+    );
     assert!(ask(&mut c, "stream on 1").unwrap().starts_with("stream=on"));
     assert!(c.streaming());
     c.pause(Duration::from_millis(500)).unwrap();

@@ -354,6 +354,7 @@ fn identity() -> Identity {
         serial_number: or(otp(0), 0),
         key: or(otp(1), 0xC0FF_EE42),
         scale_factor_arcsec: SCALE_FACTOR_ARCSEC as f32,
+        capture_timer_hz: super::TIMER_HZ,
     }
 }
 

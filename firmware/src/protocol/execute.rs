@@ -43,6 +43,8 @@ pub struct Identity {
     pub key: u32,
     /// Scale factor, arcsec per fringe: only for reporting deg/h.
     pub scale_factor_arcsec: f32,
+    /// Capture-timer frequency, Hz: the unit of the streamed cycle durations.
+    pub capture_timer_hz: u32,
 }
 
 /// A snapshot of the readout, for `status`.
@@ -223,12 +225,13 @@ impl Executor {
             }
             Command::Identify => {
                 r.field(format_args!(
-                    "fw={} build={} board={} serial={} sf_arcsec={}",
+                    "fw={} build={} board={} serial={} sf_arcsec={} timer_hz={}",
                     id.firmware_version,
                     id.build,
                     id.board,
                     id.serial_number,
-                    id.scale_factor_arcsec
+                    id.scale_factor_arcsec,
+                    id.capture_timer_hz
                 ));
             }
             Command::Status => self.status(id, device, now, &mut r),
