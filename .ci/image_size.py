@@ -58,11 +58,13 @@ def main(path):
     print(f"{text:>8} {data:>8} {bss:>8}  {path}")
     print(f"flash: {text + data} bytes = {(text + data) / 1024:.1f} KiB of {(calib - FLASH[0]) // 1024} KiB "
           f"(image 0x{FLASH[0]:08x}..0x{flash_end:08x})")
-    print(f"calibration: 0x{calib:08x}..0x{calib_end:08x} ({(calib_end - calib) // 1024} KiB), no code inside")
+    intrudes = flash_end > calib or any(a < calib_end and a + n > calib for a, n in loads)
+    verdict = "CODE INSIDE" if intrudes else "no code inside"
+    print(f"calibration: 0x{calib:08x}..0x{calib_end:08x} ({(calib_end - calib) // 1024} KiB), {verdict}")
     print(f"ram: {data + bss} bytes static = {(data + bss) / 1024:.1f} KiB of {RAM[1] // 1024} KiB "
           "(the rest is stack)")
     ok = True
-    if flash_end > calib or any(a < calib_end and a + n > calib for a, n in loads):
+    if intrudes:
         print(f"ERROR: image reaches 0x{flash_end:08x}, into the calibration sectors at 0x{calib:08x}")
         ok = False
     if calib != 0x080C_0000 or calib_end != 0x0810_0000:

@@ -4,8 +4,9 @@
 //!
 //! Its own tiny harness rather than defmt-test's: every case runs even after one fails, the run
 //! closes with `qemu: N passed, M failed` and exits through semihosting with status 0, or 1 if
-//! any case failed. A panic inside a case ends the run at once with status 1 (the panic handler
-//! of `firmware::rt`), a HardFault with 2; QEMU never hangs (and the runner has a timeout).
+//! any case failed. A panic inside a case cannot be recovered from (no unwinding): the fatal
+//! hook names the case and prints the closing line, then the run ends with status 1 (panic) or
+//! 2 (HardFault), so QEMU never hangs (and the runner has a timeout).
 //! Run: `cargo fw-test`. Cases live in `vectors/cases.rs`.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
@@ -14,6 +15,7 @@ mod vectors;
 #[cfg(target_os = "none")]
 mod app {
     use super::vectors::{self, cases::CASES, Check, Failure};
+    use core::sync::atomic::{AtomicU32, AtomicUsize, Ordering::Relaxed};
     use firmware::rt::MemoryMap;
 
     /// Label of the closing line.
@@ -23,15 +25,39 @@ mod app {
         "board"
     };
 
+    /// Progress, for the closing line when a case panics or faults (the run cannot go on).
+    static PASSED: AtomicU32 = AtomicU32::new(0);
+    static FAILED: AtomicU32 = AtomicU32::new(0);
+    static RUNNING: AtomicUsize = AtomicUsize::new(0);
+
+    fn close_after_fatal() {
+        let (running, passed) = (RUNNING.load(Relaxed), PASSED.load(Relaxed));
+        let failed = FAILED.load(Relaxed) + 1;
+        defmt::error!(
+            "FAIL {=str}: panicked or faulted; {=usize} later cases not run",
+            CASES[running].name,
+            CASES.len() - running - 1
+        );
+        defmt::println!(
+            "{=str}: {=u32} passed, {=u32} failed",
+            WHERE,
+            passed,
+            failed
+        );
+    }
+
     #[cortex_m_rt::entry]
     fn main() -> ! {
         let _ = MemoryMap::linked(); // links the firmware's runtime (vector table, handlers)
+        firmware::rt::set_fatal_hook(close_after_fatal);
         defmt::info!("{=usize} cases, golden values from the host", CASES.len());
         let (mut passed, mut failed) = (0u32, 0u32);
-        for case in CASES {
+        for (i, case) in CASES.iter().enumerate() {
+            RUNNING.store(i, Relaxed);
             match vectors::check(case) {
                 Ok(o) => {
                     passed += 1;
+                    PASSED.store(passed, Relaxed);
                     match case.check {
                         Check::Exact => defmt::info!(
                             "ok   {=str}: {=u32} outputs bit-identical (digest {=u64:#018x})",
@@ -51,6 +77,7 @@ mod app {
                 }
                 Err(failure) => {
                     failed += 1;
+                    FAILED.store(failed, Relaxed);
                     log_failure(case.name, failure);
                 }
             }

@@ -1,6 +1,7 @@
 //! Cases for `firmware::calibration`.
 use super::{Outputs, Rng};
 use firmware::calibration::fit::{FitAccumulator, FitResult, SolveError};
+use firmware::calibration::tracking::{Tracker, TrackingConfig};
 
 fn result(out: &mut Outputs, fit: Result<FitResult, SolveError>) {
     match fit {
@@ -51,4 +52,28 @@ pub fn calibration_fit(out: &mut Outputs) {
     }
     result(out, collinear.solve());
     result(out, FitAccumulator::new().solve());
+}
+
+/// The Kalman tracker of (c, a, b): noisy cycles, a rate step, frozen (unusable) cycles.
+pub fn calibration_tracking(out: &mut Outputs) {
+    let (a, b, k) = (387.0, 383.0, 26.3e-6);
+    let config = TrackingConfig::with_memory(500.0, k);
+    let mut tracker = Tracker::new(&config, 300.0, 450.0);
+    let mut rng = Rng::new(0x5eed_0021);
+    for i in 0..3000 {
+        let c_rad = if i < 1500 { 0.05 } else { 0.3 }; // a rate step half-way
+        let (p1, p2) = (k * rng.f64_in(-2.0, 2.0), k * rng.f64_in(-2.0, 2.0));
+        let y = c_rad + a * p1 + b * p2 + 1e-4 * rng.f64_in(-1.0, 1.0);
+        tracker.update(&config, y, p1, p2, !rng.one_in(20));
+        if i % 10 == 0 {
+            let (a_est, b_est) = tracker.coefficients_rad_per_s(&config);
+            out.f64(a_est);
+            out.f64(b_est);
+        }
+    }
+    tracker.update(&config, f64::NAN, 0.0, 0.0, true);
+    let (updates, frozen) = tracker.counts();
+    out.u64(updates);
+    out.u64(frozen);
+    out.u64(tracker.rate_steps());
 }

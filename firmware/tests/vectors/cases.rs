@@ -3,7 +3,7 @@
 //! suite on the target (`cargo fw-test`).
 //!
 //! Inputs come from [`Rng`] with a fixed seed per case; every output goes to `out`.
-use super::{calibration, signal, Case, Outputs, Rng};
+use super::{calibration, frontend, signal, Case, Outputs, Rng};
 
 pub const CASES: &[Case] = &[
     // The platform: input generator, integer and float arithmetic, the f32 maths library.
@@ -11,12 +11,22 @@ pub const CASES: &[Case] = &[
     Case::exact("int_phase_arith", int_phase_arith),
     Case::exact("f32_ieee_basic", f32_ieee_basic),
     Case::abs_tol("micromath_trig", 1e-6, micromath_trig),
-    // The signal chain (firmware::signal).
+    // The signal chain (firmware::signal): the turnaround front end ...
+    Case::exact("signal::fringe_count", frontend::fringe_count),
+    Case::exact("signal::quadrature", frontend::quadrature),
+    Case::exact("signal::fractional_fringe", frontend::fractional_fringe),
+    Case::exact("signal::lissajous", frontend::lissajous),
+    Case::exact("signal::fringe_phase", frontend::fringe_phase),
+    Case::exact("signal::turnaround_schedule", frontend::turnaround_schedule),
+    // ... and the per-cycle stages.
     Case::exact("signal::lockin_terms", signal::lockin_terms),
     Case::exact("signal::compensation", signal::compensation),
     Case::exact("signal::output", signal::rate_output),
+    Case::exact("signal::cycle", signal::cycle_assembly),
+    Case::exact("readout (whole chain)", signal::readout_chain),
     // Calibration (firmware::calibration).
     Case::exact("calibration::fit", calibration::calibration_fit),
+    Case::exact("calibration::tracking", calibration::calibration_tracking),
 ];
 
 /// The input generator itself (64-bit shifts on a 32-bit core).

@@ -45,12 +45,30 @@ pub const GOLDEN: &[Golden] = &[
         0xbfa204d4, 0x3f7ec6a0, 0xbdc6f54b, 0x3f7e7403, 0x4006297b, 0xbf79d5e3, 0xbe5eff79, 0x3da12422,
         0x3fac2098, 0x3f660198, 0xbee1372c, 0x3f00b832, 0xc00e3bb7, 0x3eca6681, 0xbf6b361f, 0x3f89a575,
     ] },
+    // signal::fringe_count (bit-identical)
+    Golden { name: "signal::fringe_count", words: 10004, digest: 0xda78a494cc152b22, f32_bits: &[] },
+    // signal::quadrature (bit-identical)
+    Golden { name: "signal::quadrature", words: 4168, digest: 0x21518a5b9c73181d, f32_bits: &[] },
+    // signal::fractional_fringe (bit-identical)
+    Golden { name: "signal::fractional_fringe", words: 4098, digest: 0xb312f005d8fdd235, f32_bits: &[] },
+    // signal::lissajous (bit-identical)
+    Golden { name: "signal::lissajous", words: 2460, digest: 0x309ff2387756ad12, f32_bits: &[] },
+    // signal::fringe_phase (bit-identical)
+    Golden { name: "signal::fringe_phase", words: 14406, digest: 0x1c9c4ba0623dbf4c, f32_bits: &[] },
+    // signal::turnaround_schedule (bit-identical)
+    Golden { name: "signal::turnaround_schedule", words: 6194, digest: 0x94c808b8af1b373b, f32_bits: &[] },
     // signal::lockin_terms (bit-identical)
     Golden { name: "signal::lockin_terms", words: 4036, digest: 0x13610772f20528d1, f32_bits: &[] },
     // signal::compensation (bit-identical)
-    Golden { name: "signal::compensation", words: 2510, digest: 0xacbc27354e9dbf4a, f32_bits: &[] },
+    Golden { name: "signal::compensation", words: 4010, digest: 0xc55707a8e860de31, f32_bits: &[] },
     // signal::output (bit-identical)
-    Golden { name: "signal::output", words: 1374, digest: 0x4029f2a31515cd62, f32_bits: &[] },
+    Golden { name: "signal::output", words: 1386, digest: 0x2b136ccbc1c6122f, f32_bits: &[] },
+    // signal::cycle (bit-identical)
+    Golden { name: "signal::cycle", words: 11892, digest: 0xdc97394d4aea44d8, f32_bits: &[] },
+    // readout (whole chain) (bit-identical)
+    Golden { name: "readout (whole chain)", words: 3603, digest: 0xac390132f7d9aba2, f32_bits: &[] },
     // calibration::fit (bit-identical)
     Golden { name: "calibration::fit", words: 951, digest: 0x7c27fe47192c1138, f32_bits: &[] },
+    // calibration::tracking (bit-identical)
+    Golden { name: "calibration::tracking", words: 603, digest: 0x6dab1e35a44c0e11, f32_bits: &[] },
 ];

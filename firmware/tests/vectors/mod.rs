@@ -16,6 +16,7 @@
 
 pub mod calibration;
 pub mod cases;
+pub mod frontend;
 pub mod golden;
 pub mod signal;
 
@@ -72,7 +73,7 @@ impl Rng {
 
     /// True once in `n` draws on average.
     pub fn one_in(&mut self, n: u32) -> bool {
-        self.u32() % n == 0
+        self.u32().is_multiple_of(n)
     }
 }
 
@@ -210,7 +211,8 @@ impl<'a> Outputs<'a> {
         let want = f32::from_bits(bits);
         let err = (v - want).abs();
         let same = v.to_bits() == bits; // also NaN == NaN, inf == inf
-        if !same && !(err <= tol) {
+        let within = err <= tol; // false for a NaN error
+        if !same && !within {
             self.first_bad.get_or_insert(BadF32 {
                 index: index as u32,
                 got: v,

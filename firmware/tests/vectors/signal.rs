@@ -1,7 +1,7 @@
 //! Cases for `firmware::signal`: one function per module, named after it.
-use super::{Outputs, Rng};
+use super::{frontend::Figure, Outputs, Rng};
 use firmware::sample::TurnaroundKind;
-use firmware::signal::{compensation, lockin_terms, output};
+use firmware::signal::{compensation, cycle, lockin_terms, output};
 
 /// Edge inputs every float case should see besides the random ones.
 const SPECIAL_F32: [f32; 6] = [0.0, -0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e-40];
@@ -78,10 +78,23 @@ pub fn compensation(out: &mut Outputs) {
             p1_s: rng.f32_in(-6e-5, 6e-5),
             p2_s: rng.f32_in(-6e-5, 6e-5),
         };
+        let next = comp.staged_or_active();
+        out.i32(next.coefficients.a_q16);
+        out.i32(next.coefficients.b_q16);
+        out.bool(next.enabled);
         out.f32(comp.active().coefficients.lockin_error_rad(terms));
         out.i64(comp.cycle_correction(terms));
         out.i64(comp.total_correction_q32());
     }
+}
+
+fn reading(out: &mut Outputs, r: output::RateReading) {
+    out.f64(r.rate_fringes_per_s);
+    out.f64(r.rate_deg_per_h);
+    out.f64(r.span_s);
+    out.bool(r.whole_periods);
+    out.u32(r.flags.0 as u32);
+    out.u32(r.cycles);
 }
 
 /// The rate averager in both modes over cycles near the paper's 389 Hz dither, with a drift
@@ -113,13 +126,138 @@ pub fn rate_output(out: &mut Outputs) {
                 }),
             };
             if let Some(r) = averager.push(&config, cycle) {
-                out.f64(r.rate_fringes_per_s);
-                out.f64(r.rate_deg_per_h);
-                out.f64(r.span_s);
-                out.bool(r.whole_periods);
-                out.u32(r.flags.0 as u32);
-                out.u32(r.cycles);
+                reading(out, r);
             }
         }
+        reading(out, averager.flush(&config)); // the partial window
     }
+}
+
+/// Cycle assembly from alternating turnarounds of a 389 Hz sine dither with drift, jitter, lost
+/// signals and the odd missed turnaround, compensated by a compensator with fixed a, b.
+pub fn cycle_assembly(out: &mut Outputs) {
+    use compensation::{Coefficients, CompensationSettings, Compensator};
+    use cycle::{CycleAssembler, CycleConfig, TurnaroundReading};
+    use lockin_terms::LevelPair;
+    use output::CycleFlags;
+    let mut rng = Rng::new(0x5eed_0013);
+    let config = CycleConfig::for_dither(84e6, 389.0, 0.2);
+    let coefficients = Coefficients::from_rad_per_s(387.0, 383.0).unwrap_or_default();
+    let mut comp = Compensator::new(CompensationSettings {
+        coefficients,
+        enabled: true,
+    });
+    let mut assembler = CycleAssembler::new();
+    let (mut phase_q32, mut ticks, mut plus) = (0i64, 0u32, true);
+    for _ in 0..2000 {
+        let excursion_q32 = 300i64 << 32; // 300 fringes peak to peak
+        phase_q32 += if plus { excursion_q32 } else { -excursion_q32 } + rng.i32() as i64;
+        ticks = ticks.wrapping_add((107_969 + rng.i32_in(-300, 300)) as u32);
+        plus = !plus;
+        if rng.one_in(300) {
+            continue; // a missed turnaround
+        }
+        let levels = LevelPair {
+            cos_psi_h: rng.f32_unit(),
+            sin_psi_h: rng.f32_unit(),
+        };
+        let reading = TurnaroundReading {
+            kind: if plus {
+                TurnaroundKind::Plus
+            } else {
+                TurnaroundKind::Minus
+            },
+            phase_q32,
+            levels: (!rng.one_in(100)).then_some(levels),
+            timestamp_ticks: ticks,
+            flags: CycleFlags(if rng.one_in(100) { 2 } else { 0 }),
+        };
+        let Some(r) = assembler.on_turnaround(&config, &mut comp, reading) else {
+            continue;
+        };
+        out.i64(r.output.increment_q32);
+        out.i64(r.output.correction_q32);
+        out.u32(r.output.duration_ticks);
+        out.u32(r.output.flags.0 as u32);
+        out.i64(r.raw_increment_q32);
+        out.f32(r.terms.p1_s);
+        out.f32(r.terms.p2_s);
+        out.i64(r.end_phase_q32);
+        out.f32(r.dither_amplitude_rad);
+        out.f32(r.dither_hz);
+        out.f64(r.raw_increment_rad());
+        out.f64(r.duration_s(&config));
+    }
+}
+
+/// The whole chain (`firmware::readout`): Lissajous samples teach the normalisation, then the
+/// turnaround latches of a 389 Hz dither (encoder register, both ADC codes, capture time) with a
+/// slow input rate become compensated cycles.
+pub fn readout_chain(out: &mut Outputs) {
+    use compensation::{Coefficients, CompensationSettings};
+    use firmware::readout::{Readout, ReadoutConfig};
+    use firmware::sample::TurnaroundSample;
+    let mut rng = Rng::new(0x5eed_0014);
+    let config = ReadoutConfig::for_board(84e6, 389.0, 1.8655);
+    let coefficients = Coefficients::from_rad_per_s(387.0, 383.0).unwrap_or_default();
+    let settings = CompensationSettings {
+        coefficients,
+        enabled: true,
+    };
+    let mut readout = Readout::new(&config, settings);
+    let figure = Figure {
+        offsets: (2010.0, 2090.0),
+        radii: (1600.0, 1450.0),
+        alpha: 0.08,
+    };
+    for _ in 0..4096 {
+        let psi = rng.f32_in(0.0, core::f32::consts::TAU);
+        let (a, b) = figure.codes_at(&mut rng, psi);
+        readout.on_lissajous_sample(&config, a, b);
+    }
+    let register_offset = rng.u32();
+    let (mut centre_q32, mut ticks) = (0i64, 0u32); // psi_H in Q32 turns
+    for i in 0..1200u32 {
+        centre_q32 += 40_000_000 + rng.i32_in(-1 << 20, 1 << 20) as i64; // the input rate
+        let plus = i % 2 == 0; // "+" at a phase minimum, "-" at a maximum
+        let excursion_q32 = (150i64 << 32) + rng.i32_in(-1 << 24, 1 << 24) as i64;
+        let psi_q32 = centre_q32 + if plus { -excursion_q32 } else { excursion_q32 };
+        ticks = ticks.wrapping_add((107_969 + rng.i32_in(-200, 200)) as u32);
+        let angle = (psi_q32 as u32) as f32 * (core::f32::consts::TAU / 4_294_967_296.0);
+        let (adc_a_code, adc_b_code) = figure.codes_at(&mut rng, angle);
+        let sample = TurnaroundSample {
+            kind: if plus {
+                TurnaroundKind::Plus
+            } else {
+                TurnaroundKind::Minus
+            },
+            encoder_count: ((psi_q32 >> 30) as u32).wrapping_add(register_offset),
+            adc_a_code,
+            adc_b_code,
+            timestamp_ticks: ticks,
+        };
+        if let Some(r) = readout.on_turnaround(&config, sample) {
+            out.i64(r.output.increment_q32);
+            out.i64(r.output.correction_q32);
+            out.u32(r.output.duration_ticks);
+            out.u32(r.output.flags.0 as u32);
+            out.f32(r.terms.p1_s);
+            out.f32(r.terms.p2_s);
+        }
+    }
+    let c = readout.counters();
+    for v in [
+        c.turnarounds,
+        c.cycles,
+        c.counter_glitches,
+        c.phase_glitches,
+        c.signal_lost,
+    ] {
+        out.u32(v);
+    }
+    out.u32(c.lissajous_fits);
+    out.u32(c.lissajous_rejections);
+    let (amplitude_rad, dither_hz) = readout.dither();
+    out.f32(amplitude_rad);
+    out.f32(dither_hz);
 }
