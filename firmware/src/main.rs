@@ -1,13 +1,20 @@
-//! Firmware entry point: start-up banner, then (for now) the end of the program.
+//! Firmware entry point: start-up banner and memory map, then the board.
 //!
-//! Under QEMU (feature `qemu`) the image logs its start-up and exits with status 0 through
-//! semihosting, so `cargo fw-run` ends. On a board (feature `hw`) it logs over RTT and idles;
-//! the readout loop will live here.
+//! - On a board (feature `hw`, `cargo hw-run`): the readout runs for good,
+//!   [`firmware::board::app::run`] brings up clocks, watchdog, serial link, the calibration from
+//!   flash, the encoder and turnaround timers, the ADCs and the interrupts.
+//! - Under QEMU (feature `qemu`, `cargo fw-run`): the image logs its start-up and exits with
+//!   status 0 through semihosting, so the boot is checked in CI. QEMU does not model the
+//!   timers, ADCs and DMA faithfully; the board's serial and protocol half runs in QEMU as
+//!   `examples/serial_protocol.rs` and `examples/board.rs` (see `.ci/qemu_serial.py`).
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
 mod app {
     use firmware::rt::MemoryMap;
+
+    #[cfg(feature = "hw")]
+    firmware::bind_board_interrupts!();
 
     #[cortex_m_rt::entry]
     fn main() -> ! {
@@ -29,10 +36,7 @@ mod app {
 
     #[cfg(not(feature = "qemu"))]
     fn finish() -> ! {
-        defmt::info!("start-up done: idle");
-        loop {
-            cortex_m::asm::wfi();
-        }
+        firmware::board::app::run()
     }
 }
 
