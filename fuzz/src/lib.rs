@@ -61,23 +61,7 @@ pub const IDENTITY: Identity = Identity {
 };
 
 /// Every error code, for checking `ERR <n> <text>`.
-const CODES: [ErrorCode; 15] = [
-    ErrorCode::UnknownCommand,
-    ErrorCode::Syntax,
-    ErrorCode::BadNumber,
-    ErrorCode::NotFinite,
-    ErrorCode::OutOfRange,
-    ErrorCode::BadChecksum,
-    ErrorCode::LineTooLong,
-    ErrorCode::InvalidCharacters,
-    ErrorCode::Locked,
-    ErrorCode::Busy,
-    ErrorCode::WrongState,
-    ErrorCode::FitRefused,
-    ErrorCode::FlashError,
-    ErrorCode::RateLimited,
-    ErrorCode::WrongKey,
-];
+const CODES: [ErrorCode; 15] = ErrorCode::ALL;
 
 /// The in-memory device: settings staged and applied at the next cycle, a flash log.
 #[derive(Clone, Debug, PartialEq)]

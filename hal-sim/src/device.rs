@@ -205,15 +205,8 @@ impl SimDevice {
     }
 
     fn refresh_status(&mut self) {
-        let counters = self.readout.counters();
-        let (amplitude, hz) = self.readout.dither();
-        self.status.dither_amplitude_rad = amplitude;
-        self.status.dither_hz = hz;
-        self.status.turnarounds = counters.turnarounds;
-        self.status.cycles = counters.cycles;
-        self.status.counter_glitches = counters.counter_glitches;
-        self.status.phase_glitches = counters.phase_glitches;
-        self.status.signal_lost = counters.signal_lost;
+        self.status
+            .update_from(&self.readout.counters(), self.readout.dither());
     }
 
     /// Everything sent to the host since the last call.

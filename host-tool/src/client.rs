@@ -28,23 +28,7 @@ use std::str::FromStr;
 use std::time::Duration;
 
 /// Every error code of the protocol, to name the number in an `ERR` answer.
-const CODES: [ErrorCode; 15] = [
-    ErrorCode::UnknownCommand,
-    ErrorCode::Syntax,
-    ErrorCode::BadNumber,
-    ErrorCode::NotFinite,
-    ErrorCode::OutOfRange,
-    ErrorCode::BadChecksum,
-    ErrorCode::LineTooLong,
-    ErrorCode::InvalidCharacters,
-    ErrorCode::Locked,
-    ErrorCode::Busy,
-    ErrorCode::WrongState,
-    ErrorCode::FitRefused,
-    ErrorCode::FlashError,
-    ErrorCode::RateLimited,
-    ErrorCode::WrongKey,
-];
+const CODES: [ErrorCode; 15] = ErrorCode::ALL;
 
 /// The firmware's name for an error number, if it has one.
 pub fn error_code(code: u8) -> Option<ErrorCode> {

@@ -269,13 +269,7 @@ impl<F: NorFlash> Service<F> {
         else {
             return;
         };
-        self.status.dither_amplitude_rad = amplitude;
-        self.status.dither_hz = hz;
-        self.status.turnarounds = counters.turnarounds;
-        self.status.cycles = counters.cycles;
-        self.status.counter_glitches = counters.counter_glitches;
-        self.status.phase_glitches = counters.phase_glitches;
-        self.status.signal_lost = counters.signal_lost;
+        self.status.update_from(&counters, (amplitude, hz));
         // Hardware-level losses count as missed turnarounds too.
         let hardware_missed = turnaround::LATE.load(Ordering::Relaxed)
             + app::TURNAROUNDS_DROPPED.load(Ordering::Relaxed);

@@ -9,6 +9,7 @@ use super::line::LineEvent;
 use super::parse::{parse, strip_checksum};
 use super::respond::{Response, MAX_RESPONSE};
 use super::ErrorCode;
+use crate::readout::ReadoutCounters;
 use crate::signal::output::{CycleFlags, RateReading};
 use heapless::String;
 
@@ -48,6 +49,21 @@ pub fn send_answer(streaming: bool, answer: &str, mut send: impl FnMut(&[u8])) {
 }
 
 impl DeviceStatus {
+    /// Copies the readout's counters and measured dither (amplitude in beat-phase rad, Hz).
+    pub fn update_from(
+        &mut self,
+        counters: &ReadoutCounters,
+        (amplitude_rad, dither_hz): (f32, f32),
+    ) {
+        self.dither_amplitude_rad = amplitude_rad;
+        self.dither_hz = dither_hz;
+        self.turnarounds = counters.turnarounds;
+        self.cycles = counters.cycles;
+        self.counter_glitches = counters.counter_glitches;
+        self.phase_glitches = counters.phase_glitches;
+        self.signal_lost = counters.signal_lost;
+    }
+
     /// Folds one dither cycle's flags, and a new averaged rate if one is due, into the status.
     pub fn on_cycle(&mut self, flags: CycleFlags, reading: Option<RateReading>) {
         self.signal_ok = !flags.contains(CycleFlags::SIGNAL_LOST);

@@ -46,6 +46,25 @@ pub enum ErrorCode {
 }
 
 impl ErrorCode {
+    /// Every code, in numeric order (for hosts that parse answers).
+    pub const ALL: [ErrorCode; 15] = [
+        Self::UnknownCommand,
+        Self::Syntax,
+        Self::BadNumber,
+        Self::NotFinite,
+        Self::OutOfRange,
+        Self::BadChecksum,
+        Self::LineTooLong,
+        Self::InvalidCharacters,
+        Self::Locked,
+        Self::Busy,
+        Self::WrongState,
+        Self::FitRefused,
+        Self::FlashError,
+        Self::RateLimited,
+        Self::WrongKey,
+    ];
+
     pub const fn code(self) -> u8 {
         self as u8
     }
