@@ -298,12 +298,7 @@ fn end_to_end(latch: LatchTiming) -> Vec<(f64, f64)> {
                 |_| {},
                 |c| {
                     if c.output.flags.is_empty() {
-                        fit.push(
-                            c.raw_increment_rad(),
-                            c.terms.p1_s as f64,
-                            c.terms.p2_s as f64,
-                            c.duration_s(&config.cycle),
-                        );
+                        fit.push_cycle(c, c.duration_s(&config.cycle));
                     }
                 },
             );

@@ -116,12 +116,7 @@ pub fn calibrate(
             CompensationSettings::default(),
             |config, c| {
                 if c.output.flags.is_empty() {
-                    run.push(
-                        c.raw_increment_rad(),
-                        c.terms.p1_s as f64,
-                        c.terms.p2_s as f64,
-                        c.duration_s(&config.cycle),
-                    );
+                    run.push_cycle(c, c.duration_s(&config.cycle));
                 }
             },
         )?;

@@ -17,6 +17,8 @@
 //! within-run co-moments add, and the between-run differences in mean output, which are the
 //! input rates, never leak into a and b.
 
+use crate::signal::cycle::CycleRecord;
+
 /// Means and centred co-moments of (y, P1, P2) for one or more pooled runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FitAccumulator {
@@ -115,6 +117,18 @@ impl FitAccumulator {
             *c += before[i] * after[j];
         }
         true
+    }
+
+    /// Adds one dither cycle of the readout: its raw (uncompensated) increment with the
+    /// fractional fringe, its P1 and P2, and its duration `cycle_s`. The caller decides which
+    /// cycles are usable (flagged ones are left out everywhere in this firmware).
+    pub fn push_cycle(&mut self, record: &CycleRecord, cycle_s: f64) -> bool {
+        self.push(
+            record.raw_increment_rad(),
+            record.terms.p1_s as f64,
+            record.terms.p2_s as f64,
+            cycle_s,
+        )
     }
 
     /// Closes the current run: the next cycle starts a new run with its own intercept.

@@ -132,12 +132,7 @@ impl CalibrationSession {
         }
         if record.output.flags.is_empty() {
             let y = record.raw_increment_rad();
-            if self.run.push(
-                y,
-                record.terms.p1_s as f64,
-                record.terms.p2_s as f64,
-                cycle_s,
-            ) {
+            if self.run.push_cycle(record, cycle_s) {
                 self.run_sum_rad += y;
                 self.run_sum_s += cycle_s;
                 self.amplitude_sum_rad += record.dither_amplitude_rad as f64;
