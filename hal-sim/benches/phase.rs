@@ -41,7 +41,12 @@ fn bench_phase(c: &mut Criterion) {
 criterion_group!(benches, bench_phase);
 
 fn main() {
-    let s = measure_speed(4.0);
+    let s = measure_speed(
+        GyroParams::default(),
+        InputProfile::rotary_table(22.2, 0.0),
+        4.0,
+    )
+    .expect("the default parameters are valid");
     let cpu = s
         .gyro_s_per_cpu_s
         .map_or("n/a".to_string(), |c| format!("{c:.1}"));

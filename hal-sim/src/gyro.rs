@@ -233,8 +233,7 @@ impl Gyro {
     }
 }
 
-/// Speed of the simulation for the PHYSICS.md parameter set at default accuracy, driven
-/// at the paper's +13.888 deg/h (rotary table at 22.2 deg latitude, azimuth 0).
+/// Speed of the simulation (see [`measure_speed`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Speed {
     /// Simulated gyro-seconds per wall-clock second.
@@ -252,10 +251,15 @@ fn thread_cpu_s() -> Option<f64> {
     Some(ns * 1e-9)
 }
 
-/// Measures [`Speed`] by simulating `gyro_seconds` on the calling thread.
-pub fn measure_speed(gyro_seconds: f64) -> Speed {
-    let mut g = Gyro::new(GyroParams::default(), InputProfile::rotary_table(22.2, 0.0))
-        .expect("defaults are valid");
+/// Measures [`Speed`] by simulating `gyro_seconds` of a gyro with `params` driven by `input`
+/// on the calling thread (the benchmark uses the PHYSICS.md set on the paper's rotary table at
+/// 22.2 deg latitude, azimuth 0: +13.888 deg/h).
+pub fn measure_speed(
+    params: GyroParams,
+    input: InputProfile,
+    gyro_seconds: f64,
+) -> Result<Speed, ParamError> {
+    let mut g = Gyro::new(params, input)?;
     let cpu0 = thread_cpu_s();
     let start = std::time::Instant::now();
     g.advance_to(gyro_seconds);
@@ -264,15 +268,10 @@ pub fn measure_speed(gyro_seconds: f64) -> Speed {
         (Some(a), Some(b)) if b > a => Some(gyro_seconds / (b - a)),
         _ => None,
     };
-    Speed {
+    Ok(Speed {
         gyro_s_per_wall_s: gyro_seconds / wall,
         gyro_s_per_cpu_s: cpu,
-    }
-}
-
-/// Gyro-seconds per wall-second on one core (see [`measure_speed`]).
-pub fn speed_gyro_s_per_wall_s(gyro_seconds: f64) -> f64 {
-    measure_speed(gyro_seconds).gyro_s_per_wall_s
+    })
 }
 
 #[cfg(test)]

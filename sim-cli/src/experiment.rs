@@ -179,17 +179,3 @@ pub fn measure_rate(
         cycles: c.cycles,
     })
 }
-
-/// Wall-clock seconds the gyro alone (the phase equation, no board, no firmware) takes to
-/// simulate `gyro_seconds` at a constant input rate, on one core.
-pub fn measure_speed(
-    params: &GyroParams,
-    rate_deg_h: f64,
-    gyro_seconds: f64,
-) -> Result<f64, ExperimentError> {
-    let mut gyro = Gyro::new(*params, InputProfile::constant(rate_deg_h))
-        .map_err(|e| ExperimentError::Simulator(format!("{e:?}")))?;
-    let start = std::time::Instant::now();
-    gyro.advance_to(gyro_seconds);
-    Ok(start.elapsed().as_secs_f64())
-}

@@ -8,10 +8,12 @@ mod args;
 
 use args::{Cli, Command, GyroArgs, SpeedArgs, SweepArgs};
 use clap::Parser;
+use hal_sim::gyro::measure_speed;
+use hal_sim::input::InputProfile;
 use hal_sim::params::{AmplitudeModulation, GyroParams};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
-use rlg_sim::experiment::{calibrate, measure_rate, measure_speed, settings_from_fit, RunLength};
+use rlg_sim::experiment::{calibrate, measure_rate, settings_from_fit, RunLength};
 use rlg_sim::report::{self, SweepRow};
 use std::process::ExitCode;
 
@@ -170,13 +172,18 @@ fn speed(args: &SpeedArgs) -> Result<(), Failure> {
         return Err(Failure::Usage("--seconds must be positive".into()));
     }
     let params = args.gyro.params()?;
-    let wall_s = measure_speed(&params, args.rate_deg_h, args.seconds)
-        .map_err(|e| Failure::Run(e.to_string()))?;
-    println!(
-        "simulated {:.1} gyro-s in {:.3} wall-s: {:.1} gyro-seconds per wall-second (one core)",
+    let speed = measure_speed(
+        params,
+        InputProfile::constant(args.rate_deg_h),
         args.seconds,
-        wall_s,
-        args.seconds / wall_s
+    )
+    .map_err(|e| Failure::Usage(format!("invalid gyro parameters: {e:?}")))?;
+    let cpu = speed
+        .gyro_s_per_cpu_s
+        .map_or(String::new(), |c| format!(", {c:.1} per CPU-second"));
+    println!(
+        "simulated {:.1} gyro-s: {:.1} gyro-seconds per wall-second{cpu} (one core)",
+        args.seconds, speed.gyro_s_per_wall_s
     );
     Ok(())
 }
