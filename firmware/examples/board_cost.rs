@@ -24,6 +24,7 @@ mod app {
     use firmware::board::{pac, usart};
     use firmware::calibration::session::CalibrationSession;
     use firmware::calibration::validation::AcceptanceLimits;
+    use firmware::icount::{InstructionCounter, Timer};
     use firmware::protocol::stream::{encode_frame, StreamRecord, MAX_FRAME};
     use firmware::readout::{Readout, ReadoutConfig};
     use firmware::sample::{TurnaroundKind, TurnaroundSample};
@@ -33,13 +34,6 @@ mod app {
     use micromath::F32Ext;
 
     firmware::bind_board_interrupts!();
-
-    fn count(tim: &pac::TIM5, overhead: u32, f: impl FnOnce()) -> u32 {
-        let a = tim.cnt().read().bits();
-        f();
-        let b = tim.cnt().read().bits();
-        b.wrapping_sub(a).saturating_sub(overhead)
-    }
 
     /// Cycle records of a steady 389 Hz dither at a small rate (the synthetic gyro of `cost.rs`).
     fn records(config: &ReadoutConfig, out: &mut [Option<CycleRecord>; 8]) {
@@ -80,11 +74,7 @@ mod app {
     fn main() -> ! {
         let mut cp = cortex_m::Peripherals::take().unwrap();
         let dp = pac::Peripherals::take().unwrap();
-        let tim = &dp.TIM5;
-        tim.psc().write(|w| unsafe { w.bits(0) });
-        tim.arr().write(|w| unsafe { w.bits(u32::MAX) });
-        tim.cr1().write(|w| unsafe { w.bits(1) });
-        let overhead = count(tim, 0, || {});
+        let counter = InstructionCounter::start(Timer::Tim5);
         init_core(&mut cp.SCB, &mut cp.NVIC, &mut cp.SYST);
         let config = ReadoutConfig::for_board(84e6, 389.0, 1.8655);
         let _records = init_readout(
@@ -100,9 +90,9 @@ mod app {
             kind: TurnaroundKind::Minus,
         };
         turnaround::arm(tim2, armed, tim2.cnt().read().bits());
-        let latch = count(tim, overhead, isr::adc);
+        let latch = counter.count(isr::adc);
 
-        let pickoff_registers = count(tim, overhead, isr::tim2);
+        let pickoff_registers = counter.count(isr::tim2);
         let mut scheduler = Scheduler::new(84_000_000, 200, 1500);
         let half = 84_000_000 / 389 / 2;
         let mut t = 1000u32;
@@ -116,25 +106,25 @@ mod app {
             t = t.wrapping_add(half);
         }
         let mut scheduled = None;
-        let prediction = count(tim, overhead, || {
+        let prediction = counter.count(|| {
             scheduled = scheduler.on_edge(Edge::Rising, t, 123);
         });
 
         let mut serial = usart::init(dp.USART1);
-        let usart_idle = count(tim, overhead, isr::usart1);
+        let usart_idle = counter.count(isr::usart1);
         const BYTES: u32 = 32;
         serial.write(&[b'.'; BYTES as usize]);
-        let usart_tx = count(tim, overhead, isr::usart1);
+        let usart_tx = counter.count(isr::usart1);
         let per_byte = usart_tx.saturating_sub(usart_idle) / BYTES;
 
-        let rate_shift = count(tim, overhead, || {
+        let rate_shift = counter.count(|| {
             core::hint::black_box(turnaround::rate_shift_ticks(
                 core::hint::black_box(12_125.0),
                 core::hint::black_box(1515.6),
                 core::hint::black_box(389.0),
             ));
         });
-        let lock = count(tim, overhead, || {
+        let lock = counter.count(|| {
             core::hint::black_box(READOUT.lock(|task| task.readout.counters()));
         });
 
@@ -151,13 +141,13 @@ mod app {
         session.start_run(0, 1_000_000).unwrap();
         let (mut averaging, mut calibration, mut stream, mut measured) = (0, 0, 0, 0);
         for (i, record) in recs.iter().flatten().enumerate() {
-            averaging = averaging.max(count(tim, overhead, || {
+            averaging = averaging.max(counter.count(|| {
                 core::hint::black_box(averager.push(&averager_config, record.output));
             }));
-            calibration = calibration.max(count(tim, overhead, || {
+            calibration = calibration.max(counter.count(|| {
                 session.on_cycle(record, record.duration_s(&config.cycle));
             }));
-            stream = stream.max(count(tim, overhead, || {
+            stream = stream.max(counter.count(|| {
                 let mut buf = [0u8; MAX_FRAME];
                 let frame = StreamRecord::from_cycle(i as u32, record);
                 core::hint::black_box(encode_frame(&frame, &mut buf));

@@ -17,8 +17,8 @@
 
 #[cfg(target_os = "none")]
 mod app {
+    use firmware::icount::{InstructionCounter, Timer};
     use firmware::readout::{Readout, ReadoutConfig};
-    use firmware::rt::pac;
     use firmware::sample::{TurnaroundKind, TurnaroundSample};
     use firmware::signal::compensation::{Coefficients, CompensationSettings};
     use firmware::signal::quadrature::QuadratureDecoder;
@@ -29,14 +29,6 @@ mod app {
     /// Half-cycle excursion of the PHYSICS.md dither, x4 counts (2 x 1515.6 rad / (pi/2)).
     const EXCURSION_COUNTS: u32 = 1930;
 
-    /// Instructions executed by `f`, minus the measured overhead of an empty section.
-    fn count(tim: &pac::TIM2, overhead: u32, f: impl FnOnce()) -> u32 {
-        let a = tim.cnt().read().bits();
-        f();
-        let b = tim.cnt().read().bits();
-        b.wrapping_sub(a).saturating_sub(overhead)
-    }
-
     /// ADC codes of a point on the Lissajous circle (centre 2048, radius 1300 codes).
     fn codes(phase: f32) -> (u16, u16) {
         let (s, c) = phase.sin_cos();
@@ -45,12 +37,7 @@ mod app {
 
     #[cortex_m_rt::entry]
     fn main() -> ! {
-        let dp = pac::Peripherals::take().unwrap();
-        let tim = &dp.TIM2;
-        tim.psc().write(|w| unsafe { w.bits(0) });
-        tim.arr().write(|w| unsafe { w.bits(u32::MAX) });
-        tim.cr1().write(|w| w.cen().set_bit());
-        let overhead = count(tim, 0, || {});
+        let counter = InstructionCounter::start(Timer::Tim2);
 
         // Software decoder: a Gray-code walk, forward then back.
         const GRAY: [u8; 4] = [0b11, 0b01, 0b00, 0b10];
@@ -60,7 +47,7 @@ mod app {
             *s = GRAY[k % 4];
         }
         let mut decoder = QuadratureDecoder::new(samples[0]);
-        let n = count(tim, overhead, || {
+        let n = counter.count(|| {
             core::hint::black_box(decoder.decode(core::hint::black_box(&samples)));
         });
         let per_sample_x100 = n * 100 / samples.len() as u32;
@@ -78,10 +65,10 @@ mod app {
         for _ in 0..window - 1 {
             phase += 2.399_963; // golden angle: covers the circle
             let (a, b) = codes(phase);
-            lissajous_total += count(tim, overhead, || readout.on_lissajous_sample(&config, a, b));
+            lissajous_total += counter.count(|| readout.on_lissajous_sample(&config, a, b));
         }
         let (a, b) = codes(phase + 2.4);
-        let solve = count(tim, overhead, || readout.on_lissajous_sample(&config, a, b));
+        let solve = counter.count(|| readout.on_lissajous_sample(&config, a, b));
         let lissajous_per_sample = lissajous_total / (window - 1);
 
         // Turnarounds of a steady dither at a small rate.
@@ -111,9 +98,7 @@ mod app {
                 timestamp_ticks: i * half_ticks,
             };
             let mut closed = false;
-            let n = count(tim, overhead, || {
-                closed = readout.on_turnaround(&config, sample).is_some()
-            });
+            let n = counter.count(|| closed = readout.on_turnaround(&config, sample).is_some());
             if i >= 4 {
                 if kind == TurnaroundKind::Minus {
                     minus_total += n;

@@ -12,7 +12,7 @@
 #[cfg(target_os = "none")]
 mod app {
     use firmware::calibration::fit::FitAccumulator;
-    use firmware::rt::pac;
+    use firmware::icount::{InstructionCounter, Timer};
 
     const CYCLES: u32 = 389 * 3600;
     const A: f64 = 344.25;
@@ -23,16 +23,12 @@ mod app {
 
     #[cortex_m_rt::entry]
     fn main() -> ! {
-        let dp = pac::Peripherals::take().unwrap();
-        let tim = &dp.TIM2;
-        tim.psc().write(|w| unsafe { w.bits(0) });
-        tim.arr().write(|w| unsafe { w.bits(u32::MAX) });
-        tim.cr1().write(|w| w.cen().set_bit());
+        let counter = InstructionCounter::start(Timer::Tim2);
 
         let mut acc = FitAccumulator::new();
         // A deterministic sequence of turnaround phases (golden-angle steps): P1, P2 spread.
         let (mut u, mut v) = (0.0f64, 1.0f64);
-        let start = tim.cnt().read().bits();
+        let start = counter.now();
         for _ in 0..CYCLES {
             u += 2.399_963_229_728_653;
             v += 1.618_033_988_749_895;
@@ -47,7 +43,7 @@ mod app {
             let (p1, p2) = (K * (cu + sv), K * (sv - cu));
             acc.push(MEAN_RAD + A * p1 + B * p2, p1, p2, 1.0 / 389.0);
         }
-        let instructions = tim.cnt().read().bits().wrapping_sub(start);
+        let instructions = counter.now().wrapping_sub(start);
         let fit = acc.solve();
         let (ok, ea, eb) = match fit {
             Ok(f) => {

@@ -12,7 +12,7 @@
 mod app {
     use core::hint::black_box;
     use firmware::calibration::{fit::FitAccumulator, tracking::Tracker, tracking::TrackingConfig};
-    use firmware::rt::pac;
+    use firmware::icount::{InstructionCounter, Timer};
     use firmware::sample::TurnaroundKind;
     use firmware::signal::compensation::{Coefficients, CompensationSettings, Compensator};
     use firmware::signal::lockin_terms::{
@@ -36,10 +36,10 @@ mod app {
         }
     }
 
-    struct Counter(pac::TIM2);
+    struct Counter(InstructionCounter);
     impl Counter {
         fn now(&self) -> u32 {
-            self.0.cnt().read().bits()
+            self.0.now()
         }
         /// Mean instructions per call of `f` over `CALLS` calls, less the loop's own cost.
         fn per_call(&self, rng: &mut Rng, mut f: impl FnMut(&mut Rng)) -> u32 {
@@ -59,13 +59,7 @@ mod app {
 
     #[cortex_m_rt::entry]
     fn main() -> ! {
-        let dp = pac::Peripherals::take().unwrap();
-        dp.RCC.apb1enr().modify(|_, w| w.tim2en().set_bit());
-        let tim = dp.TIM2;
-        tim.psc().write(|w| unsafe { w.bits(0) });
-        tim.arr().write(|w| unsafe { w.bits(u32::MAX) });
-        tim.cr1().write(|w| w.cen().set_bit());
-        let counter = Counter(tim);
+        let counter = Counter(InstructionCounter::start(Timer::Tim2));
         let mut rng = Rng(0x1234_5678);
 
         let n = counter.per_call(&mut rng, |r| {

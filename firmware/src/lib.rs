@@ -22,4 +22,6 @@ mod test_rng;
 #[cfg(target_os = "none")]
 pub mod board;
 #[cfg(target_os = "none")]
+pub mod icount;
+#[cfg(target_os = "none")]
 pub mod rt;
