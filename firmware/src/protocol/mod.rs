@@ -7,9 +7,11 @@
 //! interrupt, whose state it changes only through staged settings.
 
 pub mod access;
+pub mod commands;
 pub mod endpoint;
 pub mod execute;
 pub mod line;
+pub mod link;
 pub mod parse;
 pub mod respond;
 pub mod stream;

@@ -1,0 +1,169 @@
+//! The reads: `help`, `id`, `status`, `get`. They change nothing and never need an unlock.
+//!
+//! `status` also reports what other groups hold (tracking on, where the coefficients came
+//! from, locked or not); the executor passes those in as a [`StatusFlags`] value, so this
+//! module depends on no other group's state.
+
+use super::ok_with;
+use super::provenance::{Source, SourceText};
+use crate::protocol::link::{DeviceLink, Identity};
+use crate::protocol::parse::Coefficient;
+use crate::protocol::respond::Response;
+use crate::signal::compensation::Coefficients;
+
+const HELP: &str =
+    "commands: id status get{a|b|coeffs} set{a|b}<rad/s> comp{on|off} track{on|off} \
+cal{start<n>[<warmup>]|status|abort|result|accept} store reload defaults stream{on[<n>]|off} \
+unlock<key> lock help";
+
+/// What `status` reports of the executor's own state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StatusFlags {
+    pub tracking: bool,
+    pub source: Source,
+    pub unlocked: bool,
+}
+
+/// `help`.
+pub fn help() -> Response {
+    ok_with(format_args!("{HELP}"))
+}
+
+/// `id`.
+pub fn identify(id: &Identity) -> Response {
+    ok_with(format_args!(
+        "fw={} build={} board={} serial={} sf_arcsec={} timer_hz={}",
+        id.firmware_version,
+        id.build,
+        id.board,
+        id.serial_number,
+        id.scale_factor_arcsec,
+        id.capture_timer_hz
+    ))
+}
+
+/// `status`.
+pub fn status<D: DeviceLink>(id: &Identity, device: &D, flags: StatusFlags) -> Response {
+    let s = device.status();
+    let settings = device.active_settings();
+    let amplitude_arcsec = s.dither_amplitude_rad * id.scale_factor_arcsec / core::f32::consts::TAU;
+    ok_with(format_args!(
+        "signal={} dither_hz={:.3} dither_amp_arcsec={:.2} rate_deg_h={:.4} turnarounds={} cycles={} \
+counter_glitches={} phase_glitches={} signal_lost={} missed={} comp={} track={} coeffs={} locked={}",
+        if s.signal_ok { "ok" } else { "lost" },
+        s.dither_hz,
+        amplitude_arcsec,
+        s.rate_deg_per_h,
+        s.turnarounds,
+        s.cycles,
+        s.counter_glitches,
+        s.phase_glitches,
+        s.signal_lost,
+        s.missed_turnarounds,
+        if settings.enabled { "on" } else { "off" },
+        if flags.tracking { "on" } else { "off" },
+        SourceText(flags.source),
+        if flags.unlocked { "no" } else { "yes" },
+    ))
+}
+
+/// `get a`, `get b`, `get coeffs` (`None`).
+pub fn get<D: DeviceLink>(id: &Identity, device: &D, which: Option<Coefficient>) -> Response {
+    let c = device.active_settings().coefficients;
+    match which {
+        Some(Coefficient::A) => ok_with(format_args!("a={}", c.a_rad_per_s())),
+        Some(Coefficient::B) => ok_with(format_args!("b={}", c.b_rad_per_s())),
+        None => ok_with(format_args!(
+            "a={} b={} lock_in_deg_h={} eps_rad={}",
+            c.a_rad_per_s(),
+            c.b_rad_per_s(),
+            lock_in_deg_h(&c, id),
+            eps_rad(&c)
+        )),
+    }
+}
+
+/// Lock-in rate hypot(a, b) in deg/h.
+fn lock_in_deg_h(c: &Coefficients, id: &Identity) -> f32 {
+    let (a, b) = (c.a_rad_per_s(), c.b_rad_per_s());
+    libm::hypotf(a, b) * id.scale_factor_arcsec / core::f32::consts::TAU
+}
+
+/// The backscatter phase asymmetry: atan2(b, a) - pi/4, rad.
+fn eps_rad(c: &Coefficients) -> f32 {
+    libm::atan2f(c.b_rad_per_s(), c.a_rad_per_s()) - core::f32::consts::FRAC_PI_4
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::protocol::commands::testing::{text, MemDevice, ID};
+    use crate::protocol::link::DeviceStatus;
+
+    #[test]
+    fn help_lists_every_command_word() {
+        let line = text(help());
+        for word in [
+            "id", "status", "get", "set", "comp", "track", "cal", "store", "reload",
+        ] {
+            assert!(line.contains(word), "{word} missing from {line}");
+        }
+        assert!(line.starts_with("OK commands: "));
+    }
+
+    #[test]
+    fn id_reports_the_identity() {
+        assert_eq!(
+            text(identify(&ID)).trim_end(),
+            "OK fw=1.2.3 build=test board=sim serial=4242 sf_arcsec=2 timer_hz=84000000"
+        );
+    }
+
+    #[test]
+    fn status_reports_the_snapshot_and_the_flags() {
+        let device = MemDevice {
+            status: DeviceStatus {
+                signal_ok: true,
+                dither_hz: 389.0,
+                dither_amplitude_rad: core::f32::consts::TAU * 100.0,
+                turnarounds: 10,
+                cycles: 5,
+                counter_glitches: 1,
+                phase_glitches: 2,
+                signal_lost: 3,
+                missed_turnarounds: 4,
+                rate_deg_per_h: 15.0,
+            },
+            ..MemDevice::default()
+        };
+        let flags = StatusFlags {
+            tracking: true,
+            source: Source::Flash { sequence: 3 },
+            unlocked: false,
+        };
+        assert_eq!(
+            text(status(&ID, &device, flags)).trim_end(),
+            "OK signal=ok dither_hz=389.000 dither_amp_arcsec=200.00 rate_deg_h=15.0000 \
+turnarounds=10 cycles=5 counter_glitches=1 phase_glitches=2 signal_lost=3 missed=4 comp=off \
+track=on coeffs=flash:3 locked=yes"
+        );
+    }
+
+    #[test]
+    fn get_reads_the_coefficients_in_force() {
+        let mut device = MemDevice::default();
+        device.settings.coefficients = Coefficients::from_rad_per_s(0.5, 0.5).unwrap();
+        assert_eq!(
+            text(get(&ID, &device, Some(Coefficient::A))).trim_end(),
+            "OK a=0.5"
+        );
+        assert_eq!(
+            text(get(&ID, &device, Some(Coefficient::B))).trim_end(),
+            "OK b=0.5"
+        );
+        let all = text(get(&ID, &device, None));
+        assert!(all.starts_with("OK a=0.5 b=0.5 lock_in_deg_h="), "{all}");
+        // a = b: the asymmetry is zero.
+        assert!(all.trim_end().ends_with("eps_rad=0"), "{all}");
+    }
+}

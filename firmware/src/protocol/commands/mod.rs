@@ -1,0 +1,126 @@
+//! The commands, one module per group, each owning the state its commands change.
+//!
+//! [`super::execute::Executor`] holds one state value per group and dispatches each parsed
+//! command to its group's function; the rules that cut across groups (which commands need an
+//! unlock, which are refused while a calibration run collects cycles, when an unlock is
+//! extended) stay in the executor, so every function here may assume it is allowed to run.
+//!
+//! | group | commands | state |
+//! |---|---|---|
+//! | [`info`] | `help` `id` `status` `get` | none (reads the device) |
+//! | [`settings`] | `set` `comp` `track` `defaults` | [`provenance::Provenance`], tracking in [`calibration::CalibrationState`] |
+//! | [`calibration`] | `cal start/status/abort/result/accept` | [`calibration::CalibrationState`] (session + tracking loop) |
+//! | [`storage`] | `store` `reload` | [`provenance::Provenance`] |
+//! | [`stream`] | `stream on/off` | [`stream::StreamState`] |
+//! | [`access`] | `unlock` `lock` | [`access::AccessState`] |
+//!
+//! A group function answers `Ok(response)` or `Err(code)`; a refusal changes nothing (the one
+//! deliberate exception is `cal result`, see [`calibration`]). Modules import downwards only:
+//! `settings` uses `calibration` and `provenance`, `storage` and `calibration` use
+//! `provenance`, nothing here imports the executor.
+
+pub mod access;
+pub mod calibration;
+pub mod info;
+pub mod provenance;
+pub mod settings;
+pub mod storage;
+pub mod stream;
+
+use super::respond::Response;
+use super::ErrorCode;
+
+/// A command's answer: `Ok` is sent as it is (it may itself be an `ERR` line with fields, such
+/// as a refused fit or a rate-limited unlock); `Err` becomes a bare `ERR <code> <text>`.
+pub type Answer = Result<Response, ErrorCode>;
+
+/// A response with one field.
+fn ok_with(args: core::fmt::Arguments<'_>) -> Response {
+    let mut r = Response::ok();
+    r.field(args);
+    r
+}
+
+/// An in-memory device for the groups' unit tests.
+#[cfg(test)]
+pub(crate) mod testing {
+    use crate::protocol::link::{DeviceLink, DeviceStatus, Identity};
+    use crate::protocol::respond::Response;
+    use crate::signal::compensation::CompensationSettings;
+    use crate::storage::{CalibrationRecord, DefaultsReason, LoadOutcome, LoadReport, StoreError};
+
+    pub const ID: Identity = Identity {
+        firmware_version: "1.2.3",
+        build: "test",
+        board: "sim",
+        serial_number: 4242,
+        key: 0xC0FFEE,
+        scale_factor_arcsec: 2.0,
+        capture_timer_hz: 84_000_000,
+    };
+
+    /// Settings in force, staged settings, stored records; `fail_store` makes `store` fail.
+    #[derive(Clone, Debug, Default, PartialEq)]
+    pub struct MemDevice {
+        pub now_ms: u32,
+        pub status: DeviceStatus,
+        pub settings: CompensationSettings,
+        pub staged: u32,
+        pub stored: Vec<CalibrationRecord>,
+        pub fail_store: bool,
+    }
+
+    impl DeviceLink for MemDevice {
+        type FlashError = ();
+        fn now_ms(&self) -> u32 {
+            self.now_ms
+        }
+        fn status(&self) -> DeviceStatus {
+            self.status
+        }
+        fn active_settings(&self) -> CompensationSettings {
+            self.settings
+        }
+        fn stage_settings(&mut self, settings: CompensationSettings) {
+            self.settings = settings;
+            self.staged += 1;
+        }
+        fn store(&mut self, record: &CalibrationRecord) -> Result<u32, StoreError<()>> {
+            if self.fail_store {
+                return Err(StoreError::Flash(()));
+            }
+            self.stored.push(*record);
+            Ok(self.stored.len() as u32)
+        }
+        fn load(&mut self) -> (CalibrationRecord, LoadReport) {
+            let outcome = match self.stored.last() {
+                Some(_) => LoadOutcome::Loaded {
+                    sequence: self.stored.len() as u32,
+                },
+                None => LoadOutcome::Defaults {
+                    reason: DefaultsReason::Erased,
+                },
+            };
+            let record = self
+                .stored
+                .last()
+                .copied()
+                .unwrap_or(CalibrationRecord::DEFAULTS);
+            (record, report(outcome))
+        }
+    }
+
+    pub fn report(outcome: LoadOutcome) -> LoadReport {
+        LoadReport {
+            outcome,
+            newer_format: None,
+            rejected_records: 0,
+            damaged_bytes: 0,
+        }
+    }
+
+    /// The answer line as sent (no checksum).
+    pub fn text(r: Response) -> String {
+        r.finish(false).as_str().to_owned()
+    }
+}

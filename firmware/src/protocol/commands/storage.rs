@@ -1,0 +1,106 @@
+//! `store` and `reload`: the coefficients in force to flash and back. The device pauses the
+//! readout around the flash write ([`DeviceLink::store`]); here only the record is assembled
+//! and the [`Provenance`] updated.
+
+use super::provenance::{Provenance, Source, SourceText};
+use super::{ok_with, Answer};
+use crate::protocol::link::{DeviceLink, Identity};
+use crate::protocol::respond::Response;
+use crate::protocol::ErrorCode;
+use crate::storage::CalibrationRecord;
+
+/// `store`: the settings in force with the fit behind them; a flash failure is `ERR 13` and
+/// leaves the provenance as it was.
+pub fn store<D: DeviceLink>(device: &mut D, provenance: &mut Provenance, id: &Identity) -> Answer {
+    let record = CalibrationRecord {
+        serial_number: id.serial_number,
+        boot_count: provenance.boot_count,
+        settings: device.active_settings(),
+        fit: provenance.fit,
+        reset_to_defaults: false,
+    };
+    let sequence = device.store(&record).map_err(|_| ErrorCode::FlashError)?;
+    provenance.source = Source::Flash { sequence };
+    Ok(ok_with(format_args!(
+        "stored seq={sequence} readout=resynchronised"
+    )))
+}
+
+/// `reload`: the newest valid record (or the defaults) staged, with where it came from.
+pub fn reload<D: DeviceLink>(device: &mut D, provenance: &mut Provenance) -> Response {
+    let (record, report) = device.load();
+    device.stage_settings(record.settings);
+    provenance.source = Source::of(&report);
+    provenance.fit = record.fit;
+    ok_with(format_args!("coeffs={}", SourceText(provenance.source)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::protocol::commands::testing::{report, text, MemDevice, ID};
+    use crate::signal::compensation::Coefficients;
+    use crate::storage::{DefaultsReason, FitSummary, LoadOutcome};
+
+    fn unsaved() -> Provenance {
+        let mut p = Provenance::new(&report(LoadOutcome::Loaded { sequence: 1 }), None, 7);
+        p.source = Source::Unsaved;
+        p.fit = Some(FitSummary {
+            runs: 2,
+            ..FitSummary::default()
+        });
+        p
+    }
+
+    #[test]
+    fn store_writes_settings_fit_serial_and_boot_count() {
+        let mut device = MemDevice::default();
+        device.settings.coefficients = Coefficients::from_rad_per_s(3.0, 4.0).unwrap();
+        let mut p = unsaved();
+        let answer = text(store(&mut device, &mut p, &ID).unwrap());
+        assert_eq!(answer.trim_end(), "OK stored seq=1 readout=resynchronised");
+        let record = device.stored[0];
+        assert_eq!(
+            (record.serial_number, record.boot_count),
+            (ID.serial_number, 7)
+        );
+        assert_eq!(record.settings, device.settings);
+        assert_eq!(record.fit, unsaved().fit);
+        assert!(!record.reset_to_defaults);
+        assert_eq!(p.source, Source::Flash { sequence: 1 });
+    }
+
+    #[test]
+    fn failed_store_is_refused_and_changes_nothing() {
+        let mut device = MemDevice {
+            fail_store: true,
+            ..MemDevice::default()
+        };
+        let mut p = unsaved();
+        let refused = store(&mut device, &mut p, &ID);
+        assert_eq!(refused.unwrap_err(), ErrorCode::FlashError);
+        assert_eq!(p, unsaved());
+        assert!(device.stored.is_empty());
+    }
+
+    #[test]
+    fn reload_stages_the_record_and_reports_its_source() {
+        let mut device = MemDevice::default();
+        let mut p = unsaved();
+        assert_eq!(
+            text(reload(&mut device, &mut p)).trim_end(),
+            "OK coeffs=defaults:erased"
+        );
+        assert_eq!(p.source, Source::Defaults(DefaultsReason::Erased));
+        assert_eq!((p.fit, device.staged), (None, 1));
+
+        device.settings.enabled = true;
+        store(&mut device, &mut p, &ID).unwrap();
+        device.settings = CalibrationRecord::DEFAULTS.settings;
+        assert_eq!(
+            text(reload(&mut device, &mut p)).trim_end(),
+            "OK coeffs=flash:1"
+        );
+        assert!(device.settings.enabled);
+    }
+}

@@ -1,0 +1,96 @@
+//! `stream on [<n>]` and `stream off`, and the countdown that picks every n-th dither cycle
+//! for a binary frame ([`StreamState`]). The frame format is [`crate::protocol::stream`].
+
+use super::ok_with;
+use crate::protocol::respond::Response;
+use crate::protocol::stream::{StreamRecord, MAX_FRAME};
+use crate::signal::cycle::CycleRecord;
+
+/// The stream settings and position.
+#[derive(Clone, Debug, Default)]
+pub struct StreamState {
+    /// Every n-th cycle is sent; `None`: streaming off.
+    divider: Option<u16>,
+    /// Cycles until the next frame (the first frame goes with the next cycle).
+    countdown: u16,
+    /// The next frame's sequence number (wrapping; the host counts lost frames by it).
+    sequence: u32,
+}
+
+impl StreamState {
+    /// Whether binary streaming is on.
+    pub fn on(&self) -> bool {
+        self.divider.is_some()
+    }
+
+    /// `stream on <n>` (`Some(n)`) or `stream off` (`None`).
+    pub fn command(&mut self, divider: Option<u16>) -> Response {
+        self.divider = divider;
+        self.countdown = 1;
+        match divider {
+            Some(n) => ok_with(format_args!(
+                "stream=on divider={n} frame_bytes={MAX_FRAME}"
+            )),
+            None => ok_with(format_args!("stream=off")),
+        }
+    }
+
+    /// One dither cycle: the frame to send, when one is due.
+    pub fn on_cycle(&mut self, record: &CycleRecord) -> Option<StreamRecord> {
+        let divider = self.divider?;
+        if self.countdown > 1 {
+            self.countdown -= 1;
+            return None;
+        }
+        self.countdown = divider;
+        let frame = StreamRecord::from_cycle(self.sequence, record);
+        self.sequence = self.sequence.wrapping_add(1);
+        Some(frame)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::protocol::commands::testing::text;
+
+    fn record() -> CycleRecord {
+        CycleRecord {
+            output: Default::default(),
+            raw_increment_q32: 5,
+            terms: Default::default(),
+            end_phase_q32: 0,
+            dither_amplitude_rad: 1.0,
+            dither_hz: 389.0,
+        }
+    }
+
+    #[test]
+    fn off_sends_nothing() {
+        let mut s = StreamState::default();
+        assert!(!s.on());
+        assert_eq!(s.on_cycle(&record()), None);
+        assert_eq!(text(s.command(None)).trim_end(), "OK stream=off");
+        assert_eq!(s.on_cycle(&record()), None);
+    }
+
+    #[test]
+    fn on_sends_every_nth_cycle_with_consecutive_sequence_numbers() {
+        let mut s = StreamState::default();
+        let answer = text(s.command(Some(3)));
+        assert_eq!(
+            answer.trim_end(),
+            format!("OK stream=on divider=3 frame_bytes={MAX_FRAME}")
+        );
+        assert!(s.on());
+        let sent: Vec<Option<u32>> = (0..7)
+            .map(|_| s.on_cycle(&record()).map(|f| f.sequence))
+            .collect();
+        assert_eq!(sent, [Some(0), None, None, Some(1), None, None, Some(2)]);
+        // Switching again restarts the countdown, not the sequence.
+        s.command(Some(1));
+        assert_eq!(s.on_cycle(&record()).map(|f| f.sequence), Some(3));
+        s.command(None);
+        assert_eq!(s.on_cycle(&record()), None);
+    }
+}

@@ -1,0 +1,61 @@
+//! The protocol's boundary to the rest of the firmware: what the device is ([`Identity`]), a
+//! snapshot of the readout ([`DeviceStatus`]) and the few things a command may ask of the
+//! device ([`DeviceLink`]).
+//!
+//! The board implements [`DeviceLink`] with critical sections around the readout's staging
+//! slot, hal-sim's simulated board and the fuzzer with plain memory; the command groups in
+//! [`super::commands`] see nothing else of the device. These types are re-exported from
+//! [`super::execute`], where callers have always found them.
+
+use crate::signal::compensation::CompensationSettings;
+use crate::storage::{CalibrationRecord, LoadReport, StoreError};
+
+/// What the device is, for `id` (constants of the build and of the board's OTP block).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Identity {
+    pub firmware_version: &'static str,
+    pub build: &'static str,
+    pub board: &'static str,
+    /// The gyro's serial number (OTP flash on the board).
+    pub serial_number: u32,
+    /// The calibration unlock key (OTP flash on the board, written at production).
+    pub key: u32,
+    /// Scale factor, arcsec per fringe: only for reporting deg/h.
+    pub scale_factor_arcsec: f32,
+    /// Capture-timer frequency, Hz: the unit of the streamed cycle durations.
+    pub capture_timer_hz: u32,
+}
+
+/// A snapshot of the readout, for `status`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DeviceStatus {
+    /// The last turnaround's photodiode levels were usable.
+    pub signal_ok: bool,
+    pub dither_hz: f32,
+    /// Dither amplitude, beat-phase rad.
+    pub dither_amplitude_rad: f32,
+    pub turnarounds: u32,
+    pub cycles: u32,
+    pub counter_glitches: u32,
+    pub phase_glitches: u32,
+    pub signal_lost: u32,
+    pub missed_turnarounds: u32,
+    /// Latest averaged output rate, deg/h.
+    pub rate_deg_per_h: f32,
+}
+
+/// What the protocol needs from the rest of the firmware.
+pub trait DeviceLink {
+    type FlashError: core::fmt::Debug;
+    /// A millisecond tick (wrapping).
+    fn now_ms(&self) -> u32;
+    fn status(&self) -> DeviceStatus;
+    /// The settings the readout applies now.
+    fn active_settings(&self) -> CompensationSettings;
+    /// Hands settings to the readout; they take effect whole at the next cycle boundary.
+    fn stage_settings(&mut self, settings: CompensationSettings);
+    /// Pauses the readout, stores the record (read back), resumes; returns its sequence number.
+    fn store(&mut self, record: &CalibrationRecord) -> Result<u32, StoreError<Self::FlashError>>;
+    /// Reads the newest valid record (or the defaults) with the store's report.
+    fn load(&mut self) -> (CalibrationRecord, LoadReport);
+}
