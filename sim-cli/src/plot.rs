@@ -1,10 +1,16 @@
-//! A small, dependency-free SVG line chart: stacked panels sharing one x axis.
+//! Line charts as SVG, drawn with `plotters` (SVG backend only): stacked panels sharing one x
+//! axis, for the paper's figures (output vs input with residual panels, `rlg-sim sweep`) and
+//! streamed rates (`rlg-cal stream`, `rlg-cal sweep`). The one plotting module of the project:
+//! the host tool uses it through `rlg_sim::plot`.
 //!
-//! Enough for the paper's figures (output vs input with a residual panel) and streamed rates:
-//! linear axes with "nice" ticks, polylines and/or markers, a legend per panel. Pure string
-//! output, so it is testable and needs no font or rendering library.
+//! The description ([`Figure`], [`Panel`], [`Series`]) is plain data; [`Figure::to_svg`] lays
+//! it out: panel heights by weight, one x range over all panels, each panel its own y range
+//! (padded 5 %), tick labels on the bottom panel only, a legend per panel. plotters chooses
+//! the ticks and writes the SVG; non-finite points are skipped. Earlier this was ~250 lines of
+//! hand-written SVG; plotters (4 small crates, no font or rendering library with these
+//! features) does the axes, ticks, legends and escaping.
 
-use std::fmt::Write;
+use plotters::prelude::*;
 
 /// How a series is drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -44,29 +50,15 @@ pub struct Figure {
     pub height_px: f64,
 }
 
-const MARGIN_LEFT: f64 = 90.0;
-const MARGIN_RIGHT: f64 = 30.0;
-const MARGIN_TOP: f64 = 75.0;
-const MARGIN_BOTTOM: f64 = 60.0;
-const PANEL_GAP: f64 = 50.0;
+/// Left label area (tick labels and the rotated y label), px.
+const Y_LABEL_AREA_PX: u32 = 80;
+/// Bottom label area of the last panel (tick labels and the x label), px.
+const X_LABEL_AREA_PX: u32 = 45;
+const GRID: RGBColor = RGBColor(0xdd, 0xdd, 0xdd);
+const ZERO_LINE: RGBColor = RGBColor(0x99, 0x99, 0x99);
+const FRAME: RGBColor = RGBColor(0x44, 0x44, 0x44);
 
-/// "Nice" tick positions covering [lo, hi]: steps of 1, 2 or 5 x 10^n, about `target` of them.
-pub fn nice_ticks(lo: f64, hi: f64, target: usize) -> Vec<f64> {
-    if !(lo.is_finite() && hi.is_finite()) || hi <= lo {
-        return vec![lo];
-    }
-    let raw = (hi - lo) / target.max(1) as f64;
-    let magnitude = 10f64.powf(raw.log10().floor());
-    let step = [1.0, 2.0, 5.0, 10.0]
-        .iter()
-        .map(|m| m * magnitude)
-        .find(|s| *s >= raw)
-        .unwrap_or(10.0 * magnitude);
-    let first = (lo / step).ceil() as i64;
-    let last = (hi / step).floor() as i64;
-    (first..=last).map(|i| i as f64 * step).collect()
-}
-
+/// Tick label: `0`, plain decimals, or exponent form outside 1e-3..1e5.
 fn format_tick(v: f64) -> String {
     if v == 0.0 {
         return "0".into();
@@ -80,11 +72,14 @@ fn format_tick(v: f64) -> String {
     }
 }
 
-fn escape(text: &str) -> String {
-    text.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
+/// `#rrggbb` to a colour; anything else is black.
+fn color(text: &str) -> RGBColor {
+    let hex = text.strip_prefix('#').filter(|h| h.len() == 6);
+    let channel = |i: usize| hex.and_then(|h| u8::from_str_radix(&h[i..i + 2], 16).ok());
+    match (channel(0), channel(2), channel(4)) {
+        (Some(r), Some(g), Some(b)) => RGBColor(r, g, b),
+        _ => BLACK,
+    }
 }
 
 /// Data range of some points, widened a little (and made non-empty).
@@ -105,212 +100,154 @@ fn range(points: impl Iterator<Item = f64>) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
+type Area<'a> = DrawingArea<SVGBackend<'a>, plotters::coord::Shift>;
+
 impl Figure {
     /// Renders the figure as a standalone SVG document.
     pub fn to_svg(&self) -> String {
         let mut svg = String::new();
-        let (w, h) = (self.width_px, self.height_px);
-        let _ = writeln!(
-            svg,
-            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="13">"#
-        );
-        let _ = writeln!(svg, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
-        let _ = writeln!(
-            svg,
-            r#"<text x="{}" y="28" text-anchor="middle" font-size="17">{}</text>"#,
-            w / 2.0,
-            escape(&self.title)
-        );
+        let size = (self.width_px as u32, self.height_px as u32);
+        {
+            let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
+            // Errors of the string backend cannot happen (it only appends to a String).
+            let _ = self.draw(&root);
+            let _ = root.present();
+        }
+        svg.push('\n');
+        svg
+    }
+
+    fn draw(&self, root: &Area<'_>) -> Result<(), Box<dyn std::error::Error>> {
+        root.fill(&WHITE)?;
+        let body = root.titled(&self.title, ("sans-serif", 17))?;
         let xs = self
             .panels
             .iter()
             .flat_map(|p| p.series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
-        let (x_lo, x_hi) = range(xs);
-        let plot_w = w - MARGIN_LEFT - MARGIN_RIGHT;
+        let x_range = range(xs);
         let total_weight: f64 = self.panels.iter().map(|p| p.weight).sum::<f64>().max(1e-9);
-        let available = h
-            - MARGIN_TOP
-            - MARGIN_BOTTOM
-            - PANEL_GAP * (self.panels.len().saturating_sub(1)) as f64;
-        let mut top = MARGIN_TOP;
+        let height_px = body.dim_in_pixel().1 as f64;
+        let mut rest = body;
         for (i, panel) in self.panels.iter().enumerate() {
-            let panel_h = available * panel.weight / total_weight;
             let last = i + 1 == self.panels.len();
-            self.render_panel(
-                &mut svg,
-                panel,
-                (x_lo, x_hi),
-                (MARGIN_LEFT, top, plot_w, panel_h),
-                last,
-            );
-            top += panel_h + PANEL_GAP;
+            let area = if last {
+                rest.clone()
+            } else {
+                let h = (height_px * panel.weight / total_weight).round() as u32;
+                let (area, below) = rest.split_vertically(h);
+                rest = below;
+                area
+            };
+            self.draw_panel(&area, panel, x_range, last)?;
         }
-        svg.push_str("</svg>\n");
-        svg
+        Ok(())
     }
 
-    fn render_panel(
+    fn draw_panel(
         &self,
-        svg: &mut String,
+        area: &Area<'_>,
         panel: &Panel,
         (x_lo, x_hi): (f64, f64),
-        (left, top, width, height): (f64, f64, f64, f64),
         last: bool,
-    ) {
+    ) -> Result<(), Box<dyn std::error::Error>> {
         let (y_lo, y_hi) = range(
             panel
                 .series
                 .iter()
                 .flat_map(|s| s.points.iter().map(|p| p.1)),
         );
-        let px = |x: f64| left + (x - x_lo) / (x_hi - x_lo) * width;
-        let py = |y: f64| top + height - (y - y_lo) / (y_hi - y_lo) * height;
-        let _ = writeln!(
-            svg,
-            r##"<rect x="{left}" y="{top}" width="{width}" height="{height}" fill="none" stroke="#444"/>"##
-        );
-        for t in nice_ticks(x_lo, x_hi, 8) {
-            let x = px(t);
-            let _ = writeln!(
-                svg,
-                r##"<line x1="{x:.1}" y1="{top}" x2="{x:.1}" y2="{:.1}" stroke="#ddd"/>"##,
-                top + height
-            );
-            if last {
-                let _ = writeln!(
-                    svg,
-                    r#"<text x="{x:.1}" y="{:.1}" text-anchor="middle">{}</text>"#,
-                    top + height + 18.0,
-                    format_tick(t)
-                );
+        let mut chart = ChartBuilder::on(area)
+            .caption(&panel.title, ("sans-serif", 14))
+            .margin_right(30)
+            .margin_top(5)
+            .margin_bottom(if last { 5 } else { 15 })
+            .x_label_area_size(if last { X_LABEL_AREA_PX } else { 0 })
+            .y_label_area_size(Y_LABEL_AREA_PX)
+            .build_cartesian_2d(x_lo..x_hi, y_lo..y_hi)?;
+        // A tick at zero may come out as 1e-20 or so: label it 0.
+        let y_tick = |v: &f64| {
+            format_tick(if v.abs() < 1e-9 * (y_hi - y_lo) {
+                0.0
+            } else {
+                *v
+            })
+        };
+        let x_tick = |v: &f64| {
+            format_tick(if v.abs() < 1e-9 * (x_hi - x_lo) {
+                0.0
+            } else {
+                *v
+            })
+        };
+        let mut mesh = chart.configure_mesh();
+        mesh.bold_line_style(GRID)
+            .light_line_style(TRANSPARENT)
+            .axis_style(FRAME)
+            .x_labels(9)
+            .y_labels(7)
+            .x_label_formatter(&x_tick)
+            .y_label_formatter(&y_tick)
+            .label_style(("sans-serif", 13))
+            .y_desc(&panel.y_label);
+        if last {
+            mesh.x_desc(&self.x_label);
+        }
+        mesh.draw()?;
+        chart.plotting_area().draw(&Rectangle::new(
+            [(x_lo, y_lo), (x_hi, y_hi)],
+            FRAME.stroke_width(1),
+        ))?;
+        if y_lo < 0.0 && y_hi > 0.0 {
+            chart.draw_series(LineSeries::new([(x_lo, 0.0), (x_hi, 0.0)], ZERO_LINE))?;
+        }
+        for series in &panel.series {
+            let c = color(series.color);
+            let line = c.stroke_width(2);
+            let finite: Vec<(f64, f64)> = series
+                .points
+                .iter()
+                .copied()
+                .filter(|(x, y)| x.is_finite() && y.is_finite())
+                .collect();
+            let legend = match series.style {
+                Style::DashedLine => {
+                    chart.draw_series(DashedLineSeries::new(finite.clone(), 6, 4, line))?
+                }
+                Style::Line | Style::LineAndMarkers => {
+                    chart.draw_series(LineSeries::new(finite.clone(), line))?
+                }
+                Style::Markers => {
+                    chart.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+                }
+            };
+            legend.label(series.label.as_str());
+            if series.style == Style::DashedLine {
+                legend.legend(move |(x, y)| {
+                    EmptyElement::at((x, y))
+                        + PathElement::new([(0, 0), (8, 0)], line)
+                        + PathElement::new([(14, 0), (22, 0)], line)
+                });
+            } else {
+                legend.legend(move |(x, y)| PathElement::new([(x, y), (x + 24, y)], line));
+            }
+            if matches!(series.style, Style::Markers | Style::LineAndMarkers) {
+                chart.draw_series(finite.iter().map(|&p| Circle::new(p, 3, c.filled())))?;
             }
         }
-        for t in nice_ticks(y_lo, y_hi, 6) {
-            let y = py(t);
-            let _ = writeln!(
-                svg,
-                r##"<line x1="{left}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#ddd"/>"##,
-                left + width
-            );
-            let _ = writeln!(
-                svg,
-                r#"<text x="{:.1}" y="{:.1}" text-anchor="end">{}</text>"#,
-                left - 6.0,
-                y + 4.0,
-                format_tick(t)
-            );
-        }
-        if y_lo < 0.0 && y_hi > 0.0 {
-            let y = py(0.0);
-            let _ = writeln!(
-                svg,
-                r##"<line x1="{left}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#999"/>"##,
-                left + width
-            );
-        }
-        let _ = writeln!(
-            svg,
-            r#"<text x="{:.1}" y="{:.1}" text-anchor="middle" transform="rotate(-90 {:.1} {:.1})">{}</text>"#,
-            left - 62.0,
-            top + height / 2.0,
-            left - 62.0,
-            top + height / 2.0,
-            escape(&panel.y_label)
-        );
-        let _ = writeln!(
-            svg,
-            r#"<text x="{:.1}" y="{:.1}" text-anchor="middle" font-size="14">{}</text>"#,
-            left + width / 2.0,
-            top - 8.0,
-            escape(&panel.title)
-        );
-        if last {
-            let _ = writeln!(
-                svg,
-                r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{}</text>"#,
-                left + width / 2.0,
-                top + height + 42.0,
-                escape(&self.x_label)
-            );
-        }
-        for (i, series) in panel.series.iter().enumerate() {
-            draw_series(svg, series, &px, &py);
-            let ly = top + 16.0 + 18.0 * i as f64;
-            let lx = left + 12.0;
-            let dash = if series.style == Style::DashedLine {
-                r#" stroke-dasharray="6 4""#
-            } else {
-                ""
-            };
-            let _ = writeln!(
-                svg,
-                r#"<line x1="{lx}" y1="{ly}" x2="{}" y2="{ly}" stroke="{}" stroke-width="2"{dash}/><text x="{}" y="{}">{}</text>"#,
-                lx + 24.0,
-                series.color,
-                lx + 30.0,
-                ly + 4.0,
-                escape(&series.label)
-            );
-        }
-    }
-}
-
-fn draw_series(svg: &mut String, s: &Series, px: &dyn Fn(f64) -> f64, py: &dyn Fn(f64) -> f64) {
-    let finite: Vec<(f64, f64)> = s
-        .points
-        .iter()
-        .copied()
-        .filter(|(x, y)| x.is_finite() && y.is_finite())
-        .collect();
-    if matches!(
-        s.style,
-        Style::Line | Style::DashedLine | Style::LineAndMarkers
-    ) && finite.len() > 1
-    {
-        let path: Vec<String> = finite
-            .iter()
-            .map(|&(x, y)| format!("{:.2},{:.2}", px(x), py(y)))
-            .collect();
-        let dash = if s.style == Style::DashedLine {
-            r#" stroke-dasharray="6 4""#
-        } else {
-            ""
-        };
-        let _ = writeln!(
-            svg,
-            r#"<polyline points="{}" fill="none" stroke="{}" stroke-width="1.8"{dash}/>"#,
-            path.join(" "),
-            s.color
-        );
-    }
-    if matches!(s.style, Style::Markers | Style::LineAndMarkers) {
-        for &(x, y) in &finite {
-            let _ = writeln!(
-                svg,
-                r#"<circle cx="{:.2}" cy="{:.2}" r="3" fill="{}"/>"#,
-                px(x),
-                py(y),
-                s.color
-            );
-        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.85))
+            .border_style(TRANSPARENT)
+            .label_font(("sans-serif", 13))
+            .draw()?;
+        Ok(())
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn ticks_are_nice_and_cover_the_range() {
-        assert_eq!(
-            nice_ticks(-13.9, 13.9, 8),
-            vec![-10.0, -5.0, 0.0, 5.0, 10.0]
-        );
-        let t = nice_ticks(0.0, 1.0, 5);
-        assert_eq!(t.len(), 6);
-        assert!((t[1] - 0.2).abs() < 1e-12);
-        assert_eq!(nice_ticks(1.0, 1.0, 5), vec![1.0]);
-    }
 
     #[test]
     fn svg_is_well_formed_and_escapes_text() {
