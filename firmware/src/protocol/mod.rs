@@ -3,6 +3,9 @@
 //! Bytes from the USART go through [`line::LineAssembler`] (bounded, resynchronises on `\n`),
 //! [`parse::strip_checksum`] and [`parse::parse`]; the answer is exactly one line, `OK ...` or
 //! `ERR <code> <text>` ([`respond`]), with a CRC suffix when the request carried one. The
+//! command goes to [`execute::Executor`], which applies the access rules and hands it to its
+//! group in [`commands`] (info, settings, calibration, storage, stream, access: one module and
+//! one state value each); [`link`] is all the protocol sees of the device. The
 //! protocol runs in the low-priority serial task: nothing here blocks or touches the turnaround
 //! interrupt, whose state it changes only through staged settings.
 
