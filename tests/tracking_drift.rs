@@ -8,6 +8,12 @@
 //! Both readouts start from the exact coefficients at t = 0 and see the same simulated board.
 //! Acceptance: inside the band the tracked compensation's error is well below the static
 //! one's, and the tracked coefficients end within 1 % of Omega_L of the drifted truth.
+//!
+//! Regression bound (issue 11): "well below" (a third of the static error, 0.18 deg/h) is 16
+//! times what tracking achieves, so the tracked error is also bounded at 0.03 deg/h. Measured
+//! over eight seeds (41..=48; the seed changes the photodiode noise): tracked 0.0101 to
+//! 0.0114 deg/h, static 0.530 deg/h, tracked coefficients 0.32 % to 0.36 % of Omega_L off
+//! (bound 1 %, already within three times the measured value).
 
 mod common;
 
@@ -130,5 +136,9 @@ fn tracking_beats_a_static_fit_when_lock_in_and_eps_drift() {
     assert!(
         tracked_err < fixed_err / 3.0,
         "tracked {tracked_err} vs static {fixed_err}"
+    );
+    assert!(
+        tracked_err < 0.03,
+        "regression: tracked error {tracked_err} deg/h"
     );
 }

@@ -1,6 +1,12 @@
 //! Host side of the target == host check: the test vectors of `vectors/` computed on x86 must
 //! equal the committed golden values, which `on_target.rs` checks on the Cortex-M4F as well.
 //!
+//! What this proves: the host and the target compute the same outputs (parity), and that they
+//! did not change since the golden file was written. It does not prove they are right: the
+//! golden values were recorded from the code itself. Correctness is the business of the unit
+//! tests beside each module and of the system tests (`tests/` at the root: Chow's dead band,
+//! the compensation against the simulator's truth, the fault flags).
+//!
 //! After an intended change of a core function, regenerate and re-check the target:
 //! `UPDATE_GOLDEN=1 cargo test -p firmware --test golden && cargo fw-test`.
 mod vectors;

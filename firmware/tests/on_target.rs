@@ -1,6 +1,8 @@
 //! On-target suite: the firmware's core functions on the Cortex-M4F (QEMU's netduinoplus2, or a
 //! board under probe-rs), checked against the golden values that `tests/golden.rs` checks on the
-//! host, so target == host (bit-identical, or within the tolerance a case states).
+//! host, so target == host (bit-identical, or within the tolerance a case states). A parity
+//! check, not a correctness check: the golden values come from the code itself (see
+//! `tests/golden.rs`); the physics is checked by the host's unit and system tests.
 //!
 //! Its own tiny harness rather than defmt-test's: every case runs even after one fails, the run
 //! closes with `qemu: N passed, M failed` and exits through semihosting with status 0, or 1 if

@@ -463,4 +463,9 @@ impl SimBoard {
     pub fn counter_mut(&mut self) -> &mut QuadratureCounter {
         &mut self.counter
     }
+
+    /// The photodiodes, for fault injection in tests ([`Photodiodes::set_fault`]).
+    pub fn photodiodes_mut(&mut self) -> &mut Photodiodes {
+        &mut self.photodiodes
+    }
 }

@@ -240,11 +240,28 @@ pub struct AdcCodes {
     pub b_code: u16,
 }
 
+/// A fault of the analog front end, injected by tests ([`Photodiodes::set_fault`]).
+///
+/// Only the ADC conversions (the Lissajous stream and the turnaround latch) see it: the
+/// comparators that feed the counter ([`crate::counter`]) follow the configuration and keep
+/// counting, so the count stays right and the fault shows in the fractional fringe alone.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PhotodiodeFault {
+    /// Both amplifiers driven past the ADC's input range (overload, a lost reference): every
+    /// conversion reads full scale.
+    AdcSaturated,
+    /// No light on either photodiode (the beam lost): both channels sit at their DC level.
+    Dark,
+    /// Channel B's photodiode lost (open, dark): B sits at its DC level, A still sees fringes.
+    ChannelBLost,
+}
+
 /// The photodiode pair with its noise source: produces analog levels and ADC codes.
 #[derive(Clone, Debug)]
 pub struct Photodiodes {
     config: PhotodiodeConfig,
     rng: ChaCha8Rng,
+    fault: Option<PhotodiodeFault>,
 }
 
 impl Photodiodes {
@@ -256,7 +273,13 @@ impl Photodiodes {
         Self {
             config,
             rng: ChaCha8Rng::seed_from_u64(seed),
+            fault: None,
         }
+    }
+
+    /// Injects a front-end fault from now on (`None` clears it).
+    pub fn set_fault(&mut self, fault: Option<PhotodiodeFault>) {
+        self.fault = fault;
     }
 
     /// The configuration.
@@ -267,6 +290,12 @@ impl Photodiodes {
     /// Noisy analog levels `(v_A, v_B)` at `psi_h_rad`; draws one noise sample per channel.
     pub fn sample_v(&mut self, psi_h_rad: f64) -> [f64; 2] {
         let [a, b] = self.config.levels_v(psi_h_rad);
+        let [a, b] = match self.fault {
+            None => [a, b],
+            Some(PhotodiodeFault::AdcSaturated) => [self.config.adc.reference_v; 2],
+            Some(PhotodiodeFault::Dark) => [self.config.a.mid_level_v, self.config.b.mid_level_v],
+            Some(PhotodiodeFault::ChannelBLost) => [a, self.config.b.mid_level_v],
+        };
         [a + self.noise_v(), b + self.noise_v()]
     }
 
