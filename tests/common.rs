@@ -1,11 +1,11 @@
-//! Shared helpers of the system tests: the PHYSICS.md gyro and unit conversions.
+//! Shared helpers of the system tests: the docs/physics.md gyro and unit conversions.
 #![allow(dead_code)]
 
 use hal_sim::params::GyroParams;
 
 pub const TAU: f64 = std::f64::consts::TAU;
 
-/// The PHYSICS.md parameter set (the paper's gyro), noise-free, seeded.
+/// The docs/physics.md parameter set (the paper's gyro), noise-free, seeded.
 pub fn paper_gyro(seed: u64) -> GyroParams {
     GyroParams {
         seed,

@@ -1,7 +1,7 @@
 //! P1 and P2 as the firmware forms them, against the simulator's true lock-in error of each
 //! dither cycle (issue 4 acceptance), with dither amplitude jitter on.
 //!
-//! A steady sine dither hides a wrong sign pattern of P1/P2 (PHYSICS.md pitfall 4: a reflected
+//! A steady sine dither hides a wrong sign pattern of P1/P2 (docs/physics.md pitfall 4: a reflected
 //! psi_H, the misprinted Eq. 19): the turnaround phases then repeat in a way that a wrong model
 //! can still fit. With the amplitude jittering, the turnaround phases decorrelate, and only the
 //! correct Eq. 18 explains the truth.

@@ -26,7 +26,7 @@ mod app {
 
     const TIMER_HZ: f64 = 84e6;
     const DITHER_HZ: f64 = 389.0;
-    /// Half-cycle excursion of the PHYSICS.md dither, x4 counts (2 x 1515.6 rad / (pi/2)).
+    /// Half-cycle excursion of the docs/physics.md dither, x4 counts (2 x 1515.6 rad / (pi/2)).
     const EXCURSION_COUNTS: u32 = 1930;
 
     /// ADC codes of a point on the Lissajous circle (centre 2048, radius 1300 codes).

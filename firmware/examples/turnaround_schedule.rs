@@ -12,7 +12,7 @@
 //! - a slowly drifting dither period costs only a few ticks;
 //! - a lost edge or an implausible interval yields no compare until the history is rebuilt, and
 //!   the board's wrapper counts the implausible one in `IMPLAUSIBLE`;
-//! - `rate_shift_ticks` for 1 deg/s at the PHYSICS.md parameter set (~1.34 us = 112 ticks), from
+//! - `rate_shift_ticks` for 1 deg/s at the docs/physics.md parameter set (~1.34 us = 112 ticks), from
 //!   a cycle record as the cycle task computes it.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 

@@ -23,7 +23,7 @@ use crate::signal::lockin_terms::LevelPair;
 use crate::signal::output::CycleFlags;
 
 /// Highest x4 edge rate the count extension accepts between reads, edges/s: above the
-/// 2.4 M edges/s of the PHYSICS.md parameter set with margin.
+/// 2.4 M edges/s of the docs/physics.md parameter set with margin.
 pub const MAX_EDGE_RATE_HZ: u32 = 4_000_000;
 
 /// Every setting of the signal chain (immutable).

@@ -4,7 +4,7 @@
 //! units happens in the signal chain. `hal-sim` builds exactly these structs from the simulated
 //! gyro, so the logic downstream is the same code on the board and on the host.
 
-/// Which way the lock-in-free rate crosses zero at a dither turnaround (PHYSICS.md).
+/// Which way the lock-in-free rate crosses zero at a dither turnaround (docs/physics.md).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum TurnaroundKind {

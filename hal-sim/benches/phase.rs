@@ -1,4 +1,4 @@
-//! Simulation speed at the default accuracy with the PHYSICS.md parameter set: one
+//! Simulation speed at the default accuracy with the docs/physics.md parameter set: one
 //! iteration simulates 0.1 gyro-second (78 dither cycles, 156 traversals) at the paper's
 //! 13.888 deg/h. Criterion's throughput is in gyro-milliseconds per second; the line printed
 //! first is the same figure in gyro-seconds per wall-second (and per CPU-second of the

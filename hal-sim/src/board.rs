@@ -9,7 +9,7 @@
 //! - the [`TurnaroundSample`] latched at the turnaround (encoder register, both ADC channels,
 //!   capture timer), built by [`latch_turnaround`].
 //!
-//! The latch instant ([`LatchTiming`], PHYSICS.md pitfall 2: aim for ~1 us) is either
+//! The latch instant ([`LatchTiming`], docs/physics.md pitfall 2: aim for ~1 us) is either
 //! - [`LatchTiming::Exact`] (the default): the exact turnaround (the zero of dither plus input
 //!   rate), standing in for a perfect capture/compare scheduling; or
 //! - [`LatchTiming::Scheduled`]: what the board does. The pick-off comparator's edges are found
@@ -68,7 +68,7 @@ pub enum LatchTiming {
         /// The scheduler subtracts the same value.
         aperture_delay_ticks: u32,
         /// Apply the input-rate shift Omega_i/|psi_ddot| (false: latch at the pick-off's
-        /// extremum, PHYSICS.md pitfall 3).
+        /// extremum, docs/physics.md pitfall 3).
         rate_shift: bool,
     },
 }

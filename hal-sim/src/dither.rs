@@ -23,7 +23,7 @@
 //! dither angle; the instants where the dither rate is zero (the pick-off's extremes, the
 //! zero crossings of its derivative or of a 90-degree-shifted copy) are the *dither-only*
 //! turnarounds. They differ from the true turnarounds (zeros of dither + input + noise rate)
-//! by about `Omega_i / psi_ddot` (PHYSICS.md pitfall 3), which is why both are offered.
+//! by about `Omega_i / psi_ddot` (docs/physics.md pitfall 3), which is why both are offered.
 
 use crate::params::{AmplitudeModulation, Derived, GyroParams};
 use crate::units::beat_rad_to_arcsec;

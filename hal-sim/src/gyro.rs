@@ -219,7 +219,7 @@ impl Gyro {
     }
 
     /// The first zero of the dither-only rate after `t_s` (the pick-off's turnaround), which
-    /// differs from the true turnaround by about `Omega_i / psi_ddot` (PHYSICS.md pitfall 3).
+    /// differs from the true turnaround by about `Omega_i / psi_ddot` (docs/physics.md pitfall 3).
     pub fn pickoff_turnaround_after(&self, t_s: f64) -> Option<(f64, TurnaroundKind)> {
         self.integ
             .free_phase()
@@ -252,7 +252,7 @@ fn thread_cpu_s() -> Option<f64> {
 }
 
 /// Measures [`Speed`] by simulating `gyro_seconds` of a gyro with `params` driven by `input`
-/// on the calling thread (the benchmark uses the PHYSICS.md set on the paper's rotary table at
+/// on the calling thread (the benchmark uses the docs/physics.md set on the paper's rotary table at
 /// 22.2 deg latitude, azimuth 0: +13.888 deg/h).
 pub fn measure_speed(
     params: GyroParams,

@@ -2,7 +2,7 @@
 //!
 //! Two rooms:
 //! - the gyro ([`params`], [`units`], [`input`], [`dither`], [`noise`], [`phase`], [`gyro`]):
-//!   the phase equation (PHYSICS.md Eq. 6) integrated with the dither phase known analytically;
+//!   the phase equation (docs/physics.md Eq. 6) integrated with the dither phase known analytically;
 //! - the board ([`photodiode`], [`counter`], [`clock`], [`flash`], [`serial`]): the peripherals
 //!   the firmware reads, producing exactly the plain structs of `firmware::sample`;
 //! - [`board`]: gyro and peripherals assembled into what the firmware's interrupts receive.

@@ -1,5 +1,5 @@
 //! The gyro's parameter set: physical constants in the units an engineer quotes, plus the
-//! solver settings, with the PHYSICS.md set as `Default`.
+//! solver settings, with the docs/physics.md set as `Default`.
 //!
 //! Design: [`GyroParams`] is plain, `Copy` and immutable once a gyro is built (what would live
 //! in a data sheet); [`GyroParams::derive`] validates it and converts everything once into the
@@ -66,7 +66,7 @@ impl AmplitudeModulation {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SolverParams {
     /// Largest beat-phase advance per step in near regions, rad (Gauss-Legendre, order 6;
-    /// 0.5 gives ~4e-8 rad per traversal at the PHYSICS.md set). The step is
+    /// 0.5 gives ~4e-8 rad per traversal at the docs/physics.md set). The step is
     /// `h = dtheta / (|omega| + Omega_L + sqrt(|omega'| 0.25 rad))`.
     pub step_phase_rad: f64,
     /// Lock-in-free rate above which the far-field expansion replaces stepping, rad/s. A floor:
@@ -136,7 +136,7 @@ pub struct GyroParams {
 }
 
 impl Default for GyroParams {
-    /// The PHYSICS.md parameter set, noise and jitter off.
+    /// The docs/physics.md parameter set, noise and jitter off.
     fn default() -> Self {
         Self {
             scale_factor_arcsec: 1.8655,

@@ -3,7 +3,7 @@
 //!
 //! # Model
 //!
-//! The channels see the beat phase `psi_H` (rad, unwrapped; `psi_H = psi - eps`, PHYSICS.md):
+//! The channels see the beat phase `psi_H` (rad, unwrapped; `psi_H = psi - eps`, docs/physics.md):
 //!
 //! ```text
 //! v_A = mid_A + amp_A cos(psi_H)          + n_A

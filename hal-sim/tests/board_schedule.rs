@@ -2,13 +2,13 @@
 //! the simulated dither, captured by the 84 MHz timer, through the firmware's own
 //! `signal::turnaround_schedule` with the input-rate shift from the firmware's cycle records.
 //!
-//! Acceptance (all seeded, PHYSICS.md parameter set):
+//! Acceptance (all seeded, docs/physics.md parameter set):
 //! - every latch within 0.1 us of the true turnaround (zero of dither + input rate, the gyro's
 //!   traversal log) at 0 and +-1 deg/s, with a comparator threshold offset of 5 % of the
 //!   amplitude, and with 1 % amplitude jitter; the bound is the capture's tick quantisation
 //!   (+-12 ns per edge, two edges per prediction) with a wide margin;
 //! - without the rate shift the latch misses by Omega_i/|psi_ddot| = 1.34 us at 1 deg/s, late at
-//!   one kind and early at the other (PHYSICS.md pitfall 3), which the shift removes;
+//!   one kind and early at the other (docs/physics.md pitfall 3), which the shift removes;
 //! - end to end: calibrated at +-13.888 deg/h, the compensated output with the scheduled latch
 //!   stays within 0.01 deg/h of the input at 0, +-2 and +-5 deg/h.
 

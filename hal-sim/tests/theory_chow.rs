@@ -1,13 +1,13 @@
-//! With a sine dither the dead band is Chow's `Omega_L |J0(Omega_d / w_d)|` (PHYSICS.md
+//! With a sine dither the dead band is Chow's `Omega_L |J0(Omega_d / w_d)|` (docs/physics.md
 //! Eq. 8) and outside it the mean output is `sqrt(Omega_i^2 - Omega_L0^2)` (Eq. 10).
 //!
-//! Method: the mean output is measured over whole slip periods (PHYSICS.md pitfall 6) from
+//! Method: the mean output is measured over whole slip periods (docs/physics.md pitfall 6) from
 //! the beat phase at "+" turnarounds (once per dither cycle, same dither phase each time),
 //! at 1.5, 2 and 3 times Chow's band; `Omega_L0^2 = mean(Omega_i^2 - out^2)` is fitted and
 //! must match Chow within 0.5 % (the tolerance; the stationary-phase theory behind
 //! Chow is first order in `Omega_L k` ~ 0.018, so agreement to a few 1e-3 is what theory
 //! predicts). Just inside the band (0.8 Omega_L0) the output must stay locked.
-//! Two parameter sets: the PHYSICS.md set (band 3.358 deg/h), and 500 Hz / 299.64 arcsec /
+//! Two parameter sets: the docs/physics.md set (band 3.358 deg/h), and 500 Hz / 299.64 arcsec /
 //! 150 deg/h (|J0| near its envelope, band ~3.8 deg/h).
 
 use core::f64::consts::TAU;

@@ -1,5 +1,5 @@
 //! Per traversal, the simulated lock-in phase error (change of the slow variable `chi`
-//! across the near region) matches the stationary-phase formulas of PHYSICS.md,
+//! across the near region) matches the stationary-phase formulas of docs/physics.md,
 //! `Omega_L k cos(psi0+ + pi/4)` and `Omega_L k sin(psi0- + pi/4)` with `k` from the actual
 //! |psi_ddot|, with correlation >= 0.999 for each kind.
 //!

@@ -1,6 +1,6 @@
 //! The simulated board behind the in-process link, the server and the sweep: hal-sim's
 //! [`SimDevice`] (the firmware's protocol, readout and store against the simulated gyro) with
-//! the PHYSICS.md gyro (noise off) and the simulated board's identity (key `c0ffee42`).
+//! the docs/physics.md gyro (noise off) and the simulated board's identity (key `c0ffee42`).
 
 use hal_sim::device::{SimDevice, SIM_IDENTITY};
 use hal_sim::flash::CalibrationFlash;

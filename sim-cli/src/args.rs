@@ -31,7 +31,7 @@ pub enum Command {
     Speed(SpeedArgs),
 }
 
-/// The gyro and its dither (defaults: the PHYSICS.md parameter set, after the paper).
+/// The gyro and its dither (defaults: the docs/physics.md parameter set, after the paper).
 #[derive(Args, Debug, Clone)]
 pub struct GyroArgs {
     /// Scale factor, arcsec of input angle per counter pulse (fringe).

@@ -69,7 +69,7 @@ pub mod priority {
 /// The software-pended vector of the readout task (EXTI line 1 is not routed to any pin).
 pub const READOUT_TASK_IRQ: Interrupt = Interrupt::EXTI1;
 
-/// Board profile: the gyro this board reads (PHYSICS.md parameter set).
+/// Board profile: the gyro this board reads (docs/physics.md parameter set).
 pub const DITHER_HZ_NOMINAL: f64 = 389.0;
 pub const SCALE_FACTOR_ARCSEC: f64 = 1.8655;
 /// The scheduler accepts dither frequencies in this range.

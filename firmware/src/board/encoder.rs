@@ -6,7 +6,7 @@
 //! - `SMCR.SMS = 011`: encoder mode 3, the counter moves on every edge of TI1FP1 and TI2FP2
 //!   (x4: one count per quarter fringe), direction from the other channel's level.
 //! - `CCMR1.CC1S = CC2S = 01`, `IC1F = IC2F = 0011` (filter, below); `CCER.CC1P = CC2P = 0`.
-//!   Swapping A and B, or one polarity bit, reverses the count direction (PHYSICS.md pitfall 4:
+//!   Swapping A and B, or one polarity bit, reverses the count direction (docs/physics.md pitfall 4:
 //!   validate the sign pattern on the board against the simulator).
 //! - `ARR = 0xFFFF_FFFF`: the full 32-bit range, wrapping; the readout extends it.
 //! - Latch: `SMCR.TS = 000` selects ITR0, which on TIM5 is TIM2's TRGO (RM0090 table 100);
@@ -19,7 +19,7 @@
 //!   `TIM5.CNT` to RAM, ~100 ns later with bus-dependent jitter.
 //!
 //! # Input filter
-//! At the PHYSICS.md peak beat frequency (~590 kHz) each channel toggles at 1.2 M edges/s and the
+//! At the docs/physics.md peak beat frequency (~590 kHz) each channel toggles at 1.2 M edges/s and the
 //! x4 edge rate is ~2.4 M edges/s: nominally 417 ns between consecutive edges of A and B. With a
 //! quadrature error of +-30 degrees and 40/60 comparator duty cycle the closest pair of edges is
 //! still about 200 ns apart. `ICxF = 0011` samples at f_CK_INT = 84 MHz and needs 8 equal samples:

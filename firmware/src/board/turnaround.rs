@@ -19,7 +19,7 @@
 //! The prediction itself is plain logic in [`crate::signal::turnaround_schedule`] (host-tested,
 //! and the same code drives the simulated board's latch in `hal-sim`): half the previous
 //! same-polarity interval after each edge (which cancels a comparator threshold offset), the
-//! input-rate shift with opposite signs at "+" and "-" (PHYSICS.md pitfall 3), minus the fixed
+//! input-rate shift with opposite signs at "+" and "-" (docs/physics.md pitfall 3), minus the fixed
 //! delays; its module docs carry the derivation and the expected timing error. This module binds
 //! it to the board: the fixed delays ([`PICKOFF_DELAY_TICKS`], [`APERTURE_DELAY_TICKS`]) and the
 //! pick-off polarity ([`AFTER_RISING_EDGE`]) as constants, the rate shift published by the cycle
@@ -31,7 +31,7 @@
 //! latency 2-3 ADC clocks plus the 15-clock sampling time; the hold happens at the end of
 //! sampling, so the compare fires that much early and the *sampling* instant lands on the
 //! turnaround). About +-0.1 us random error once they are calibrated, against the ~1 us
-//! PHYSICS.md asks for.
+//! docs/physics.md asks for.
 
 use core::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, AtomicU8, Ordering};
 
@@ -52,7 +52,7 @@ pub const APERTURE_DELAY_TICKS: u32 = 70;
 const MIN_LEAD_TICKS: u32 = 168;
 /// Which turnaround follows a rising pick-off edge (angle increasing through zero: the next
 /// extremum is a maximum, the rate goes from + to -). A pick-off wired with the other polarity
-/// flips it: PHYSICS.md pitfall 4, check against the simulator's sign pattern on the board.
+/// flips it: docs/physics.md pitfall 4, check against the simulator's sign pattern on the board.
 pub const AFTER_RISING_EDGE: TurnaroundKind = TurnaroundKind::Minus;
 
 /// Input-rate shift `Omega_i / |psi_ddot|` in timer ticks (signed), written by the cycle task,
@@ -240,7 +240,7 @@ pub fn latch(
 }
 
 /// Publishes the input-rate shift of the next turnarounds from one cycle (the cycle task, after
-/// each record; PHYSICS.md pitfall 3).
+/// each record; docs/physics.md pitfall 3).
 pub fn publish_rate_shift(record: &CycleRecord) {
     let shift = schedule::rate_shift_ticks(record, super::TIMER_HZ);
     RATE_SHIFT_TICKS.store(shift, Ordering::Relaxed);

@@ -172,7 +172,7 @@ mod tests {
         }
     }
 
-    /// PHYSICS.md: 200 deg/h, 450 arcsec, SF 1.8655 -> Omega_L0 = 3.358 deg/h. Tolerance: the
+    /// docs/physics.md: 200 deg/h, 450 arcsec, SF 1.8655 -> Omega_L0 = 3.358 deg/h. Tolerance: the
     /// table's 4 digits.
     #[test]
     fn chow_band_of_the_paper_set() {

@@ -212,7 +212,7 @@ mod tests {
 
     /// Quantization of a and b must cost less than 1e-3 of the correction (issue 4). Measured
     /// against the correction scale Omega_L k (0.018 rad), over many turnaround phases, for the
-    /// PHYSICS.md set: quantization alone (f64 products) stays below 1e-7 of it; the whole applied
+    /// docs/physics.md set: quantization alone (f64 products) stays below 1e-7 of it; the whole applied
     /// value (quantized a, b and f32 products) below 1e-6 (f32 rounding, 6e-8 per operation).
     #[test]
     fn quantization_costs_far_less_than_a_thousandth_of_the_correction() {
@@ -290,7 +290,7 @@ mod tests {
         assert_eq!(comp.total_correction_q32(), 0);
     }
 
-    /// 0.018 rad (one traversal of the PHYSICS.md set) in Q32 fringes, to the rounding step.
+    /// 0.018 rad (one traversal of the docs/physics.md set) in Q32 fringes, to the rounding step.
     #[test]
     fn radians_to_q32_fringes() {
         let q = rad_to_q32_fringes(0.018);

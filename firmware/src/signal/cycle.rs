@@ -6,7 +6,7 @@
 //! of that traversal's error (exactly half in the parabolic approximation: the error integral is
 //! symmetric about the turnaround). The cycle therefore holds half of the traversal at its start,
 //! the whole "-" traversal, and half of the traversal at its end, and P1/P2 are formed with the
-//! same weights 1/2, 1, 1/2 (PHYSICS.md pitfall 5, the latch split).
+//! same weights 1/2, 1, 1/2 (docs/physics.md pitfall 5, the latch split).
 //!
 //! k = sqrt(2 pi / |psi_ddot|) comes from the measured dither, not a constant: the amplitude is a
 //! quarter of the sum of the last two half-cycle excursions (the input rate adds to one and takes

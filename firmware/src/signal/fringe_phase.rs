@@ -5,13 +5,13 @@
 //!
 //! `turns: i64` whole fringes plus `fraction_q32: u32` (Q32 turns), i.e. psi_H / 2 pi =
 //! `turns + fraction_q32 / 2^32`. Resolution 2^-32 fringe; range 2^63 fringes (at the
-//! 590 kHz peak beat rate of the PHYSICS.md set, 5e5 years): nothing is lost over days of
+//! 590 kHz peak beat rate of the docs/physics.md set, 5e5 years): nothing is lost over days of
 //! running. The difference of two readings, [`FringePhase::delta_q32`], is an `i64` in Q32
 //! fringes (2^32 per fringe, the unit of [`crate::signal::compensation`]), exact for
 //! |delta| < 2^31 fringes (one hour at the peak beat rate; a dither cycle is < 10^3 fringes)
 //! and saturating beyond.
 //!
-//! # Conventions (PHYSICS.md pitfall 4)
+//! # Conventions (docs/physics.md pitfall 4)
 //!
 //! psi_H is defined as in the simulator: channel A ~ cos psi_H, channel B ~ sin psi_H, and the
 //! count increases with psi_H. With ideal comparators (A > 0, B > 0, see
@@ -21,7 +21,7 @@
 //! ([`FringeConvention::orient`]) and the phase agree. A wrong convention shows up as
 //! permanent disagreement glitches (count direction) or cannot be seen here at all
 //! (a reflected pair of channels together with a reversed count): validate against the
-//! simulator's truth, as PHYSICS.md says.
+//! simulator's truth, as docs/physics.md says.
 //!
 //! # Resolving the turn
 //!

@@ -1,4 +1,4 @@
-//! P1 and P2: the per-cycle regressors of the dynamic lock-in error (PHYSICS.md, Eq. 18).
+//! P1 and P2: the per-cycle regressors of the dynamic lock-in error (docs/physics.md, Eq. 18).
 //!
 //! Each crossing of the lock-in zone at a dither turnaround loses a phase that the parabolic
 //! approximation gives as (k = sqrt(2 pi / |psi_ddot|), eps the photodiode phase offset):
@@ -152,7 +152,7 @@ mod tests {
         }
     }
 
-    /// PHYSICS.md parameter set: 450 arcsec at 389 Hz with SF 1.8655 arcsec/pulse gives
+    /// docs/physics.md parameter set: 450 arcsec at 389 Hz with SF 1.8655 arcsec/pulse gives
     /// |psi_ddot| = 9.05e9 rad/s^2 and k = 26.3 us. Tolerance: the table's 3 digits.
     #[test]
     fn time_constant_of_the_paper_parameter_set() {

@@ -5,7 +5,7 @@
 //! The [`RateAverager`] turns them into a rate:
 //!
 //! - [`AveragingMode::FixedWindow`]: total phase over total time of a window of N cycles.
-//! - [`AveragingMode::WholePeriods`] (PHYSICS.md pitfall 6): near the dead-band edge the output
+//! - [`AveragingMode::WholePeriods`] (docs/physics.md pitfall 6): near the dead-band edge the output
 //!   advances in slips with a period of many seconds, and a fixed window cuts a slip in two. This
 //!   mode times the crossings of whole-fringe boundaries by the accumulated phase (interpolated
 //!   inside the cycle) and reports (fringes crossed) / (time between the first and last crossing

@@ -2,7 +2,7 @@
 //!
 //! Used where the two fringe comparators are sampled instead of counted by the encoder timer:
 //! the simulator, or a board that samples them at a fixed rate (which must then be well above
-//! the peak edge rate, about 2.4 M edges/s for the PHYSICS.md parameter set, or edges alias
+//! the peak edge rate, about 2.4 M edges/s for the docs/physics.md parameter set, or edges alias
 //! into illegal transitions).
 //!
 //! # Sample format and sign convention

@@ -15,7 +15,7 @@
 //! cycle task: CycleRecord -> rate_shift_ticks -> the shift for the next edges
 //! ```
 //!
-//! # Prediction (PHYSICS.md pitfalls 2 and 3)
+//! # Prediction (docs/physics.md pitfalls 2 and 3)
 //! A turnaround lies a quarter period after a zero crossing of the dither angle. A comparator
 //! threshold offset makes rising crossings late and falling ones early by the same amount (or
 //! the reverse), so "crossing + T/4" would be off by that amount with alternating sign. Half the
@@ -50,7 +50,7 @@
 //! | rate shift taken from the previous cycle | (rate change per cycle) / psi_ddot: 0 for a steady rate |
 //!
 //! So about +-0.1 us random error once the fixed terms are calibrated, against the ~1 us
-//! PHYSICS.md asks for; an uncalibrated fixed term of 0.5 us costs psi_ddot dt^2/2 ~ 1e-3 rad.
+//! docs/physics.md asks for; an uncalibrated fixed term of 0.5 us costs psi_ddot dt^2/2 ~ 1e-3 rad.
 //!
 //! # Cost
 //! `on_edge` is integer-only, no division (about 55 instructions on the M4 with the board's
@@ -105,7 +105,7 @@ pub struct SchedulerConfig {
     pub aperture_delay_ticks: u32,
     /// Which turnaround follows a rising pick-off edge (angle increasing through zero: the next
     /// extremum is a maximum, the rate goes from + to -, a "-" turnaround). A pick-off wired with
-    /// the other polarity flips it: PHYSICS.md pitfall 4.
+    /// the other polarity flips it: docs/physics.md pitfall 4.
     pub after_rising_edge: TurnaroundKind,
 }
 
@@ -224,7 +224,7 @@ pub fn opposite(kind: TurnaroundKind) -> TurnaroundKind {
 }
 
 /// The input-rate shift `Omega_i / |psi_ddot|` of the next turnarounds, in ticks of a timer at
-/// `timer_hz`, from one cycle (PHYSICS.md pitfall 3): Omega_i = the cycle's increment over its
+/// `timer_hz`, from one cycle (docs/physics.md pitfall 3): Omega_i = the cycle's increment over its
 /// duration, psi_ddot = measured amplitude x (2 pi f)^2. The increment is the compensated one
 /// (the lock-in error removed: the best estimate of the input rate; with compensation off it is
 /// the raw increment). 0 without a usable dither or duration.
@@ -429,7 +429,7 @@ mod tests {
         assert_eq!(s, Scheduler::new());
     }
 
-    /// A record of one 389 Hz cycle advancing `fringes`, at the PHYSICS.md dither amplitude.
+    /// A record of one 389 Hz cycle advancing `fringes`, at the docs/physics.md dither amplitude.
     fn record(fringes: f64, dither_hz: f32, amplitude_rad: f32) -> CycleRecord {
         let duration_ticks = (TIMER_HZ as f64 / 389.0).round() as u32;
         CycleRecord {

@@ -23,7 +23,7 @@
 //! (`g_odd = 0`; `-Omega_L^2/(2 omega) - Omega_L^4/(8 omega^3)` is the expansion of Eq. 5's
 //! `sqrt(omega^2 - Omega_L^2) - omega`). The size of `w_n` is about `(2n-3)!! u delta^(n-1)`
 //! (`delta = |omega'|/omega^2`), an asymptotic series: at the default `omega_c = 5e5` rad/s
-//! with the PHYSICS.md set (`u = 1.3e-3`, `delta = 0.036`) the terms fall to ~1e-8 rad by
+//! with the docs/physics.md set (`u = 1.3e-3`, `delta = 0.036`) the terms fall to ~1e-8 rad by
 //! order 8 and stall there (the measured far error, ~1e-8 per boundary); at 6e5 they reach
 //! 7e-10, at 8e5 1e-11. The recursion stops early where the terms vanish (at a dither peak
 //! `omega' = 0`). The drift's next term `g_6` (not included) integrates to a few 1e-9 rad per boundary at

@@ -1,11 +1,11 @@
-//! The phase equation (PHYSICS.md Eq. 6) integrated fast and verifiably.
+//! The phase equation (docs/physics.md Eq. 6) integrated fast and verifiably.
 //!
 //! ```text
 //! dpsi/dt = omega(t) + Omega_L cos(psi),   omega = input + dither + noise rate
 //! ```
 //!
 //! Brute force cannot be fast: the beat phase travels ~2.4e6 rad per gyro-second at the
-//! PHYSICS.md set, and a solver must advance well under 2 pi per step. The method here
+//! docs/physics.md set, and a solver must advance well under 2 pi per step. The method here
 //! splits `psi = theta(t) + phi`, with `theta` the lock-in-free phase known in closed form
 //! ([`free_phase`]), so only the lock-in phase `phi` is integrated:
 //! `dphi/dt = Omega_L cos(theta + phi)`. `phi` changes substantively only near the

@@ -18,7 +18,7 @@
 //!
 //! `theta(t_c + tau) - theta(t_c)` is a degree-[`DEGREE`] Taylor polynomial about the
 //! segment's centre, accepted only if it matches the exact `theta` to [`POLY_TOL_RAD`] at
-//! the ends and quarter points (otherwise the segment is split). With the PHYSICS.md set a
+//! the ends and quarter points (otherwise the segment is split). With the docs/physics.md set a
 //! near region spans +-55 us (omega_c = 5e5 rad/s), `w_d tau <= 0.14`, and the truncation
 //! error is ~1e-12 rad. Working relative to `theta(t_c)` keeps the cos argument small.
 
@@ -161,7 +161,7 @@ pub const TURN_PHASE_RAD: f64 = 0.25;
 /// Step size: `h = dtheta / (|omega| + Omega_L + sqrt(|omega'| TURN_PHASE_RAD))`.
 ///
 /// Far from the turnaround the beat phase advances `dtheta` per step; at the turnaround the
-/// step is `dtheta / sqrt(|psi_ddot| 0.25 rad)` (~10 us for the PHYSICS.md set at the
+/// step is `dtheta / sqrt(|psi_ddot| 0.25 rad)` (~10 us for the docs/physics.md set at the
 /// default `dtheta = 0.5`, k/2.5). Every step is proportional to `dtheta`.
 #[inline(always)]
 pub fn step_size(omega: f64, slope: f64, omega_l: f64, dtheta: f64) -> f64 {

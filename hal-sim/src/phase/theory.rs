@@ -1,4 +1,4 @@
-//! Closed-form results the simulator is held against (PHYSICS.md): Eq. 5, Chow's dead band,
+//! Closed-form results the simulator is held against (docs/physics.md): Eq. 5, Chow's dead band,
 //! the stationary-phase error of one traversal, and the Bessel function they need.
 
 use core::f64::consts::{FRAC_PI_4, PI, TAU};
@@ -69,7 +69,7 @@ pub fn k_s(psi_ddot: f64) -> f64 {
     (TAU / psi_ddot.abs()).sqrt()
 }
 
-/// Stationary-phase lock-in error of one traversal (PHYSICS.md, corrected):
+/// Stationary-phase lock-in error of one traversal (docs/physics.md, corrected):
 /// `Omega_L k cos(psi0 + pi/4)` at a "+" turnaround (`psi_ddot > 0`),
 /// `Omega_L k sin(psi0 + pi/4)` at a "-" turnaround.
 pub fn traversal_error(omega_l: f64, psi0: f64, psi_ddot: f64) -> f64 {
