@@ -1,7 +1,8 @@
 //! Access control: commands that change coefficients or flash need an unlock.
 //!
-//! - `unlock <key>` with the key kept in flash (the device's calibration key) unlocks for
-//!   [`AccessConfig::unlock_timeout_ms`]; any successful protected command extends it.
+//! - `unlock <key>` with the device's calibration key (per board, programmed in OTP; see
+//!   `board::app`) unlocks for [`AccessConfig::unlock_timeout_ms`]; any successful protected
+//!   command extends it.
 //! - The board starts locked at reset, and `lock` locks at once.
 //! - Wrong keys are rate-limited: after [`AccessConfig::free_attempts`] wrong keys, each further
 //!   attempt must wait a penalty that doubles per wrong key (capped); an attempt during the
