@@ -109,7 +109,7 @@ fn run_chain(params: &GyroParams, mut inject: impl FnMut(&mut SimBoard, usize) -
     let config = ReadoutConfig::for_board(
         board_config.timer_hz,
         params.dither_hz,
-        params.scale_factor_arcsec,
+        firmware::profile::BoardProfile::F405.counter_width,
     );
     let omega_l = board.gyro().derived().omega_l_rad_per_s;
     let phase = params.eps_rad + TAU / 8.0;

@@ -53,7 +53,7 @@ fn model_and_truth(params: &GyroParams, rate_deg_h: f64, seconds: f64) -> (Vec<f
     let config = ReadoutConfig::for_board(
         board_config.timer_hz,
         params.dither_hz,
-        params.scale_factor_arcsec,
+        firmware::profile::BoardProfile::F405.counter_width,
     );
     let mut readout = Readout::new(&config, CompensationSettings::default());
     let omega_l = board.gyro().derived().omega_l_rad_per_s;

@@ -49,7 +49,7 @@ fn tracking_beats_a_static_fit_when_lock_in_and_eps_drift() {
     let config = ReadoutConfig::for_board(
         board_config.timer_hz,
         params.dither_hz,
-        params.scale_factor_arcsec,
+        firmware::profile::BoardProfile::F405.counter_width,
     );
 
     let omega_l = board.gyro().derived().omega_l_rad_per_s;

@@ -76,7 +76,11 @@ mod app {
         let dp = pac::Peripherals::take().unwrap();
         let counter = InstructionCounter::start(Timer::Tim5);
         init_core(&mut cp.SCB, &mut cp.NVIC, &mut cp.SYST);
-        let config = ReadoutConfig::for_board(84e6, 389.0, 1.8655);
+        let config = ReadoutConfig::for_board(
+            84e6,
+            389.0,
+            firmware::profile::BoardProfile::F405.counter_width,
+        );
         let _records = init_readout(
             config,
             Readout::new(&config, CompensationSettings::default()),

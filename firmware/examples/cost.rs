@@ -53,7 +53,11 @@ mod app {
         let per_sample_x100 = n * 100 / samples.len() as u32;
 
         // The readout: Lissajous samples until the first window is solved.
-        let config = ReadoutConfig::for_board(TIMER_HZ, DITHER_HZ, 1.8655);
+        let config = ReadoutConfig::for_board(
+            TIMER_HZ,
+            DITHER_HZ,
+            firmware::profile::BoardProfile::F405.counter_width,
+        );
         let settings = CompensationSettings {
             coefficients: Coefficients::from_rad_per_s(344.0, 579.0).unwrap(),
             enabled: true,

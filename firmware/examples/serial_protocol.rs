@@ -144,7 +144,11 @@ mod app {
             banner: Some("# rlg-readout ready"),
             intercept: Some(quit),
         };
-        let readout_config = ReadoutConfig::for_board(84e6, 389.0, 1.8655);
+        let readout_config = ReadoutConfig::for_board(
+            84e6,
+            389.0,
+            firmware::profile::BoardProfile::F405.counter_width,
+        );
         let service = Service::new(config, serial, flash, Some(watchdog), readout_config);
         defmt::info!(
             "serial_protocol: clocks {}, USART1 up, readout idle",

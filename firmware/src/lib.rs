@@ -10,6 +10,7 @@
 #![cfg_attr(not(test), no_std)]
 
 pub mod calibration;
+pub mod profile;
 pub mod protocol;
 pub mod readout;
 pub mod sample;

@@ -36,14 +36,14 @@ pub struct ReadoutConfig {
 }
 
 impl ReadoutConfig {
-    /// Settings for a board with a 32-bit encoder timer, a capture timer at `timer_hz` and a
-    /// dither near `dither_hz` (+-20 % accepted). The scale factor is not needed here: the
-    /// chain works in fringes; it enters only the rate output.
-    pub fn for_board(timer_hz: f64, dither_hz: f64, _scale_factor_arcsec: f64) -> Self {
+    /// Settings for a board whose encoder register has `width`, with a capture timer at
+    /// `timer_hz` and a dither near `dither_hz` (+-20 % accepted). A board's own settings come
+    /// from its profile ([`crate::profile::BoardProfile::readout_config`]).
+    pub fn for_board(timer_hz: f64, dither_hz: f64, width: CounterWidth) -> Self {
         let half_period_ticks = (timer_hz / (2.0 * dither_hz)) as u32;
         Self {
             counter: FringeCountConfig {
-                width: CounterWidth::Bits32,
+                width,
                 max_step_counts: FringeCountConfig::max_step_for(
                     MAX_EDGE_RATE_HZ,
                     half_period_ticks,

@@ -80,7 +80,7 @@ impl SimDevice {
         let config = ReadoutConfig::for_board(
             board_config.timer_hz,
             params.dither_hz,
-            params.scale_factor_arcsec,
+            firmware::profile::BoardProfile::F405.counter_width,
         );
         let store = CalibrationStore::new(&flash, Geometry::F405_CALIBRATION_AREA)
             .map_err(|_| BoardError::Config("flash geometry"))?;

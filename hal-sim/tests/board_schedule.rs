@@ -52,7 +52,7 @@ fn board(params: &GyroParams, rate_deg_h: f64, latch: LatchTiming) -> (SimBoard,
     let readout = ReadoutConfig::for_board(
         config.timer_hz,
         params.dither_hz,
-        params.scale_factor_arcsec,
+        firmware::profile::BoardProfile::F405.counter_width,
     );
     (SimBoard::new(gyro, config).unwrap(), readout)
 }
@@ -378,7 +378,11 @@ fn the_residual_timing_error_adds_to_the_scheduled_instant() {
         latch_offset_s: offset_s,
         ..BoardConfig::for_gyro(&p)
     };
-    let readout = ReadoutConfig::for_board(config.timer_hz, p.dither_hz, p.scale_factor_arcsec);
+    let readout = ReadoutConfig::for_board(
+        config.timer_hz,
+        p.dither_hz,
+        firmware::profile::BoardProfile::F405.counter_width,
+    );
     let mut board = SimBoard::new(gyro, config).unwrap();
     let mut worst: f64 = 0.0;
     run(

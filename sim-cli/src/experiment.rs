@@ -77,7 +77,7 @@ pub fn run_constant_rate(
     let config = ReadoutConfig::for_board(
         board_config.timer_hz,
         params.dither_hz,
-        params.scale_factor_arcsec,
+        firmware::profile::BoardProfile::F405.counter_width,
     );
     let mut readout = Readout::new(&config, settings);
     let mut lissajous = Vec::new();

@@ -379,7 +379,7 @@ pub fn run() -> ! {
     let config = ReadoutConfig::for_board(
         super::TIMER_HZ as f64,
         DITHER_HZ_NOMINAL,
-        SCALE_FACTOR_ARCSEC,
+        crate::profile::BoardProfile::F405.counter_width,
     );
     let service_config = ServiceConfig {
         identity: identity(),

@@ -198,7 +198,11 @@ pub fn readout_chain(out: &mut Outputs) {
     use firmware::readout::{Readout, ReadoutConfig};
     use firmware::sample::TurnaroundSample;
     let mut rng = Rng::new(0x5eed_0014);
-    let config = ReadoutConfig::for_board(84e6, 389.0, 1.8655);
+    let config = ReadoutConfig::for_board(
+        84e6,
+        389.0,
+        firmware::profile::BoardProfile::F405.counter_width,
+    );
     let coefficients = Coefficients::from_rad_per_s(387.0, 383.0).unwrap_or_default();
     let settings = CompensationSettings {
         coefficients,

@@ -1,0 +1,100 @@
+//! The board profile: the facts of one readout board that the firmware, the simulated board and
+//! the host tools share, defined once.
+//!
+//! A profile is what would change if the same firmware ran on another board or read another
+//! gyro: the capture-timer clock, the encoder register's width, the fixed delays of the
+//! turnaround path, the dither frequencies the scheduler accepts, and the nominal gyro the board
+//! is built for. `board/` (the MCU) reads [`BoardProfile::F405`]; hal-sim's simulated board
+//! reads the same constant, so a timing or width change is made here and nowhere else.
+//!
+//! The delays are nominal values from the data sheets (see `board::turnaround`); they are to be
+//! calibrated on a real board with the PA15 test point and then changed here.
+
+use crate::readout::ReadoutConfig;
+use crate::sample::TurnaroundKind;
+use crate::signal::fringe_count::CounterWidth;
+use crate::signal::turnaround_schedule::SchedulerConfig;
+
+/// The facts of one readout board (immutable).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoardProfile {
+    /// Board name, as `id` reports it.
+    pub name: &'static str,
+    /// Kernel clock of the capture timer (TIM2) and the encoder timer (TIM5), Hz: the unit of
+    /// every turnaround timestamp.
+    pub timer_hz: u32,
+    /// Width of the encoder timer's count register.
+    pub counter_width: CounterWidth,
+    /// Pick-off comparator + input filter + resynchronisation: edge to capture, timer ticks.
+    pub pickoff_delay_ticks: u32,
+    /// Compare match to the end of the ADC sampling window, timer ticks (the sampling instant
+    /// of a turnaround is its compare instant plus this).
+    pub aperture_delay_ticks: u32,
+    /// Which turnaround follows a rising pick-off edge (the pick-off's polarity).
+    pub after_rising_edge: TurnaroundKind,
+    /// Dither frequencies the turnaround scheduler accepts, Hz (inclusive).
+    pub dither_hz_range: (u32, u32),
+    /// The dither frequency of the gyro this board is built for, Hz (the cycle assembler accepts
+    /// +-20 % around it; the rate output averages over one second of it).
+    pub nominal_dither_hz: f64,
+    /// Scale factor of that gyro, arcsec per fringe (only the rate output in deg/h uses it).
+    pub scale_factor_arcsec: f64,
+}
+
+impl BoardProfile {
+    /// The STM32F405 readout board (docs/board.md) for the docs/physics.md gyro: 84 MHz APB1
+    /// timers, 32-bit TIM5 encoder, 18 ticks pick-off path, 70 ticks ADC aperture (2.5 + 15 ADC
+    /// clocks at 21 MHz), 200-1500 Hz dither, 389 Hz nominal, 1.8655 arcsec per fringe.
+    pub const F405: Self = Self {
+        name: "rlg-readout-f405",
+        timer_hz: 84_000_000,
+        counter_width: CounterWidth::Bits32,
+        pickoff_delay_ticks: 18,
+        aperture_delay_ticks: 70,
+        after_rising_edge: TurnaroundKind::Minus,
+        dither_hz_range: (200, 1500),
+        nominal_dither_hz: 389.0,
+        scale_factor_arcsec: 1.8655,
+    };
+
+    /// The turnaround scheduler's settings on this board.
+    pub const fn scheduler_config(&self) -> SchedulerConfig {
+        SchedulerConfig::for_dither_range(
+            self.timer_hz,
+            self.dither_hz_range.0,
+            self.dither_hz_range.1,
+            self.pickoff_delay_ticks,
+            self.aperture_delay_ticks,
+            self.after_rising_edge,
+        )
+    }
+
+    /// The readout's settings on this board for a dither near `dither_hz`.
+    pub fn readout_config(&self, dither_hz: f64) -> ReadoutConfig {
+        ReadoutConfig::for_board(self.timer_hz as f64, dither_hz, self.counter_width)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn f405_scheduler_accepts_the_nominal_dither_and_refuses_outside_its_range() {
+        let p = BoardProfile::F405;
+        let s = p.scheduler_config();
+        let half = |hz: f64| (p.timer_hz as f64 / (2.0 * hz)) as u32;
+        assert!((s.min_half_ticks..=s.max_half_ticks).contains(&half(p.nominal_dither_hz)));
+        assert!((s.min_half_ticks..=s.max_half_ticks).contains(&half(300.0)));
+        assert!((s.min_half_ticks..=s.max_half_ticks).contains(&half(1000.0)));
+        assert!(half(100.0) > s.max_half_ticks);
+        assert!(half(5000.0) < s.min_half_ticks);
+        assert_eq!(s.fixed_delay_ticks(), 88);
+    }
+
+    #[test]
+    fn readout_config_uses_the_profile_counter_width() {
+        let c = BoardProfile::F405.readout_config(389.0);
+        assert_eq!(c.counter.width, CounterWidth::Bits32);
+    }
+}
