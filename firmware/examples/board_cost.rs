@@ -19,7 +19,8 @@
 
 #[cfg(target_os = "none")]
 mod app {
-    use firmware::board::app::{init_core, init_readout, isr, READOUT};
+    use firmware::board::isr;
+    use firmware::board::resources::{init_core, init_readout, READOUT};
     use firmware::board::turnaround::{self, Edge, Scheduler};
     use firmware::board::{pac, usart};
     use firmware::calibration::session::CalibrationSession;
@@ -97,7 +98,7 @@ mod app {
         let latch = counter.count(isr::adc);
 
         let pickoff_registers = counter.count(isr::tim2);
-        let mut scheduler = Scheduler::new(84_000_000, 200, 1500);
+        let mut scheduler = Scheduler::new();
         let half = 84_000_000 / 389 / 2;
         let mut t = 1000u32;
         for i in 0..6 {

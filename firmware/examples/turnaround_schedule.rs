@@ -3,7 +3,7 @@
 //!
 //! The scheduler is plain logic (`signal::turnaround_schedule`, unit-tested on the host); this
 //! checks the same code compiled for the M4F with the board's settings
-//! (`board::turnaround::scheduler_config`: its delays and pick-off polarity) and its counters,
+//! (`profile::BoardProfile::scheduler_config`: its delays and pick-off polarity) and its counters,
 //! on synthetic pick-off edges in 84 MHz ticks:
 //! - a comparator threshold offset (rising edges late, falling edges early by the same amount)
 //!   and the fixed pick-off delay cancel: the compare lands on the true extremum minus the ADC
@@ -19,7 +19,8 @@
 #[cfg(target_os = "none")]
 mod app {
     use core::sync::atomic::Ordering;
-    use firmware::board::turnaround::{self, scheduler_config, IMPLAUSIBLE};
+    use firmware::board::turnaround::{self, IMPLAUSIBLE};
+    use firmware::profile::BoardProfile;
     use firmware::sample::TurnaroundKind;
     use firmware::signal::compensation::Q32_PER_FRINGE;
     use firmware::signal::cycle::CycleRecord;
@@ -29,7 +30,7 @@ mod app {
     };
 
     const TIMER_HZ: u32 = 84_000_000;
-    const CONFIG: SchedulerConfig = scheduler_config(TIMER_HZ, 200, 1500);
+    const CONFIG: SchedulerConfig = BoardProfile::F405.scheduler_config();
     /// One dither period at 389 Hz, ticks (rounded to even, so T/4 is exact).
     const PERIOD: u32 = 215_936;
     /// Comparator threshold offset as a time shift of the edges, ticks (8.3 us).
@@ -183,7 +184,7 @@ mod app {
             g.schedule.is_some() as i64,
             0,
         );
-        let mut board = turnaround::Scheduler::new(TIMER_HZ, 200, 1500);
+        let mut board = turnaround::Scheduler::new();
         let before = IMPLAUSIBLE.load(Ordering::Relaxed);
         let _ = board.on_edge(Edge::Rising, 1_000, 0);
         let b = board.on_edge(Edge::Falling, 1_010, 0);

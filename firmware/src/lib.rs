@@ -14,6 +14,7 @@ pub mod profile;
 pub mod protocol;
 pub mod readout;
 pub mod sample;
+pub mod service;
 pub mod signal;
 
 pub mod storage;

@@ -90,7 +90,7 @@ impl DeviceLink for MemDevice {
         }
     }
 
-    fn active_settings(&self) -> CompensationSettings {
+    fn active_settings(&mut self) -> CompensationSettings {
         self.staged.unwrap_or(self.active)
     }
 
@@ -151,7 +151,7 @@ fn observe(executor: &Executor, device: &MemDevice) -> Observation {
     });
     Observation {
         answers,
-        settings: device.active_settings(),
+        settings: d.active_settings(),
         stored: device.stored.clone(),
         streaming: executor.streaming(),
     }

@@ -3,9 +3,10 @@
 //!
 //! [`SimDevice`] is what a host tool or a person at a terminal talks to in place of a board:
 //! bytes in ([`SimDevice::receive`]), bytes out ([`SimDevice::take_output`]), simulated time
-//! advanced explicitly ([`SimDevice::run_for`]). Every line is executed by the firmware's own
-//! `protocol` code against the firmware's own `Readout`, `CalibrationSession` and
-//! `CalibrationStore`; only the peripherals are simulated.
+//! advanced explicitly ([`SimDevice::run_for`]). It runs the firmware's own command service
+//! (`firmware::service::Service`, the very one the board's main loop runs) against the
+//! firmware's own `Readout`; only the peripherals are simulated, behind the service's ports
+//! (simulated time, an output buffer, the readout in plain memory) and the NOR flash model.
 //!
 //! Like the board, a `store` stalls: the flash model books the erase and programming time, the
 //! simulated gyro runs on meanwhile without the readout seeing it, and the readout is
@@ -18,34 +19,23 @@
 //! never contains 0x00); the answer to `stream on` is still plain text.
 
 use crate::board::{BoardConfig, BoardError, SimBoard};
-use crate::flash::{CalibrationFlash, FlashError};
+use crate::flash::CalibrationFlash;
 use crate::gyro::Gyro;
 use crate::input::InputProfile;
 use crate::params::GyroParams;
-use firmware::calibration::validation::AcceptanceLimits;
-use firmware::protocol::endpoint;
-use firmware::protocol::execute::{DeviceLink, DeviceStatus, Executor, Identity};
-use firmware::protocol::line::{LineAssembler, LineEvent};
-use firmware::protocol::stream::{encode_frame, MAX_FRAME};
+use firmware::profile::BoardProfile;
+use firmware::protocol::execute::Identity;
 use firmware::readout::{Readout, ReadoutConfig};
-use firmware::signal::compensation::CompensationSettings;
-use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
-use firmware::storage::ReadoutPaused;
-use firmware::storage::{CalibrationRecord, CalibrationStore, Geometry, LoadReport, StoreError};
+use firmware::service::ports::{Clock, ReadoutAccess, SerialTx};
+use firmware::service::{Service, ServiceConfig};
+use firmware::storage::Geometry;
 
 /// The simulated board with its firmware.
 pub struct SimDevice {
     board: SimBoard,
     config: ReadoutConfig,
     readout: Readout,
-    flash: CalibrationFlash,
-    store: CalibrationStore,
-    executor: Executor,
-    identity: Identity,
-    line: LineAssembler,
-    averager: RateAverager,
-    averager_config: AveragerConfig,
-    status: DeviceStatus,
+    service: Service<CalibrationFlash>,
     output: Vec<u8>,
     lissajous: Vec<(u16, u16)>,
     /// Simulated seconds the CPU is still stalled by a flash operation.
@@ -59,13 +49,14 @@ pub const SIM_IDENTITY: Identity = Identity {
     board: "rlg-readout-sim",
     serial_number: 4242,
     key: 0xC0FF_EE42,
-    scale_factor_arcsec: 1.8655,
-    capture_timer_hz: 84_000_000,
+    scale_factor_arcsec: BoardProfile::F405.scale_factor_arcsec as f32,
+    capture_timer_hz: BoardProfile::F405.timer_hz,
 };
 
 impl SimDevice {
     /// Powers up a board on `flash`: loads the newest valid calibration (or the defaults) and
-    /// starts the readout with it, locked, as the firmware does at reset.
+    /// starts the readout with it, locked, as the firmware does at reset. The board's profile is
+    /// the F405's, built for this gyro (its nominal dither and scale factor).
     pub fn boot(
         params: GyroParams,
         input: InputProfile,
@@ -75,49 +66,42 @@ impl SimDevice {
     ) -> Result<Self, BoardError> {
         let gyro =
             Gyro::new(params, input).map_err(|_| BoardError::Config("invalid gyro parameters"))?;
-        let board_config = BoardConfig::for_gyro(&params);
-        let board = SimBoard::new(gyro, board_config.clone())?;
-        let config = ReadoutConfig::for_board(
-            board_config.timer_hz,
+        let board = SimBoard::new(gyro, BoardConfig::for_gyro(&params))?;
+        let profile = BoardProfile {
+            nominal_dither_hz: params.dither_hz,
+            scale_factor_arcsec: params.scale_factor_arcsec,
+            ..BoardProfile::F405
+        };
+        let config = ServiceConfig::for_profile(
+            &profile,
             params.dither_hz,
-            firmware::profile::BoardProfile::F405.counter_width,
+            identity,
+            Geometry::F405_CALIBRATION_AREA,
         );
-        let store = CalibrationStore::new(&flash, Geometry::F405_CALIBRATION_AREA)
-            .map_err(|_| BoardError::Config("flash geometry"))?;
         flash.power_on();
-        let (record, report) = store.load(&mut flash);
+        let booted = Service::boot(config, flash, Some(boot_count))
+            .map_err(|_| BoardError::Config("flash geometry"))?;
         Ok(Self {
-            readout: Readout::new(&config, record.settings),
-            executor: Executor::new(&report, record.fit, boot_count, AcceptanceLimits::DEFAULT),
-            averager_config: AveragerConfig {
-                window_cycles: params.dither_hz.round().max(1.0) as u32,
-                mode: AveragingMode::WholePeriods,
-                timer_hz: board_config.timer_hz,
-                scale_factor_arcsec: params.scale_factor_arcsec,
-            },
-            averager: RateAverager::new(),
-            status: DeviceStatus::default(),
-            line: LineAssembler::new(),
+            readout: Readout::new(&config.readout, booted.settings),
+            service: booted.service,
+            config: config.readout,
             output: Vec::new(),
             lissajous: Vec::new(),
             stall_s: 0.0,
-            identity,
             board,
-            config,
-            flash,
-            store,
         })
     }
 
     /// Cuts the power: returns the flash, whose contents survive.
-    pub fn power_off(mut self) -> CalibrationFlash {
-        self.flash.power_off();
-        self.flash
+    pub fn power_off(self) -> CalibrationFlash {
+        let mut flash = self.service.into_flash();
+        flash.power_off();
+        flash
     }
 
     /// The simulated flash (e.g. to arm a power cut).
     pub fn flash_mut(&mut self) -> &mut CalibrationFlash {
-        &mut self.flash
+        self.service.flash_mut()
     }
 
     /// The firmware's readout state.
@@ -156,57 +140,34 @@ impl SimDevice {
             return;
         };
         self.board.on_cycle(&record);
-        let reading = self.averager.push(&self.averager_config, record.output);
-        self.status.on_cycle(record.output.flags, reading);
-        let cycle_s = record.duration_s(&self.config.cycle);
-        let actions = self.executor.on_cycle(&record, cycle_s);
-        if let Some(settings) = actions.stage {
-            self.readout.stage_compensation(settings);
-        }
-        if let Some(frame) = actions.frame {
-            let mut buf = [0u8; MAX_FRAME];
-            let n = encode_frame(&frame, &mut buf);
-            self.output.extend_from_slice(&buf[..n]);
-        }
+        let mut ports = SimPorts {
+            readout: &mut self.readout,
+            output: &mut self.output,
+            now_ms: (self.board.time_s() * 1000.0) as u32,
+            paused: false,
+        };
+        self.service.on_cycle(&record, &mut ports);
     }
 
     /// Serial bytes from the host: every completed line is executed and answered at once, by
-    /// the same `protocol::endpoint` functions the board runs.
+    /// the firmware's own command service.
     pub fn receive(&mut self, bytes: &[u8]) {
         for &byte in bytes {
-            // Framing follows the mode the host was in when it sent the line.
-            let streaming = self.executor.streaming();
-            let Some(event) = self.line.push(byte) else {
-                continue;
-            };
-            let event = match event {
-                LineEvent::Line(text) => OwnedEvent::Line(text.to_owned()),
-                LineEvent::TooLong => OwnedEvent::TooLong,
-                LineEvent::Garbage => OwnedEvent::Garbage,
-            };
-            self.refresh_status();
-            let mut link = Link {
+            let busy_before_s = self.service.flash().stats().busy_s;
+            let mut ports = SimPorts {
                 readout: &mut self.readout,
-                flash: &mut self.flash,
-                store: &self.store,
-                status: self.status,
+                output: &mut self.output,
                 now_ms: (self.board.time_s() * 1000.0) as u32,
-                stall_s: &mut self.stall_s,
+                paused: false,
             };
-            let answer = endpoint::answer(
-                event.as_event(),
-                &mut self.executor,
-                &self.identity,
-                &mut link,
-            );
-            let output = &mut self.output;
-            endpoint::send_answer(streaming, &answer, |b| output.extend_from_slice(b));
+            self.service.on_byte(byte, &mut ports);
+            if ports.paused {
+                // The stall: the readout misses what happens meanwhile and re-synchronises
+                // after it (`half_cycle`).
+                let busy_s = self.service.flash().stats().busy_s - busy_before_s;
+                self.stall_s += busy_s.max(1e-3);
+            }
         }
-    }
-
-    fn refresh_status(&mut self) {
-        self.status
-            .update_from(&self.readout.counters(), self.readout.dither());
     }
 
     /// Everything sent to the host since the last call.
@@ -215,63 +176,43 @@ impl SimDevice {
     }
 }
 
-/// A line event that outlives the assembler's buffer (the device is borrowed while answering).
-enum OwnedEvent {
-    Line(String),
-    TooLong,
-    Garbage,
-}
-
-impl OwnedEvent {
-    fn as_event(&self) -> LineEvent<'_> {
-        match self {
-            Self::Line(text) => LineEvent::Line(text),
-            Self::TooLong => LineEvent::TooLong,
-            Self::Garbage => LineEvent::Garbage,
-        }
-    }
-}
-
-/// The firmware's view of the device during one command.
-struct Link<'a> {
+/// The simulated board's ports for one service call: simulated time, the output buffer, the
+/// readout in plain memory. A pause only marks itself: the flash model books the stall's length,
+/// which the device then lets pass with the readout deaf.
+struct SimPorts<'a> {
     readout: &'a mut Readout,
-    flash: &'a mut CalibrationFlash,
-    store: &'a CalibrationStore,
-    status: DeviceStatus,
+    output: &'a mut Vec<u8>,
     now_ms: u32,
-    stall_s: &'a mut f64,
+    paused: bool,
 }
 
-impl DeviceLink for Link<'_> {
-    type FlashError = FlashError;
-
+impl Clock for SimPorts<'_> {
     fn now_ms(&self) -> u32 {
         self.now_ms
     }
+}
 
-    fn status(&self) -> DeviceStatus {
-        self.status
+impl SerialTx for SimPorts<'_> {
+    fn send(&mut self, bytes: &[u8]) {
+        self.output.extend_from_slice(bytes);
     }
 
-    fn active_settings(&self) -> CompensationSettings {
-        self.readout.staged_or_active_compensation()
+    /// The simulated link has unbounded room: no frame is dropped here.
+    fn try_send_frame(&mut self, frame: &[u8]) -> bool {
+        self.output.extend_from_slice(frame);
+        true
+    }
+}
+
+impl ReadoutAccess for SimPorts<'_> {
+    fn with_readout<R>(&mut self, f: impl FnOnce(&mut Readout) -> R) -> R {
+        f(self.readout)
     }
 
-    fn stage_settings(&mut self, settings: CompensationSettings) {
-        self.readout.stage_compensation(settings);
+    fn stop_readout(&mut self) {
+        self.paused = true;
     }
 
-    fn store(&mut self, record: &CalibrationRecord) -> Result<u32, StoreError<FlashError>> {
-        let before = self.flash.stats().busy_s;
-        let result =
-            self.store
-                .store_while_paused(self.flash, &ReadoutPaused::assume_paused(), record);
-        // The stall: the readout misses what happens meanwhile and re-synchronises after it.
-        *self.stall_s += (self.flash.stats().busy_s - before).max(1e-3);
-        result
-    }
-
-    fn load(&mut self) -> (CalibrationRecord, LoadReport) {
-        self.store.load(self.flash)
-    }
+    /// Nothing to do now: the device re-synchronises the readout when the stall has passed.
+    fn restart_readout(&mut self) {}
 }

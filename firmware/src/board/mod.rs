@@ -17,8 +17,16 @@
 //! | [`usart`] | USART1 | the calibration protocol's serial link (RXNE/TXE interrupts, bounded queues) |
 //! | [`flash`] | FLASH | sectors 10-11 as an `embedded_storage` `NorFlash` |
 //! | [`watchdog`] | IWDG | reset if the main loop stops |
-//! | [`app`] | NVIC, SysTick | priorities, handlers, queues between them, start-up: [`app::run`] |
-//! | [`service`] | - | the main loop: protocol, rate averaging, stream, flash store, watchdog |
+//!
+//! and the contexts around them, in three files that import one way (`app` -> `ports` ->
+//! `resources` <- `isr`):
+//!
+//! | file | job |
+//! |---|---|
+//! | [`resources`] | NVIC priorities, the queues and the priority lock the contexts share, SysTick; the readout's start, pause and resume |
+//! | [`isr`] | the thin interrupt handlers (registers -> plain structs -> queues or plain logic) and the macro binding them to the vectors |
+//! | [`ports`] | the board's implementation of the command service's ports (clock, serial, readout access, the pause) |
+//! | [`app`] | start-up ([`app::run`]) and the main loop ([`app::serve`]) running `crate::service::Service` |
 //!
 //! **Timer roles.** The issue asks for the encoder on "TIM2 or TIM5" and the brief suggested TIM2
 //! as encoder and TIM5 for the turnaround timing, with the encoder latched "through ITR". That
@@ -33,7 +41,9 @@ pub mod app;
 pub mod clocks;
 pub mod encoder;
 pub mod flash;
-pub mod service;
+pub mod isr;
+pub mod ports;
+pub mod resources;
 pub mod turnaround;
 pub mod usart;
 pub mod watchdog;
@@ -46,7 +56,8 @@ pub use crate::rt::pac;
 
 /// Timer kernel clock of APB1 timers (TIM2-TIM5): APB1 = 42 MHz with prescaler 4, so the timers
 /// run at twice that (RM0090 6.2, "timer clock = 2 x PCLK1 when the APB1 prescaler is not 1").
-pub const TIMER_HZ: u32 = 84_000_000;
+/// The board profile states it for everyone else (`crate::profile::BoardProfile::F405`).
+pub const TIMER_HZ: u32 = crate::profile::BoardProfile::F405.timer_hz;
 /// APB2 clock (USART1, ADC interface).
 pub const PCLK2_HZ: u32 = 84_000_000;
 /// Core clock.

@@ -36,24 +36,26 @@
 use core::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, AtomicU8, Ordering};
 
 use super::pac;
+use crate::profile::BoardProfile;
 use crate::sample::{TurnaroundKind, TurnaroundSample};
 use crate::signal::cycle::CycleRecord;
 use crate::signal::turnaround_schedule::{self as schedule, SchedulerConfig};
 pub use crate::signal::turnaround_schedule::{Edge, Schedule};
 
 /// Pick-off comparator delay + input filter + resynchronisation, ticks (84 MHz). Nominal: 100 ns
-/// comparator, 95 ns filter, 2 clocks. Calibrate on the board.
-pub const PICKOFF_DELAY_TICKS: u32 = 18;
+/// comparator, 95 ns filter, 2 clocks = 18 ticks. Calibrate on the board; the value lives in
+/// the board profile, which the simulated board reads too.
+pub const PICKOFF_DELAY_TICKS: u32 = BoardProfile::F405.pickoff_delay_ticks;
 /// Compare match to the end of the ADC sampling window, ticks: (2.5 + 15) ADC clocks at 21 MHz
 /// = 0.83 us = 70 ticks. The sample's timestamp is `CCR1 + APERTURE_DELAY_TICKS`.
-pub const APERTURE_DELAY_TICKS: u32 = 70;
+pub const APERTURE_DELAY_TICKS: u32 = BoardProfile::F405.aperture_delay_ticks;
 /// The compare must be armed at least this far ahead (2 us), else the turnaround is skipped
 /// (counted in [`LATE`]) rather than fired 51 s later, after the counter wraps.
 const MIN_LEAD_TICKS: u32 = 168;
 /// Which turnaround follows a rising pick-off edge (angle increasing through zero: the next
 /// extremum is a maximum, the rate goes from + to -). A pick-off wired with the other polarity
 /// flips it: docs/physics.md pitfall 4, check against the simulator's sign pattern on the board.
-pub const AFTER_RISING_EDGE: TurnaroundKind = TurnaroundKind::Minus;
+pub const AFTER_RISING_EDGE: TurnaroundKind = BoardProfile::F405.after_rising_edge;
 
 /// Input-rate shift `Omega_i / |psi_ddot|` in timer ticks (signed), written by the cycle task,
 /// read by the pick-off handler. One aligned word: no lock needed.
@@ -116,19 +118,6 @@ fn park(tim: &pac::tim2::RegisterBlock, now: u32) {
         .write(|w| unsafe { w.bits(now.wrapping_add(1 << 31)) });
 }
 
-/// The prediction with this board's delays and polarity for a dither between `min_hz` and
-/// `max_hz`.
-pub const fn scheduler_config(timer_hz: u32, min_hz: u32, max_hz: u32) -> SchedulerConfig {
-    SchedulerConfig::for_dither_range(
-        timer_hz,
-        min_hz,
-        max_hz,
-        PICKOFF_DELAY_TICKS,
-        APERTURE_DELAY_TICKS,
-        AFTER_RISING_EDGE,
-    )
-}
-
 /// The pick-off handler's prediction: the plain-logic scheduler and this board's settings;
 /// implausible edges are counted in [`IMPLAUSIBLE`].
 #[derive(Clone, Copy, Debug)]
@@ -137,11 +126,17 @@ pub struct Scheduler {
     state: schedule::Scheduler,
 }
 
+impl Default for Scheduler {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 impl Scheduler {
-    /// For a dither between `min_hz` and `max_hz`.
-    pub const fn new(timer_hz: u32, min_hz: u32, max_hz: u32) -> Self {
+    /// With this board's profile: its delays, polarity and dither range.
+    pub const fn new() -> Self {
         Self {
-            config: scheduler_config(timer_hz, min_hz, max_hz),
+            config: BoardProfile::F405.scheduler_config(),
             state: schedule::Scheduler::new(),
         }
     }

@@ -51,7 +51,7 @@ pub trait DeviceLink {
     fn now_ms(&self) -> u32;
     fn status(&self) -> DeviceStatus;
     /// The settings the readout applies now.
-    fn active_settings(&self) -> CompensationSettings;
+    fn active_settings(&mut self) -> CompensationSettings;
     /// Hands settings to the readout; they take effect whole at the next cycle boundary.
     fn stage_settings(&mut self, settings: CompensationSettings);
     /// Pauses the readout, stores the record (read back), resumes; returns its sequence number.

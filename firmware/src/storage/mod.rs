@@ -2,7 +2,8 @@
 //! sectors (10 and 11 of the STM32F405, 128 KiB each), surviving a power cut at any moment.
 //!
 //! Rooms: [`crc`] (CRC-32/ISO-HDLC), [`record`] (the 64-byte record, its byte layout and
-//! checks), [`store`] (the two-sector log). Flash access goes only through
+//! checks), [`store`] (the two-sector log), [`ram_flash`] (NOR flash in RAM, for QEMU and host
+//! tests). Flash access goes only through
 //! `embedded_storage::nor_flash::NorFlash`; everything else is plain logic, tested on the host
 //! against hal-sim's NOR flash model with power cuts at every byte.
 //!
@@ -53,6 +54,7 @@
 //! runs at boot, before the readout starts, and reads both sectors once.
 
 pub mod crc;
+pub mod ram_flash;
 pub mod record;
 pub mod store;
 
@@ -77,8 +79,9 @@ pub const STORE_STALL_MAX_MS: u32 =
 
 /// The caller's word that the readout is paused, required to store (see the module docs).
 ///
-/// Nothing checks it: it makes the stall visible at every call site. Create it where the
-/// readout is stopped, right before storing, and drop it before the readout resumes.
+/// Nothing checks it: it makes the stall visible at every call site. On the product path the
+/// only source is the command service's pause guard (`service::ports::pause`), which stops the
+/// readout and restarts it when dropped; tests of the store alone create it directly.
 #[derive(Debug)]
 pub struct ReadoutPaused {
     _private: (),

@@ -43,7 +43,7 @@ pub fn identify(id: &Identity) -> Response {
 }
 
 /// `status`.
-pub fn status<D: DeviceLink>(id: &Identity, device: &D, flags: StatusFlags) -> Response {
+pub fn status<D: DeviceLink>(id: &Identity, device: &mut D, flags: StatusFlags) -> Response {
     let s = device.status();
     let settings = device.active_settings();
     let amplitude_arcsec = s.dither_amplitude_rad * id.scale_factor_arcsec / core::f32::consts::TAU;
@@ -68,7 +68,7 @@ counter_glitches={} phase_glitches={} signal_lost={} missed={} comp={} track={} 
 }
 
 /// `get a`, `get b`, `get coeffs` (`None`).
-pub fn get<D: DeviceLink>(id: &Identity, device: &D, which: Option<Coefficient>) -> Response {
+pub fn get<D: DeviceLink>(id: &Identity, device: &mut D, which: Option<Coefficient>) -> Response {
     let c = device.active_settings().coefficients;
     match which {
         Some(Coefficient::A) => ok_with(format_args!("a={}", c.a_rad_per_s())),
@@ -121,7 +121,7 @@ mod tests {
 
     #[test]
     fn status_reports_the_snapshot_and_the_flags() {
-        let device = MemDevice {
+        let mut device = MemDevice {
             status: DeviceStatus {
                 signal_ok: true,
                 dither_hz: 389.0,
@@ -142,7 +142,7 @@ mod tests {
             unlocked: false,
         };
         assert_eq!(
-            text(status(&ID, &device, flags)).trim_end(),
+            text(status(&ID, &mut device, flags)).trim_end(),
             "OK signal=ok dither_hz=389.000 dither_amp_arcsec=200.00 rate_deg_h=15.0000 \
 turnarounds=10 cycles=5 counter_glitches=1 phase_glitches=2 signal_lost=3 missed=4 comp=off \
 track=on coeffs=flash:3 locked=yes"
@@ -154,14 +154,14 @@ track=on coeffs=flash:3 locked=yes"
         let mut device = MemDevice::default();
         device.settings.coefficients = Coefficients::from_rad_per_s(0.5, 0.5).unwrap();
         assert_eq!(
-            text(get(&ID, &device, Some(Coefficient::A))).trim_end(),
+            text(get(&ID, &mut device, Some(Coefficient::A))).trim_end(),
             "OK a=0.5"
         );
         assert_eq!(
-            text(get(&ID, &device, Some(Coefficient::B))).trim_end(),
+            text(get(&ID, &mut device, Some(Coefficient::B))).trim_end(),
             "OK b=0.5"
         );
-        let all = text(get(&ID, &device, None));
+        let all = text(get(&ID, &mut device, None));
         assert!(all.starts_with("OK a=0.5 b=0.5 lock_in_deg_h="), "{all}");
         // a = b: the asymmetry is zero.
         assert!(all.trim_end().ends_with("eps_rad=0"), "{all}");

@@ -78,7 +78,7 @@ pub(crate) mod testing {
         fn status(&self) -> DeviceStatus {
             self.status
         }
-        fn active_settings(&self) -> CompensationSettings {
+        fn active_settings(&mut self) -> CompensationSettings {
             self.settings
         }
         fn stage_settings(&mut self, settings: CompensationSettings) {

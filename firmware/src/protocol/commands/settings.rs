@@ -53,7 +53,7 @@ pub fn compensation<D: DeviceLink>(
 
 /// `track on|off`: on starts the loop from the coefficients in force.
 pub fn tracking<D: DeviceLink>(
-    device: &D,
+    device: &mut D,
     calibration: &mut CalibrationState,
     on: bool,
 ) -> Response {
@@ -124,13 +124,13 @@ mod tests {
 
     #[test]
     fn track_answers_on_with_memory_and_off() {
-        let device = MemDevice::default();
+        let mut device = MemDevice::default();
         let mut cal = CalibrationState::new(AcceptanceLimits::DEFAULT);
-        let on = text(tracking(&device, &mut cal, true));
+        let on = text(tracking(&mut device, &mut cal, true));
         assert_eq!(on.trim_end(), "OK track=on memory_cycles=20000");
         assert!(cal.tracking());
         assert_eq!(
-            text(tracking(&device, &mut cal, false)).trim_end(),
+            text(tracking(&mut device, &mut cal, false)).trim_end(),
             "OK track=off"
         );
         assert!(!cal.tracking());

@@ -1,0 +1,119 @@
+//! The interrupt handlers: thin. Each copies its registers into plain structs (a
+//! `TurnaroundSample`, an edge time, a byte, a ready flag) and calls plain logic or hands the
+//! data on through a queue; the priorities, queues and locks they use are in
+//! [`super::resources`]. The bodies are bound to the vectors by [`crate::bind_board_interrupts`]
+//! in the binary, not here: a library that owned vectors would force them on every binary that
+//! links it, the on-target tests included.
+
+use core::sync::atomic::Ordering;
+
+use cortex_m::peripheral::NVIC;
+
+use super::resources::{
+    self, LATCH_SIDE, READOUT, READOUT_TASK_IRQ, RECORDS_DROPPED, SCHEDULER, TURNAROUNDS_DROPPED,
+};
+use super::{adc, pac, turnaround, usart};
+
+/// `ADC`: the turnaround latch (JEOC of ADC1).
+pub fn adc() {
+    // SAFETY: register reads/flag clears of peripherals this handler owns after start-up.
+    let (adc1, adc2, tim2, tim5) = unsafe {
+        (
+            &*pac::ADC1::ptr(),
+            &*pac::ADC2::ptr(),
+            &*pac::TIM2::ptr(),
+            &*pac::TIM5::ptr(),
+        )
+    };
+    let Some(sample) = turnaround::latch(adc1, adc2, tim2, tim5) else {
+        return;
+    };
+    // SAFETY: this handler is the only producer.
+    if let Some(queue) = unsafe { LATCH_SIDE.get() } {
+        if queue.enqueue(sample).is_err() {
+            TURNAROUNDS_DROPPED.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+    NVIC::pend(READOUT_TASK_IRQ);
+}
+
+/// `TIM2`: a pick-off edge.
+pub fn tim2() {
+    // SAFETY: TIM2's SR/CCR are used by this handler only after start-up (and by the main
+    // loop's pause, with this interrupt masked).
+    let tim = unsafe { &*pac::TIM2::ptr() };
+    // SAFETY: this handler owns the scheduler.
+    if let Some(scheduler) = unsafe { SCHEDULER.get() } {
+        turnaround::on_pickoff_interrupt(tim, scheduler);
+    }
+}
+
+/// `USART1`.
+pub fn usart1() {
+    usart::on_interrupt();
+}
+
+/// `DMA2_STREAM0`: a Lissajous half buffer is complete.
+pub fn dma2_stream0() {
+    // SAFETY: LISR/LIFCR of stream 0 are used by this handler only.
+    if adc::on_dma_interrupt(unsafe { &*pac::DMA2::ptr() }) {
+        NVIC::pend(READOUT_TASK_IRQ);
+    }
+}
+
+/// `SysTick`: 1 ms.
+pub fn systick() {
+    resources::tick_ms();
+}
+
+/// `EXTI1` (software): the readout task.
+pub fn readout_task() {
+    READOUT.lock(|task| {
+        while let Some(sample) = task.samples.dequeue() {
+            if let Some(record) = task.readout.on_turnaround(&task.config, sample) {
+                turnaround::publish_rate_shift(&record);
+                if task.records.enqueue(record).is_err() {
+                    RECORDS_DROPPED.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        }
+        let (config, readout) = (&task.config, &mut task.readout);
+        adc::take_ready_blocks(|a, b| readout.on_lissajous_sample(config, a, b));
+    });
+}
+
+/// Binds the board's handlers to the vector table. Invoke once, at the top level of the binary
+/// that runs the board (`board::app::run`, or `board::app::serve` in the QEMU serial example).
+#[macro_export]
+macro_rules! bind_board_interrupts {
+    () => {
+        mod board_vectors {
+            use $crate::rt::pac::interrupt;
+
+            #[cortex_m_rt::interrupt]
+            fn ADC() {
+                $crate::board::isr::adc()
+            }
+            #[cortex_m_rt::interrupt]
+            fn TIM2() {
+                $crate::board::isr::tim2()
+            }
+            #[cortex_m_rt::interrupt]
+            fn USART1() {
+                $crate::board::isr::usart1()
+            }
+            #[cortex_m_rt::interrupt]
+            fn DMA2_STREAM0() {
+                $crate::board::isr::dma2_stream0()
+            }
+            #[cortex_m_rt::interrupt]
+            fn EXTI1() {
+                $crate::board::isr::readout_task()
+            }
+            #[cortex_m_rt::exception]
+            fn SysTick() {
+                $crate::board::isr::systick()
+            }
+        }
+    };
+}

@@ -1,0 +1,93 @@
+//! The board's side of the command service's ports (`crate::service::ports`): the SysTick
+//! clock, the USART1 transmit queue, and the readout behind its priority lock, stopped for a
+//! flash store by masking the readout interrupts.
+//!
+//! The watchdog lives here too: the service may wait (a full TX queue, a flash stall), and every
+//! wait refreshes it, so the main loop's own refresh is not the only one.
+
+use core::sync::atomic::Ordering;
+
+use super::resources::{self, READOUT, TURNAROUNDS_DROPPED};
+use super::turnaround;
+use super::usart::SerialPort;
+use super::watchdog::Watchdog;
+use crate::protocol::respond::MAX_RESPONSE;
+use crate::readout::Readout;
+use crate::service::ports::{Clock, ReadoutAccess, SerialTx};
+
+/// What the main loop hands the service.
+pub struct BoardPorts {
+    pub serial: SerialPort,
+    pub watchdog: Option<Watchdog>,
+    /// The turnaround and Lissajous hardware runs (false in the QEMU serial test: an idle
+    /// readout, only its task and lock exist).
+    pub hardware: bool,
+}
+
+impl BoardPorts {
+    /// Refreshes the watchdog, if one runs.
+    pub fn refresh_watchdog(&mut self) {
+        if let Some(dog) = self.watchdog.as_mut() {
+            dog.refresh();
+        }
+    }
+}
+
+impl Clock for BoardPorts {
+    fn now_ms(&self) -> u32 {
+        resources::now_ms()
+    }
+}
+
+impl SerialTx for BoardPorts {
+    /// Queues all of `bytes`, sleeping until the USART handler drains room.
+    fn send(&mut self, mut bytes: &[u8]) {
+        while !bytes.is_empty() {
+            let n = self.serial.write(bytes);
+            bytes = &bytes[n..];
+            self.serial.kick();
+            if !bytes.is_empty() {
+                self.refresh_watchdog();
+                cortex_m::asm::wfi();
+            }
+        }
+    }
+
+    /// A frame goes out whole or not at all; answers have priority (room for one is kept).
+    fn try_send_frame(&mut self, frame: &[u8]) -> bool {
+        if self.serial.tx_room() < frame.len() + MAX_RESPONSE {
+            return false;
+        }
+        self.serial.write(frame);
+        self.serial.kick();
+        true
+    }
+}
+
+impl ReadoutAccess for BoardPorts {
+    /// Under the readout task's priority lock (BASEPRI at its ceiling for the few instructions
+    /// `f` takes). The readout exists from `resources::init_readout` on, before the main loop.
+    fn with_readout<R>(&mut self, f: impl FnOnce(&mut Readout) -> R) -> R {
+        READOUT
+            .lock(|task| f(&mut task.readout))
+            .unwrap_or_else(|| defmt::panic!("readout used before init_readout"))
+    }
+
+    /// Masks the readout interrupts and drains the sample queue; the watchdog is refreshed
+    /// right before the flash stall.
+    fn stop_readout(&mut self) {
+        resources::pause_readout(self.hardware);
+        self.refresh_watchdog();
+    }
+
+    /// Refreshes the watchdog right after the stall, re-synchronises and unmasks.
+    fn restart_readout(&mut self) {
+        self.refresh_watchdog();
+        resources::resume_readout(self.hardware);
+    }
+
+    /// Turnarounds the hardware path lost: scheduled too late, or dropped from a full queue.
+    fn missed_below_readout(&self) -> u32 {
+        turnaround::LATE.load(Ordering::Relaxed) + TURNAROUNDS_DROPPED.load(Ordering::Relaxed)
+    }
+}

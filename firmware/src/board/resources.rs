@@ -1,0 +1,224 @@
+//! Peripheral ownership and priorities: who runs when, what the contexts share, and the
+//! readout's start, stop and restart. The handlers' bodies are in [`super::isr`], the start-up
+//! and the main loop in [`super::app`]; both import this file, which imports neither.
+//!
+//! # Contexts, highest priority first (NVIC priority in the upper 4 bits)
+//! Instruction counts measured in QEMU with `-icount` (`examples/board_cost.rs`, `cost.rs`);
+//! cycles = instructions x 1.6 + 24 (exception entry and exit; docs/board.md justifies 1.6).
+//!
+//! | context | vector | prio | work | worst case |
+//! |---|---|---|---|---|
+//! | turnaround latch | `ADC` (JEOC) | 0x00 | copy ADC1/ADC2 JDR1, TIM5 CCR3, TIM2 CCR1 into a `TurnaroundSample`, enqueue, pend the readout task | 61 instr, 0.7 us |
+//! | pick-off | `TIM2` (CC3/CC4) | 0x10 | edge time -> predicted turnaround -> `CCR1` | 55 instr, 0.7 us (both edges pending: 1.1 us) |
+//! | serial | `USART1` | 0x20 | RX byte -> RX queue; TX queue -> DR | 35 + 20 per byte, 0.9 us |
+//! | Lissajous block | `DMA2_STREAM0` (HT/TC) | 0x30 | mark a half buffer ready, pend the readout task | 44 instr (static count), 0.6 us |
+//! | ms tick | `SysTick` | 0x30 | millisecond counter for the protocol's timeouts | 10 instr |
+//! | readout task | `EXTI1` (software-pended, no EXTI line routed) | 0x40 | `on_turnaround` per queued sample (1106 / 1786 instr) + rate shift (71), `on_lissajous_sample` per pair (129; 51 573 at a window solve), `CycleRecord` out | 18 us per turnaround; 0.33 ms per block, 0.82 ms with a solve |
+//! | main loop | thread | - | protocol (line -> parse -> `Executor`), rate averaging (716 instr per cycle), calibration run (3 910), stream frame (921), flash store, watchdog | preemptible |
+//!
+//! Rate-monotonic reasoning: the turnaround latch has no deadline of its own (the hardware holds
+//! the result until the next trigger, a half dither period later) but is the shortest, so it
+//! goes first and never delays anything measurably. The pick-off handler must arm the compare
+//! within a quarter period minus 2 us (248 us at 1 kHz). The USART must read each byte within one
+//! character time (21.7 us at 460 800 Bd): it is preempted only by the two handlers above
+//! (< 1.8 us together). The readout task has half a dither period per turnaround and 20.7 ms
+//! per Lissajous block; the main loop takes whatever is left.
+//!
+//! # Shared state
+//! - ISR -> readout task: `TurnaroundSample`s through a heapless SPSC queue (16 entries = 8
+//!   dither cycles of slack); Lissajous halves through an atomic bit mask (`adc`).
+//! - readout task -> main loop: `CycleRecord`s through an SPSC queue (32 entries); the input-rate
+//!   shift for the scheduler through an `AtomicI32` (`turnaround::RATE_SHIFT_TICKS`).
+//! - USART1 <-> main loop: byte queues (`usart`).
+//! - The `Readout` itself (status, staging settings, re-synchronising) is shared by the readout
+//!   task and the main loop (through the command service's `ReadoutAccess`, `super::ports`) via a
+//!   [`PriorityLock`]: the main loop raises BASEPRI to the
+//!   readout task's priority for the few instructions it needs; the latch, pick-off and serial
+//!   handlers are never masked. Staged settings take effect whole at the next cycle boundary
+//!   (`Readout::stage_compensation`): the STYLE.md atomic swap.
+//! - Only the USART's `CR1` read-modify-write in the main loop uses a (3-instruction) critical
+//!   section.
+//!
+//! # CPU load (docs/board.md has the derivation)
+//! At 389 Hz dither: 3.3 % of 168 MHz (turnaround chain 1.6 %, Lissajous stream 1.7 %); with a
+//! calibration run and the binary stream on every cycle: 6.3 %. At 1 kHz: 5.7 %; with a
+//! calibration run and the stream on every second cycle: 11.4 %.
+
+use core::cell::UnsafeCell;
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use cortex_m::peripheral::{scb::SystemHandler, NVIC, SCB, SYST};
+use heapless::spsc::{Consumer, Producer, Queue};
+
+use super::{adc, pac, turnaround, Owned};
+use crate::readout::{Readout, ReadoutConfig};
+use crate::sample::TurnaroundSample;
+use crate::signal::cycle::CycleRecord;
+use pac::Interrupt;
+
+/// NVIC priorities (the F405 implements the upper 4 bits).
+pub mod priority {
+    pub const TURNAROUND_LATCH: u8 = 0x00;
+    pub const PICKOFF: u8 = 0x10;
+    pub const SERIAL: u8 = 0x20;
+    pub const LISSAJOUS_DMA: u8 = 0x30;
+    pub const TICK: u8 = 0x30;
+    pub const READOUT_TASK: u8 = 0x40;
+}
+
+/// The software-pended vector of the readout task (EXTI line 1 is not routed to any pin).
+pub const READOUT_TASK_IRQ: Interrupt = Interrupt::EXTI1;
+
+const TURNAROUND_QUEUE: usize = 17; // 16 usable
+const RECORD_QUEUE: usize = 33; // 32 usable
+
+/// Turnarounds lost because the readout task fell 16 behind; cycle records the main loop did not
+/// take in time.
+pub static TURNAROUNDS_DROPPED: AtomicU32 = AtomicU32::new(0);
+pub static RECORDS_DROPPED: AtomicU32 = AtomicU32::new(0);
+/// Milliseconds since start (SysTick), wrapping.
+static MILLIS: AtomicU32 = AtomicU32::new(0);
+
+/// A value shared by contexts up to a priority ceiling: whoever locks raises BASEPRI to the
+/// ceiling, so no other user can run meanwhile (the stack resource policy, as RTIC does it).
+/// Users: only contexts at the ceiling's priority or below (numerically >=), and never nested.
+pub struct PriorityLock<T> {
+    ceiling: u8,
+    value: UnsafeCell<Option<T>>,
+}
+
+// SAFETY: access is serialised by BASEPRI (see the type's docs).
+unsafe impl<T: Send> Sync for PriorityLock<T> {}
+
+impl<T> PriorityLock<T> {
+    pub const fn new(ceiling: u8) -> Self {
+        Self {
+            ceiling,
+            value: UnsafeCell::new(None),
+        }
+    }
+
+    /// Sets the value; before any user's interrupt is enabled.
+    pub fn init(&self, value: T) {
+        cortex_m::interrupt::free(|_| {
+            // SAFETY: interrupts are off and users are not yet enabled.
+            unsafe { *self.value.get() = Some(value) };
+        });
+    }
+
+    /// Runs `f` with the value (None before `init`). Must not be nested.
+    pub fn lock<R>(&self, f: impl FnOnce(&mut T) -> R) -> Option<R> {
+        let old = cortex_m::register::basepri::read();
+        // Raising BASEPRI only masks more; restored below.
+        cortex_m::register::basepri_max::write(self.ceiling);
+        // SAFETY: at the ceiling no other user runs; not nested by contract.
+        let result = unsafe { (*self.value.get()).as_mut().map(f) };
+        // SAFETY: back to the caller's level.
+        unsafe { cortex_m::register::basepri::write(old) };
+        result
+    }
+}
+
+/// What the readout task owns.
+pub struct ReadoutTask {
+    pub config: ReadoutConfig,
+    pub readout: Readout,
+    pub samples: Consumer<'static, TurnaroundSample>,
+    pub records: Producer<'static, CycleRecord>,
+}
+
+/// The readout, shared by the readout task and the main loop.
+pub static READOUT: PriorityLock<ReadoutTask> = PriorityLock::new(priority::READOUT_TASK);
+/// The turnaround latch's end of the sample queue (owner: `isr::adc`).
+pub static LATCH_SIDE: Owned<Producer<'static, TurnaroundSample>> = Owned::new();
+/// The pick-off handler's prediction state (owner: `isr::tim2`).
+pub static SCHEDULER: Owned<turnaround::Scheduler> = Owned::new();
+
+/// Creates the queues and the readout; returns the main loop's end of the record queue.
+pub fn init_readout(config: ReadoutConfig, readout: Readout) -> Consumer<'static, CycleRecord> {
+    let samples =
+        cortex_m::singleton!(: Queue<TurnaroundSample, TURNAROUND_QUEUE> = Queue::new()).unwrap();
+    let records = cortex_m::singleton!(: Queue<CycleRecord, RECORD_QUEUE> = Queue::new()).unwrap();
+    let (sample_in, sample_out) = samples.split();
+    let (record_in, record_out) = records.split();
+    LATCH_SIDE.init(sample_in);
+    READOUT.init(ReadoutTask {
+        config,
+        readout,
+        samples: sample_out,
+        records: record_in,
+    });
+    record_out
+}
+
+/// Milliseconds since start (wrapping).
+pub fn now_ms() -> u32 {
+    MILLIS.load(Ordering::Relaxed)
+}
+
+/// One SysTick: a millisecond passed (`isr::systick` only).
+pub fn tick_ms() {
+    MILLIS.fetch_add(1, Ordering::Relaxed);
+}
+
+/// Sets the priorities of every board context and starts the 1 ms tick. Interrupt lines stay
+/// masked; the callers unmask what they use.
+pub fn init_core(scb: &mut SCB, nvic: &mut NVIC, syst: &mut SYST) {
+    // SAFETY: priorities are set before any of these interrupts is unmasked.
+    unsafe {
+        nvic.set_priority(Interrupt::ADC, priority::TURNAROUND_LATCH);
+        nvic.set_priority(Interrupt::TIM2, priority::PICKOFF);
+        nvic.set_priority(Interrupt::USART1, priority::SERIAL);
+        nvic.set_priority(Interrupt::DMA2_STREAM0, priority::LISSAJOUS_DMA);
+        nvic.set_priority(READOUT_TASK_IRQ, priority::READOUT_TASK);
+        scb.set_priority(SystemHandler::SysTick, priority::TICK);
+    }
+    syst.set_clock_source(cortex_m::peripheral::syst::SystClkSource::Core);
+    syst.set_reload(super::SYSCLK_HZ / 1000 - 1);
+    syst.clear_current();
+    syst.enable_interrupt();
+    syst.enable_counter();
+}
+
+/// Unmasks the readout task and (with `hardware`) the turnaround and Lissajous interrupts.
+pub fn unmask_readout(hardware: bool) {
+    // SAFETY: every handler's state was initialised before this call.
+    unsafe {
+        NVIC::unmask(READOUT_TASK_IRQ);
+        if hardware {
+            NVIC::unmask(Interrupt::DMA2_STREAM0);
+            NVIC::unmask(Interrupt::TIM2);
+            NVIC::unmask(Interrupt::ADC);
+        }
+    }
+}
+
+/// Stops every readout interrupt for a flash store (`ports::BoardPorts::stop_readout`): producers first, then the readout task is
+/// run once to empty the sample queue (it preempts the caller at once), then masked too.
+pub fn pause_readout(hardware: bool) {
+    if hardware {
+        NVIC::mask(Interrupt::ADC);
+        NVIC::mask(Interrupt::TIM2);
+        NVIC::mask(Interrupt::DMA2_STREAM0);
+        // SAFETY: TIM2's handler is masked: the main loop may park its compare.
+        turnaround::pause(unsafe { &*pac::TIM2::ptr() });
+    }
+    NVIC::pend(READOUT_TASK_IRQ);
+    // The pended task (priority 0x40 > thread) is taken before the next instruction completes.
+    cortex_m::asm::dsb();
+    cortex_m::asm::isb();
+    NVIC::mask(READOUT_TASK_IRQ);
+}
+
+/// Resumes after a store (`ports::BoardPorts::restart_readout`): the readout re-synchronises (count reference, quadrant, open cycle are
+/// dropped), stale hardware results are discarded, interrupts unmasked.
+pub fn resume_readout(hardware: bool) {
+    READOUT.lock(|task| task.readout.resynchronise());
+    if hardware {
+        // SAFETY: the latch handler is masked; a result taken before the stall is stale.
+        adc::discard_injected(unsafe { &*pac::ADC1::ptr() });
+        NVIC::unpend(Interrupt::ADC);
+        NVIC::unpend(Interrupt::TIM2);
+    }
+    unmask_readout(hardware);
+}

@@ -1,0 +1,266 @@
+//! The command service: the one piece of glue between the serial protocol, the binary stream,
+//! the calibration store and the readout, for the board and the simulated board alike.
+//!
+//! Two events drive it, from whatever loop the platform runs:
+//! - [`Service::on_byte`], every received byte: `LineAssembler` -> `strip_checksum` -> `parse`
+//!   -> `Executor::execute` against the device -> exactly one answer line (`protocol::endpoint`);
+//!   while streaming, a text answer is wrapped in 0x00 delimiters so the host can tell it from a
+//!   COBS frame;
+//! - [`Service::on_cycle`], every dither cycle the readout closed: the averaged rate and flags
+//!   for `status`, a running calibration and the tracking loop (whose coefficients are staged
+//!   into the readout), and a stream frame (queued whole or dropped and counted).
+//!
+//! Everything that differs between the board and the simulator is behind the small traits of
+//! [`ports`] (clock, serial transmitter, readout access) and `embedded_storage`'s `NorFlash`
+//! (the calibration flash, owned by the service). The board's main loop (`board::app`) and
+//! hal-sim's `SimDevice` each instantiate this one `Service`; neither has protocol glue of its
+//! own. A flash store pauses the readout through [`ports::pause`], whose guard is the pause.
+//!
+//! Sans-IO: nothing here blocks except [`ports::SerialTx::send`] waiting for queue room, and
+//! nothing touches a register. It builds and is tested on the host.
+
+pub mod ports;
+
+use embedded_storage::nor_flash::NorFlash;
+use heapless::String;
+
+use crate::calibration::validation::AcceptanceLimits;
+use crate::profile::BoardProfile;
+use crate::protocol::endpoint;
+use crate::protocol::execute::{DeviceLink, DeviceStatus, Executor, Identity};
+use crate::protocol::line::{LineAssembler, LineEvent, MAX_LINE};
+use crate::protocol::stream::{encode_frame, MAX_FRAME};
+use crate::readout::ReadoutConfig;
+use crate::signal::compensation::CompensationSettings;
+use crate::signal::cycle::CycleRecord;
+use crate::signal::output::{AveragerConfig, AveragingMode, RateAverager};
+use crate::storage::{
+    CalibrationRecord, CalibrationStore, Geometry, GeometryError, LoadReport, StoreError,
+};
+use ports::{Clock, ReadoutAccess, SerialTx};
+
+/// What differs between services (immutable).
+#[derive(Clone, Copy, Debug)]
+pub struct ServiceConfig {
+    /// What `id` reports; the unlock key.
+    pub identity: Identity,
+    /// Where the calibration store lives in the flash's offsets.
+    pub geometry: Geometry,
+    /// The readout's settings (the cycle durations' timer).
+    pub readout: ReadoutConfig,
+    /// The averaged rate `status` reports.
+    pub rate_output: AveragerConfig,
+    /// Sees every complete line first; `true` = consumed, no answer (test hooks only).
+    pub intercept: Option<fn(&str) -> bool>,
+}
+
+impl ServiceConfig {
+    /// The settings for a board of `profile` with a dither near `dither_hz`: the rate averaged
+    /// over whole output periods of about one second.
+    pub fn for_profile(
+        profile: &BoardProfile,
+        dither_hz: f64,
+        identity: Identity,
+        geometry: Geometry,
+    ) -> Self {
+        Self {
+            identity,
+            geometry,
+            readout: profile.readout_config(dither_hz),
+            rate_output: AveragerConfig {
+                window_cycles: libm::round(dither_hz).max(1.0) as u32,
+                mode: AveragingMode::WholePeriods,
+                timer_hz: profile.timer_hz as f64,
+                scale_factor_arcsec: profile.scale_factor_arcsec,
+            },
+            intercept: None,
+        }
+    }
+}
+
+/// A service just booted: the settings its readout must start with, and what the load found.
+pub struct Booted<F: NorFlash> {
+    pub service: Service<F>,
+    /// The compensation settings loaded from flash (or the defaults).
+    pub settings: CompensationSettings,
+    pub report: LoadReport,
+}
+
+/// The command service (see the module docs).
+pub struct Service<F: NorFlash> {
+    config: ServiceConfig,
+    flash: F,
+    store: CalibrationStore,
+    executor: Executor,
+    line: LineAssembler,
+    averager: RateAverager,
+    status: DeviceStatus,
+    frames_dropped: u32,
+}
+
+impl<F: NorFlash> Service<F> {
+    /// Powers up: loads the newest valid calibration from `flash` (or the defaults), locked.
+    /// `boot_count`: the boots so far, or `None` for the stored count + 1 (boots are not written
+    /// to flash: that would wear it).
+    pub fn boot(
+        config: ServiceConfig,
+        mut flash: F,
+        boot_count: Option<u32>,
+    ) -> Result<Booted<F>, GeometryError> {
+        let store = CalibrationStore::new(&flash, config.geometry)?;
+        let (record, report) = store.load(&mut flash);
+        let boots = boot_count.unwrap_or(record.boot_count.wrapping_add(1));
+        let service = Self {
+            executor: Executor::new(&report, record.fit, boots, AcceptanceLimits::DEFAULT),
+            line: LineAssembler::new(),
+            averager: RateAverager::new(),
+            status: DeviceStatus::default(),
+            frames_dropped: 0,
+            config,
+            flash,
+            store,
+        };
+        Ok(Booted {
+            service,
+            settings: record.settings,
+            report,
+        })
+    }
+
+    /// One received byte; a completed line is executed and answered through `ports`.
+    pub fn on_byte<P: Clock + SerialTx + ReadoutAccess>(&mut self, byte: u8, ports: &mut P) {
+        // Framing follows the mode the host was in when it sent the line.
+        let streaming = self.executor.streaming();
+        let mut line = String::<MAX_LINE>::new();
+        let event = match self.line.push(byte) {
+            None => return,
+            Some(LineEvent::Line(text)) => {
+                // The assembler is borrowed by `text`: copy (at most MAX_LINE bytes).
+                let _ = line.push_str(text);
+                if self.config.intercept.is_some_and(|hook| hook(&line)) {
+                    return;
+                }
+                LineEvent::Line(&line)
+            }
+            Some(LineEvent::TooLong) => LineEvent::TooLong,
+            Some(LineEvent::Garbage) => LineEvent::Garbage,
+        };
+        self.refresh_status(ports);
+        let mut device = ServiceDevice {
+            flash: &mut self.flash,
+            store: &self.store,
+            status: self.status,
+            ports,
+        };
+        let answer = endpoint::answer(
+            event,
+            &mut self.executor,
+            &self.config.identity,
+            &mut device,
+        );
+        endpoint::send_answer(streaming, &answer, |bytes| ports.send(bytes));
+    }
+
+    /// One dither cycle the readout closed.
+    pub fn on_cycle<P: SerialTx + ReadoutAccess>(&mut self, record: &CycleRecord, ports: &mut P) {
+        let reading = self.averager.push(&self.config.rate_output, record.output);
+        self.status.on_cycle(record.output.flags, reading);
+        let cycle_s = record.duration_s(&self.config.readout.cycle);
+        let actions = self.executor.on_cycle(record, cycle_s);
+        if let Some(settings) = actions.stage {
+            // The tracking loop's coefficients: staged like a `set`, applied at a cycle boundary.
+            ports.with_readout(|readout| readout.stage_compensation(settings));
+        }
+        if let Some(frame) = actions.frame {
+            let mut buf = [0u8; MAX_FRAME];
+            let n = encode_frame(&frame, &mut buf);
+            if !ports.try_send_frame(&buf[..n]) {
+                self.frames_dropped = self.frames_dropped.saturating_add(1);
+            }
+        }
+    }
+
+    /// Whether the binary stream is on.
+    pub fn streaming(&self) -> bool {
+        self.executor.streaming()
+    }
+
+    /// Stream frames dropped because the transmitter had no room (the host sees sequence gaps).
+    pub fn frames_dropped(&self) -> u32 {
+        self.frames_dropped
+    }
+
+    /// The settings the service runs with.
+    pub fn config(&self) -> &ServiceConfig {
+        &self.config
+    }
+
+    /// The calibration flash.
+    pub fn flash(&self) -> &F {
+        &self.flash
+    }
+
+    /// The calibration flash (e.g. a simulated one, to arm a power cut).
+    pub fn flash_mut(&mut self) -> &mut F {
+        &mut self.flash
+    }
+
+    /// Ends the service and hands back its flash (power off: the contents survive).
+    pub fn into_flash(self) -> F {
+        self.flash
+    }
+
+    fn refresh_status<P: ReadoutAccess>(&mut self, ports: &mut P) {
+        let (counters, dither) = ports.with_readout(|r| (r.counters(), r.dither()));
+        self.status.update_from(&counters, dither);
+        self.status.missed_turnarounds = self
+            .status
+            .missed_turnarounds
+            .max(ports.missed_below_readout());
+    }
+}
+
+/// The device as the protocol sees it during one command: the service's flash and store, a
+/// status snapshot, and the platform's ports.
+struct ServiceDevice<'a, F, P> {
+    flash: &'a mut F,
+    store: &'a CalibrationStore,
+    status: DeviceStatus,
+    ports: &'a mut P,
+}
+
+impl<F: NorFlash, P: Clock + ReadoutAccess> DeviceLink for ServiceDevice<'_, F, P> {
+    type FlashError = F::Error;
+
+    fn now_ms(&self) -> u32 {
+        self.ports.now_ms()
+    }
+
+    fn status(&self) -> DeviceStatus {
+        self.status
+    }
+
+    fn active_settings(&mut self) -> CompensationSettings {
+        self.ports
+            .with_readout(|readout| readout.staged_or_active_compensation())
+    }
+
+    fn stage_settings(&mut self, settings: CompensationSettings) {
+        self.ports
+            .with_readout(|readout| readout.stage_compensation(settings));
+    }
+
+    /// Stores with the readout paused for exactly the store's duration (the guard's lifetime).
+    fn store(&mut self, record: &CalibrationRecord) -> Result<u32, StoreError<F::Error>> {
+        let paused = ports::pause(self.ports);
+        self.store
+            .store_while_paused(self.flash, paused.token(), record)
+    }
+
+    fn load(&mut self) -> (CalibrationRecord, LoadReport) {
+        self.store.load(self.flash)
+    }
+}
+
+#[cfg(test)]
+mod tests;

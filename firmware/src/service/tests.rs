@@ -1,0 +1,282 @@
+//! The service against plain-memory ports and a RAM flash: what the board and the simulator both
+//! rely on (one answer per line, settings staged into the readout, the store inside the pause,
+//! dropped frames counted, status folding).
+
+use super::ports::{Clock, ReadoutAccess, SerialTx};
+use super::*;
+use crate::readout::Readout;
+use crate::signal::lockin_terms::LockinTerms;
+use crate::signal::output::{CycleFlags, CycleOutput};
+use crate::storage::ram_flash::RamFlash;
+use std::string::String as StdString;
+use std::vec::Vec;
+
+type Flash = RamFlash<2, 8192>;
+const KEY: u32 = 0x1234_abcd;
+
+struct TestPorts {
+    readout: Readout,
+    now_ms: u32,
+    out: Vec<u8>,
+    frame_room: bool,
+    missed_below: u32,
+    /// 's' stop, 'r' restart, 'w' a byte of flash traffic seen while stopped.
+    log: StdString,
+}
+
+impl Clock for TestPorts {
+    fn now_ms(&self) -> u32 {
+        self.now_ms
+    }
+}
+
+impl SerialTx for TestPorts {
+    fn send(&mut self, bytes: &[u8]) {
+        self.out.extend_from_slice(bytes);
+    }
+    fn try_send_frame(&mut self, frame: &[u8]) -> bool {
+        if self.frame_room {
+            self.out.extend_from_slice(frame);
+        }
+        self.frame_room
+    }
+}
+
+impl ReadoutAccess for TestPorts {
+    fn with_readout<R>(&mut self, f: impl FnOnce(&mut Readout) -> R) -> R {
+        f(&mut self.readout)
+    }
+    fn stop_readout(&mut self) {
+        self.log.push('s');
+    }
+    fn restart_readout(&mut self) {
+        self.log.push('r');
+        self.readout.resynchronise();
+    }
+    fn missed_below_readout(&self) -> u32 {
+        self.missed_below
+    }
+}
+
+fn config() -> ServiceConfig {
+    let identity = Identity {
+        firmware_version: "test",
+        build: "test",
+        board: "test",
+        serial_number: 7,
+        key: KEY,
+        scale_factor_arcsec: 1.8655,
+        capture_timer_hz: 84_000_000,
+    };
+    let geometry = Geometry {
+        base_offset: 0,
+        sector_bytes: 8192,
+    };
+    ServiceConfig::for_profile(&BoardProfile::F405, 389.0, identity, geometry)
+}
+
+fn boot(flash: Flash) -> (Service<Flash>, TestPorts) {
+    let booted = Service::boot(config(), flash, None).unwrap();
+    let ports = TestPorts {
+        readout: Readout::new(&booted.service.config().readout, booted.settings),
+        now_ms: 0,
+        out: Vec::new(),
+        frame_room: true,
+        missed_below: 0,
+        log: StdString::new(),
+    };
+    (booted.service, ports)
+}
+
+fn ask(service: &mut Service<Flash>, ports: &mut TestPorts, line: &str) -> StdString {
+    ports.out.clear();
+    for &b in line.as_bytes().iter().chain(b"\n") {
+        service.on_byte(b, ports);
+    }
+    StdString::from_utf8(ports.out.clone()).unwrap()
+}
+
+fn record(flags: CycleFlags) -> CycleRecord {
+    CycleRecord {
+        output: CycleOutput {
+            increment_q32: 3 << 32,
+            correction_q32: 0,
+            duration_ticks: 215_938,
+            flags,
+        },
+        raw_increment_q32: 3 << 32,
+        terms: LockinTerms {
+            p1_s: 1e-5,
+            p2_s: -1e-5,
+        },
+        end_phase_q32: 0,
+        dither_amplitude_rad: 9.5,
+        dither_hz: 389.0,
+    }
+}
+
+#[test]
+fn every_line_gets_exactly_one_answer_and_partial_lines_none() {
+    let (mut s, mut p) = boot(Flash::new());
+    let id = ask(&mut s, &mut p, "id");
+    assert!(id.starts_with("OK ") && id.ends_with("\r\n"), "{id:?}");
+    assert_eq!(id.matches("\r\n").count(), 1);
+    let err = ask(&mut s, &mut p, "bogus");
+    assert!(err.starts_with("ERR 1 "), "{err:?}");
+    p.out.clear();
+    for &b in b"stat" {
+        s.on_byte(b, &mut p);
+    }
+    assert!(p.out.is_empty(), "no answer before the line ends");
+}
+
+#[test]
+fn set_stages_into_the_readout_and_store_runs_inside_one_pause() {
+    let (mut s, mut p) = boot(Flash::new());
+    assert!(ask(&mut s, &mut p, "set a 1.5").starts_with("ERR 9 "));
+    assert_eq!(
+        p.readout
+            .staged_or_active_compensation()
+            .coefficients
+            .a_rad_per_s(),
+        0.0
+    );
+    assert!(ask(&mut s, &mut p, &format!("unlock {KEY:08x}")).starts_with("OK unlocked"));
+    assert!(ask(&mut s, &mut p, "set a 1.5").starts_with("OK a=1.5"));
+    let staged = p.readout.staged_or_active_compensation();
+    assert_eq!(staged.coefficients.a_rad_per_s(), 1.5);
+    assert!(p.log.is_empty(), "nothing paused the readout yet");
+    let stored = ask(&mut s, &mut p, "store");
+    assert!(stored.starts_with("OK "), "{stored:?}");
+    assert_eq!(p.log, "sr", "stopped once, restarted once");
+    // The record survives a power cycle and the next boot starts the readout with it.
+    let (s2, _) = boot(s.into_flash());
+    let booted = Service::boot(config(), s2.into_flash(), Some(9)).unwrap();
+    assert_eq!(booted.settings.coefficients.a_rad_per_s(), 1.5);
+}
+
+#[test]
+fn boot_refuses_a_flash_smaller_than_its_geometry() {
+    let small = RamFlash::<1, 8192>::new();
+    assert!(Service::boot(config(), small, None).is_err());
+}
+
+/// A flash whose programming fails once `fail` is set (a worn or locked sector).
+struct FailingFlash {
+    inner: Flash,
+    fail: bool,
+}
+
+impl embedded_storage::nor_flash::ErrorType for FailingFlash {
+    type Error = crate::storage::ram_flash::RamFlashError;
+}
+
+impl embedded_storage::nor_flash::ReadNorFlash for FailingFlash {
+    const READ_SIZE: usize = 1;
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        self.inner.read(offset, bytes)
+    }
+    fn capacity(&self) -> usize {
+        self.inner.capacity()
+    }
+}
+
+impl NorFlash for FailingFlash {
+    const WRITE_SIZE: usize = 4;
+    const ERASE_SIZE: usize = 8192;
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+        self.inner.erase(from, to)
+    }
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        if self.fail {
+            return Err(crate::storage::ram_flash::RamFlashError::OutOfBounds);
+        }
+        self.inner.write(offset, bytes)
+    }
+}
+
+#[test]
+fn a_failed_store_is_reported_and_still_restarts_the_readout() {
+    use embedded_storage::nor_flash::ReadNorFlash;
+    let flash = FailingFlash {
+        inner: Flash::new(),
+        fail: true,
+    };
+    let booted = Service::boot(config(), flash, None).unwrap();
+    let mut s = booted.service;
+    let mut p = TestPorts {
+        readout: Readout::new(&s.config().readout, booted.settings),
+        now_ms: 0,
+        out: Vec::new(),
+        frame_room: true,
+        missed_below: 0,
+        log: StdString::new(),
+    };
+    p.out.clear();
+    for &b in format!("unlock {KEY:08x}\nstore\n").as_bytes() {
+        s.on_byte(b, &mut p);
+    }
+    let answers = StdString::from_utf8(p.out.clone()).unwrap();
+    assert!(answers.contains("ERR 13 "), "{answers:?}");
+    assert_eq!(p.log, "sr", "the pause ended with the failed store");
+    let mut first = [0u8; 4];
+    s.flash_mut().read(0, &mut first).unwrap();
+    assert_eq!(first, [0xFF; 4], "nothing programmed");
+}
+
+#[test]
+fn frames_without_room_are_dropped_whole_and_counted() {
+    let (mut s, mut p) = boot(Flash::new());
+    assert!(ask(&mut s, &mut p, "stream on").starts_with("OK "));
+    p.out.clear();
+    s.on_cycle(&record(CycleFlags::empty()), &mut p);
+    let frame = p.out.len();
+    assert!(
+        frame > 10 && p.out.last() == Some(&0),
+        "one COBS frame: {frame} bytes"
+    );
+    p.frame_room = false;
+    p.out.clear();
+    for _ in 0..3 {
+        s.on_cycle(&record(CycleFlags::empty()), &mut p);
+    }
+    assert!(p.out.is_empty());
+    assert_eq!(s.frames_dropped(), 3);
+    // While streaming, a text answer is wrapped in 0x00 so the host can tell it from a frame.
+    let answer = ask(&mut s, &mut p, "stream off");
+    assert!(
+        answer.starts_with('\0') && answer.ends_with('\0'),
+        "{answer:?}"
+    );
+}
+
+#[test]
+fn status_folds_cycles_and_losses_below_the_readout() {
+    let (mut s, mut p) = boot(Flash::new());
+    for _ in 0..5 {
+        s.on_cycle(&record(CycleFlags::TURNAROUND_MISSED), &mut p);
+    }
+    let status = ask(&mut s, &mut p, "status");
+    assert!(status.contains("missed=5"), "{status}");
+    p.missed_below = 40;
+    let status = ask(&mut s, &mut p, "status");
+    assert!(status.contains("missed=40"), "{status}");
+}
+
+#[test]
+fn the_intercept_hook_sees_lines_first() {
+    let mut c = config();
+    c.intercept = Some(|line| line == "quit");
+    let booted = Service::boot(c, Flash::new(), None).unwrap();
+    let mut s = booted.service;
+    let mut p = TestPorts {
+        readout: Readout::new(&c.readout, booted.settings),
+        now_ms: 0,
+        out: Vec::new(),
+        frame_room: true,
+        missed_below: 0,
+        log: StdString::new(),
+    };
+    assert_eq!(ask(&mut s, &mut p, "quit"), "");
+    assert!(ask(&mut s, &mut p, "id").starts_with("OK "));
+}
