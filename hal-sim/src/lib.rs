@@ -3,7 +3,7 @@
 //! Two rooms:
 //! - the gyro ([`params`], [`units`], [`input`], [`dither`], [`noise`], [`phase`], [`gyro`]):
 //!   the phase equation (docs/physics.md Eq. 6) integrated with the dither phase known analytically;
-//! - the board ([`photodiode`], [`counter`], [`clock`], [`flash`], [`serial`]): the peripherals
+//! - the board ([`photodiode`], [`counter`], [`clock`], [`flash`]): the peripherals
 //!   the firmware reads, producing exactly the plain structs of `firmware::sample`;
 //! - [`board`]: gyro and peripherals assembled into what the firmware's interrupts receive.
 
@@ -19,7 +19,6 @@ pub mod clock;
 pub mod counter;
 pub mod flash;
 pub mod photodiode;
-pub mod serial;
 
 pub mod board;
 pub mod device;

@@ -1,8 +1,9 @@
 //! The serial end of the protocol, shared by the board and the simulated board: a completed
 //! line in, exactly one answer out, framed for the mode the host is in.
 //!
-//! Both `board::service` (the MCU) and hal-sim's `SimDevice` call these functions, so the line
-//! handling the simulator tests is the very code the board runs.
+//! The command service (`crate::service`) calls these functions; the board's main loop and
+//! hal-sim's `SimDevice` both run that service, so the line handling the simulator tests is the
+//! very code the board runs.
 
 use super::execute::{DeviceLink, DeviceStatus, Executor, Identity};
 use super::line::LineEvent;
