@@ -27,10 +27,11 @@
 //! seeds). It needs only the `firmware` crate.
 
 use firmware::calibration::validation::AcceptanceLimits;
+use firmware::protocol::endpoint;
 use firmware::protocol::execute::{DeviceLink, DeviceStatus, Executor, Identity};
 use firmware::protocol::line::{LineAssembler, LineEvent};
-use firmware::protocol::parse::{crc16, parse, strip_checksum};
-use firmware::protocol::respond::{Response, MAX_RESPONSE};
+use firmware::protocol::parse::{crc16, parse};
+use firmware::protocol::respond::MAX_RESPONSE;
 use firmware::protocol::stream::{decode_frame, encode_frame, MAX_FRAME};
 use firmware::protocol::ErrorCode;
 use firmware::signal::compensation::CompensationSettings;
@@ -229,43 +230,18 @@ impl Harness {
         }
     }
 
-    /// Answers one assembled line as the board does.
-    fn answer(&mut self, text: &str) -> String {
-        let (body, with_crc) = match strip_checksum(text) {
-            Ok(split) => split,
-            Err(code) => return Response::err(code).finish(false).as_str().to_owned(),
-        };
-        let command = match parse(body) {
-            Ok(c) => c,
-            Err(code) => return Response::err(code).finish(with_crc).as_str().to_owned(),
-        };
-        self.executor
-            .execute(&IDENTITY, &mut self.device, command)
-            .finish(with_crc)
-            .as_str()
-            .to_owned()
-    }
-
     fn on_event(&mut self, event: Event) {
         let before = observe(&self.executor, &self.device);
-        let (answer, with_crc) = match &event {
-            Event::TooLong => (
-                Response::err(ErrorCode::LineTooLong)
-                    .finish(false)
-                    .as_str()
-                    .to_owned(),
-                false,
-            ),
-            Event::Garbage => (
-                Response::err(ErrorCode::InvalidCharacters)
-                    .finish(false)
-                    .as_str()
-                    .to_owned(),
-                false,
-            ),
-            Event::Line(text) => (self.answer(text), has_valid_crc(text)),
+        // The firmware's own line-answering path (the one the command service runs).
+        let line_event = match &event {
+            Event::TooLong => LineEvent::TooLong,
+            Event::Garbage => LineEvent::Garbage,
+            Event::Line(text) => LineEvent::Line(text),
         };
-        let code = check_answer(&answer, with_crc);
+        let answer = endpoint::answer(line_event, &mut self.executor, &IDENTITY, &mut self.device);
+        let answer = answer.as_str();
+        let with_crc = matches!(&event, Event::Line(text) if has_valid_crc(text));
+        let code = check_answer(answer, with_crc);
         match (&event, code) {
             (Event::TooLong, c) => assert_eq!(c, Some(7), "{answer:?}"),
             (Event::Garbage, c) => assert_eq!(c, Some(8), "{answer:?}"),
