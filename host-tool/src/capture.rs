@@ -22,6 +22,7 @@ pub const DEFAULT_TIMER_HZ: f64 = 84e6;
 pub struct RateScale {
     /// From the board's `id` (`sf_arcsec`).
     pub scale_factor_arcsec: f64,
+    /// Capture-timer frequency, Hz: the unit of `duration_ticks` (the board's `id`, `timer_hz`).
     pub timer_hz: f64,
 }
 
@@ -38,7 +39,9 @@ impl RateScale {
 /// The frames of one streaming session.
 #[derive(Clone, Debug, Default)]
 pub struct Capture {
+    /// The valid frames, in arrival order.
     pub records: Vec<StreamRecord>,
+    /// Frames received and lost, from the sequence numbers.
     pub gaps: GapCounter,
     /// Chunks that were not valid frames (broken COBS, wrong length, bad CRC).
     pub bad_frames: u64,
@@ -51,12 +54,16 @@ pub struct Capture {
 pub struct SecondMean {
     /// Middle of the second, s from the first record.
     pub time_s: f64,
+    /// Mean compensated rate over the second, deg/h.
     pub compensated_deg_per_h: f64,
+    /// Mean uncompensated rate over the second, deg/h.
     pub raw_deg_per_h: f64,
+    /// Frames received in the second.
     pub frames: usize,
 }
 
 impl Capture {
+    /// An empty capture of a stream at `divider` cycles per frame (0 is taken as 1).
     pub fn new(divider: u16) -> Self {
         Self {
             divider: divider.max(1),

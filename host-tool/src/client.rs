@@ -38,7 +38,9 @@ pub fn error_code(code: u8) -> Option<ErrorCode> {
 /// An `OK` answer: its fields, without `OK`, the truncation mark and the CRC.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Answer {
+    /// The command text it answers, as sent (without the CRC suffix).
     pub command: String,
+    /// The fields after `OK`, space-separated (mostly `key=value`).
     pub text: String,
     /// The board cut the answer to fit its buffer (`~`).
     pub truncated: bool,
@@ -77,7 +79,9 @@ impl Answer {
 /// An `ERR` answer.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct DeviceError {
+    /// The command text it answers, as sent (without the CRC suffix).
     pub command: String,
+    /// The number after `ERR` (the firmware's `ErrorCode`, 1..=15).
     pub code: u8,
     /// The firmware's name for the code (`None` for a code this tool does not know).
     pub kind: Option<ErrorCode>,
@@ -91,11 +95,19 @@ pub enum ClientError {
     /// The board answered `ERR`.
     Device(DeviceError),
     /// No complete answer within the timeout.
-    Timeout { command: String, after: Duration },
+    Timeout {
+        /// The command text sent.
+        command: String,
+        /// The timeout that ran out.
+        after: Duration,
+    },
     /// An answer with a wrong or missing CRC, or not a protocol answer at all.
     Corrupt {
+        /// The command text sent.
         command: String,
+        /// The line received (lossy UTF-8, with its `\r\n`).
         line: String,
+        /// What is wrong with it (from [`check_answer`]).
         reason: &'static str,
     },
     /// The link failed (closed, I/O error).
@@ -104,8 +116,11 @@ pub enum ClientError {
     BadCommand(String),
     /// An answer without a field this tool needs, or a run that did not go as it should.
     Unexpected {
+        /// The command text sent.
         command: String,
+        /// The `OK` answer's fields.
         answer: String,
+        /// What was missing or went wrong.
         what: String,
     },
 }
@@ -169,8 +184,20 @@ impl From<io::Error> for ClientError {
 /// What a checked answer line says.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Reply {
-    Ok { text: String, truncated: bool },
-    Err { code: u8, text: String },
+    /// `OK [fields][~]`.
+    Ok {
+        /// The fields after `OK`, without the `~` mark.
+        text: String,
+        /// The answer ended in `~`: the board cut it to fit its buffer.
+        truncated: bool,
+    },
+    /// `ERR <code> <text>`.
+    Err {
+        /// The error number.
+        code: u8,
+        /// Everything after the code.
+        text: String,
+    },
 }
 
 /// Checks one answer line (with its `\r\n`): printable, a valid CRC suffix, `OK` or
@@ -253,6 +280,7 @@ pub struct Client<L> {
 pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(2);
 
 impl<L: Link> Client<L> {
+    /// A client in text mode over `link`, answer timeout [`DEFAULT_TIMEOUT`].
     pub fn new(link: L) -> Self {
         Self {
             link,
@@ -265,19 +293,23 @@ impl<L: Link> Client<L> {
         }
     }
 
+    /// The same client with another answer timeout (measured on the link's clock).
     pub fn with_timeout(mut self, timeout: Duration) -> Self {
         self.timeout = timeout;
         self
     }
 
+    /// The link underneath.
     pub fn link(&self) -> &L {
         &self.link
     }
 
+    /// The link underneath, e.g. to reach the simulated board behind a [`crate::link::SimLink`].
     pub fn link_mut(&mut self) -> &mut L {
         &mut self.link
     }
 
+    /// Ends the client and hands back its link (unread bytes are dropped).
     pub fn into_link(self) -> L {
         self.link
     }

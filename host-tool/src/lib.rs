@@ -14,6 +14,8 @@
 //! in `docs/protocol.md`; its implementation is the firmware's `protocol` module, which this
 //! crate reuses for the CRC, the frame decoder and the error codes.
 
+#![warn(missing_docs)]
+
 pub mod capture;
 pub mod client;
 pub mod link;

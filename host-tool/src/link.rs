@@ -42,6 +42,8 @@ impl<L: Link + ?Sized> Link for Box<L> {
 
 /// A byte stream whose reads can be bounded in time.
 pub trait TimedPort: Read + Write {
+    /// Bounds how long the next reads wait for bytes (a zero timeout may become the smallest
+    /// the port supports, never "forever").
     fn set_read_timeout(&mut self, timeout: Duration) -> io::Result<()>;
 }
 
@@ -66,6 +68,7 @@ pub struct IoLink<T> {
 }
 
 impl<T: TimedPort> IoLink<T> {
+    /// A link over an open `port`; its clock starts now.
     pub fn new(port: T) -> Self {
         Self {
             port,
@@ -152,19 +155,23 @@ pub struct SimLink {
 const SIM_WAIT_STEP_S: f64 = 0.005;
 
 impl SimLink {
+    /// A link to `device`; its clock starts at the device's current simulated time.
     pub fn new(device: SimDevice) -> Self {
         let start_s = device.time_s();
         Self { device, start_s }
     }
 
+    /// The simulated board.
     pub fn device(&self) -> &SimDevice {
         &self.device
     }
 
+    /// The simulated board, to act on it outside the link (e.g. arm a power cut in its flash).
     pub fn device_mut(&mut self) -> &mut SimDevice {
         &mut self.device
     }
 
+    /// Ends the link and hands back the board (its output not yet received is kept in it).
     pub fn into_device(self) -> SimDevice {
         self.device
     }

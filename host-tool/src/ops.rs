@@ -30,7 +30,9 @@ pub fn rate_scale<L: Link>(
 /// One calibration run.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CalibrateOptions {
+    /// Dither cycles fed into the fit (`cal start <cycles>`, 1..=3 600 000).
     pub cycles: u32,
+    /// Cycles discarded before them (`cal start ... <warmup>`).
     pub warmup_cycles: u32,
     /// Between two `cal status` polls.
     pub poll: Duration,
@@ -39,6 +41,7 @@ pub struct CalibrateOptions {
 }
 
 impl CalibrateOptions {
+    /// A run of `cycles` after `warmup_cycles`, polled every 250 ms, failed after 10 s stalled.
     pub fn new(cycles: u32, warmup_cycles: u32) -> Self {
         Self {
             cycles,

@@ -35,6 +35,7 @@ const MAX_BACKLOG: usize = 1 << 20;
 /// Idle sleep of the loop.
 const TICK: Duration = Duration::from_millis(1);
 
+/// How the served board runs.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ServeOptions {
     /// Simulated seconds per wall-clock second.
@@ -138,6 +139,7 @@ pub struct TcpEndpoint {
 }
 
 impl TcpEndpoint {
+    /// Serves on `listener` (made non-blocking); no client yet.
     pub fn new(listener: TcpListener) -> io::Result<Self> {
         listener.set_nonblocking(true)?;
         Ok(Self {

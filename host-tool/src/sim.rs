@@ -17,12 +17,21 @@ pub fn sim_key() -> String {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum SimInput {
     /// A constant rate, deg/h.
-    Constant { rate_deg_per_h: f64 },
+    Constant {
+        /// The input rate, deg/h.
+        rate_deg_per_h: f64,
+    },
     /// Earth rate on a horizontal axis on a rotary table at this latitude and azimuth.
-    RotaryTable { latitude_deg: f64, azimuth_deg: f64 },
+    RotaryTable {
+        /// Geographic latitude of the table, deg.
+        latitude_deg: f64,
+        /// Azimuth of the sensitive axis, deg from north.
+        azimuth_deg: f64,
+    },
 }
 
 impl SimInput {
+    /// hal-sim's input profile for this input.
     pub fn profile(&self) -> InputProfile {
         match *self {
             Self::Constant { rate_deg_per_h } => InputProfile::constant(rate_deg_per_h),

@@ -29,39 +29,52 @@ pub enum RateSource {
     Status,
 }
 
+/// What the sweep does.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SweepOptions {
+    /// Geographic latitude of the table, deg.
     pub latitude_deg: f64,
+    /// Azimuths of the sensitive axis to measure at, deg from north, in order.
     pub azimuths_deg: Vec<f64>,
-    /// Before measuring, after power-up.
+    /// Before measuring, after power-up (simulated time).
     pub settle: Duration,
+    /// Measuring time per azimuth (simulated; whole seconds for [`RateSource::Status`]).
     pub measure: Duration,
+    /// Where the measured rate comes from.
     pub rate_from: RateSource,
     /// Stream every n-th cycle.
     pub divider: u16,
     /// Calibrate first at this azimuth.
     pub calibrate: Option<(CalibrateOptions, f64)>,
+    /// Seed of the simulated gyro's random processes (the same at every azimuth).
     pub seed: u64,
 }
 
 /// One azimuth.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SweepPoint {
+    /// Azimuth of the sensitive axis, deg from north.
     pub azimuth_deg: f64,
+    /// The Earth rate the axis sees, Omega_E cos(L) cos(alpha), deg/h.
     pub expected_deg_per_h: f64,
     /// The board's output (compensated when compensation is on).
     pub measured_deg_per_h: f64,
     /// Before compensation (stream only).
     pub raw_deg_per_h: Option<f64>,
+    /// Stream frames received (0 when the rate comes from `status`).
     pub frames: usize,
+    /// Stream frames lost, from the sequence gaps (0 from `status`).
     pub lost_frames: u64,
 }
 
+/// What a sweep measured.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SweepReport {
+    /// Geographic latitude of the table, deg.
     pub latitude_deg: f64,
     /// `cal result` of the calibration run, if one was made.
     pub calibration: Option<Answer>,
+    /// One point per azimuth, in the order of [`SweepOptions::azimuths_deg`].
     pub points: Vec<SweepPoint>,
 }
 

@@ -15,26 +15,37 @@ use plotters::prelude::*;
 /// How a series is drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Style {
+    /// A solid line through the points.
     Line,
+    /// A dashed line (6 px dash, 4 px gap), e.g. the ideal or expected curve.
     DashedLine,
+    /// A dot at each point, no line.
     Markers,
+    /// A solid line with a dot at each point.
     LineAndMarkers,
 }
 
 /// One curve.
 #[derive(Clone, Debug)]
 pub struct Series {
+    /// Legend text.
     pub label: String,
+    /// (x, y) in the axes' units; non-finite points are skipped.
     pub points: Vec<(f64, f64)>,
+    /// `#rrggbb`; anything else draws black.
     pub color: &'static str,
+    /// Line, dashes, markers or both.
     pub style: Style,
 }
 
 /// One panel: its own y axis, the x axis shared with the figure.
 #[derive(Clone, Debug)]
 pub struct Panel {
+    /// Caption above the panel.
     pub title: String,
+    /// Y axis label, with its unit.
     pub y_label: String,
+    /// The curves, drawn in order; the legend lists them.
     pub series: Vec<Series>,
     /// Relative height (the residual panel is usually smaller).
     pub weight: f64,
@@ -43,10 +54,15 @@ pub struct Panel {
 /// A figure of stacked panels.
 #[derive(Clone, Debug)]
 pub struct Figure {
+    /// Title above all panels.
     pub title: String,
+    /// X axis label, with its unit (shown under the bottom panel).
     pub x_label: String,
+    /// The panels, top to bottom.
     pub panels: Vec<Panel>,
+    /// SVG width, px (truncated to whole pixels).
     pub width_px: f64,
+    /// SVG height, px (truncated to whole pixels).
     pub height_px: f64,
 }
 

@@ -8,15 +8,20 @@ use std::path::Path;
 /// One input rate of a sweep. Rates as beat frequency in Hz, as in the paper's figures.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SweepRow {
+    /// The table's input rate, deg/h.
     pub input_deg_h: f64,
+    /// The ideal output, input / scale factor: fringes per second, Hz.
     pub ideal_hz: f64,
+    /// The gyro's output without compensation (lock-in included), Hz.
     pub uncompensated_hz: f64,
+    /// The output with the firmware's a P1 + b P2 compensation, Hz.
     pub compensated_hz: f64,
 }
 
 /// The CSV header, exactly as the issue specifies.
 pub const CSV_HEADER: &str = "input_deg_h,ideal_hz,uncompensated_hz,compensated_hz";
 
+/// Writes the rows to `path` as CSV under [`CSV_HEADER`] (full precision, no rounding).
 pub fn write_csv(path: &Path, rows: &[SweepRow]) -> std::io::Result<()> {
     let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
     writeln!(out, "{CSV_HEADER}")?;

@@ -49,11 +49,13 @@ pub enum SolveError {
 /// The solved fit.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FitResult {
-    /// rad/s of beat phase.
+    /// a = Omega_L cos(eps + pi/4), the coefficient of P1, rad/s of beat phase.
     pub a_rad_per_s: f64,
+    /// b = Omega_L sin(eps + pi/4), the coefficient of P2, rad/s of beat phase.
     pub b_rad_per_s: f64,
-    /// Standard errors of a and b, rad/s.
+    /// Standard error of a, rad/s.
     pub a_std_rad_per_s: f64,
+    /// Standard error of b, rad/s.
     pub b_std_rad_per_s: f64,
     /// Omega_L = hypot(a, b), rad/s.
     pub lock_in_rad_per_s: f64,
@@ -67,11 +69,14 @@ pub struct FitResult {
     pub residual_std_rad: f64,
     /// Mean output rate over all runs, rad/s of beat phase.
     pub mean_rate_rad_per_s: f64,
+    /// Dither cycles in the fit, all runs.
     pub cycles: u64,
+    /// Runs pooled, each with its own intercept.
     pub runs: u32,
 }
 
 impl FitAccumulator {
+    /// Empty: no cycles, no runs.
     pub const fn new() -> Self {
         Self {
             cycles: 0,

@@ -24,10 +24,13 @@ use crate::signal::cycle::CycleRecord;
 /// Where the session stands.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum SessionState {
+    /// No calibration in progress (initial, and after `accept` or `abort`).
     Idle,
     /// A run is collecting cycles.
     Running {
+        /// Warm-up cycles still to discard before the run's cycles count.
         warmup_left: u32,
+        /// Cycles still to feed into the fit (flagged ones included, then left out).
         cycles_left: u32,
     },
     /// A run is complete; another may be started (pooled) or the fit finished.
@@ -70,6 +73,7 @@ pub struct CalibrationSession {
 }
 
 impl CalibrationSession {
+    /// An idle session that will check its fit against `limits`.
     pub fn new(limits: AcceptanceLimits) -> Self {
         Self {
             state: SessionState::Idle,
@@ -85,6 +89,7 @@ impl CalibrationSession {
         }
     }
 
+    /// Where the session stands.
     pub fn state(&self) -> SessionState {
         self.state
     }

@@ -57,7 +57,8 @@ pub struct TrackingConfig {
 }
 
 impl TrackingConfig {
-    /// Memory of `cycles` cycles for a and b, 20 cycles for the intercept, 1e-4 rad noise.
+    /// Memory of `cycles` cycles for a and b, 20 cycles for the intercept, 2e-3 rad initial
+    /// noise (memory 500 cycles), 100 rad/s initial spread of a and b, gate at 8 sigma.
     pub fn with_memory(cycles: f64, k_ref_s: f64) -> Self {
         Self {
             memory_cycles: cycles.max(1.0),
@@ -213,6 +214,7 @@ const MIN_NOISE_VAR_RAD2: f64 = 1e-12;
 /// Settings of the tracking loop (immutable).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TrackingLoopConfig {
+    /// Settings of the Kalman tracker itself (memories, gate, k_ref).
     pub tracking: TrackingConfig,
     /// Cycles are used only while |rate| > margin x Omega_L0 (Chow, from the current a, b and
     /// the measured dither amplitude).
@@ -259,6 +261,7 @@ impl TrackingLoop {
         }
     }
 
+    /// The tracker: its current a and b, cycle counts and noise estimate.
     pub fn tracker(&self) -> &Tracker {
         &self.tracker
     }

@@ -58,15 +58,19 @@ impl Refusal {
 /// Acceptance limits (immutable; defaults below).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AcceptanceLimits {
+    /// Fewest usable cycles, all runs pooled (else [`Refusal::TooFewCycles`]).
     pub min_cycles: u64,
     /// Flagged cycles tolerated per run pool (they are excluded from the fit either way).
     pub max_flagged_cycles: u32,
     /// The mean rate must exceed `dead_band_margin` x Omega_L0.
     pub dead_band_margin: f64,
+    /// Largest condition number of the P1/P2 covariance, >= 1 (else [`Refusal::IllConditioned`]).
     pub max_condition_number: f64,
+    /// Smallest fraction of the output variance the fit must explain, 0..1.
     pub min_variance_reduction: f64,
-    /// Plausible Omega_L, rad/s of beat phase.
+    /// Smallest plausible Omega_L, rad/s of beat phase.
     pub min_lock_in_rad_per_s: f64,
+    /// Largest plausible Omega_L, rad/s of beat phase.
     pub max_lock_in_rad_per_s: f64,
 }
 

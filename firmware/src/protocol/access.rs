@@ -17,11 +17,13 @@
 /// Access-control settings (immutable).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct AccessConfig {
+    /// How long an unlock lasts after the unlock or the last successful protected command, ms.
     pub unlock_timeout_ms: u32,
     /// Wrong keys allowed before penalties start.
     pub free_attempts: u8,
-    /// First penalty, doubled per further wrong key.
+    /// First penalty, doubled per further wrong key, ms.
     pub base_penalty_ms: u32,
+    /// Cap of the doubling penalty, ms.
     pub max_penalty_ms: u32,
 }
 
@@ -38,10 +40,13 @@ impl AccessConfig {
 /// What an unlock attempt did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum UnlockOutcome {
+    /// The key matched: unlocked for the timeout, wrong-key count reset.
     Unlocked,
+    /// The key did not match: locked, counted, penalty started after the free attempts.
     WrongKey,
     /// Refused unchecked: wait this long.
     RateLimited {
+        /// Time left of the penalty, ms.
         wait_ms: u32,
     },
 }
@@ -54,12 +59,13 @@ pub struct Access {
     blocked_until_ms: Option<u32>,
 }
 
-/// `a` is at or after `b` on the wrapping millisecond clock (within 24 days).
+/// `now_ms` is at or after `deadline_ms` on the wrapping millisecond clock (within 24 days).
 fn reached(now_ms: u32, deadline_ms: u32) -> bool {
     now_ms.wrapping_sub(deadline_ms) < (1 << 31)
 }
 
 impl Access {
+    /// Locked, no wrong keys, no penalty (the state at reset).
     pub const fn new() -> Self {
         Self {
             unlocked_until_ms: None,
@@ -87,6 +93,7 @@ impl Access {
         }
     }
 
+    /// Locks at once (`lock`, or a wrong key).
     pub fn lock(&mut self) {
         self.unlocked_until_ms = None;
     }

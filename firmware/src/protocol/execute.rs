@@ -74,6 +74,7 @@ impl Executor {
         self.calibration.tracking()
     }
 
+    /// Where the coefficients in force came from.
     pub fn source(&self) -> Source {
         self.provenance.source
     }

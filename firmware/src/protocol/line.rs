@@ -41,6 +41,7 @@ pub struct LineAssembler {
 }
 
 impl LineAssembler {
+    /// Empty, at the start of a line.
     pub const fn new() -> Self {
         Self {
             buffer: Vec::new(),

@@ -13,8 +13,11 @@ use crate::storage::{CalibrationRecord, LoadReport, StoreError};
 /// What the device is, for `id` (constants of the build and of the board's OTP block).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Identity {
+    /// Firmware version (the crate version), `fw=`.
     pub firmware_version: &'static str,
+    /// Build profile (`release`, `debug`; `hal-sim` in the simulator), `build=`.
     pub build: &'static str,
+    /// Board name (the board profile's), `board=`.
     pub board: &'static str,
     /// The gyro's serial number (OTP flash on the board).
     pub serial_number: u32,
@@ -31,14 +34,21 @@ pub struct Identity {
 pub struct DeviceStatus {
     /// The last turnaround's photodiode levels were usable.
     pub signal_ok: bool,
+    /// Measured dither frequency, Hz.
     pub dither_hz: f32,
     /// Dither amplitude, beat-phase rad.
     pub dither_amplitude_rad: f32,
+    /// Turnarounds latched since boot (wrapping).
     pub turnarounds: u32,
+    /// Dither cycles closed since boot (wrapping).
     pub cycles: u32,
+    /// Turnarounds whose encoder count jumped (glitch or resync), since boot (saturating).
     pub counter_glitches: u32,
+    /// Turnarounds whose photodiode phase lay over a quadrant off the count (saturating).
     pub phase_glitches: u32,
+    /// Turnarounds whose photodiode levels were unusable (radius out of bounds; saturating).
     pub signal_lost: u32,
+    /// Missed turnarounds: the larger of the cycles flagged missed and the hardware path's losses.
     pub missed_turnarounds: u32,
     /// Latest averaged output rate, deg/h.
     pub rate_deg_per_h: f32,
@@ -46,9 +56,11 @@ pub struct DeviceStatus {
 
 /// What the protocol needs from the rest of the firmware.
 pub trait DeviceLink {
+    /// The flash driver's error, carried in [`StoreError::Flash`].
     type FlashError: core::fmt::Debug;
     /// A millisecond tick (wrapping).
     fn now_ms(&self) -> u32;
+    /// A snapshot of the readout's counters and dither, for `status`.
     fn status(&self) -> DeviceStatus;
     /// The settings the readout applies now.
     fn active_settings(&mut self) -> CompensationSettings;

@@ -25,14 +25,19 @@ pub mod stream;
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[repr(u8)]
 pub enum ErrorCode {
+    /// The first word is no command of the protocol.
     UnknownCommand = 1,
     /// Missing, extra or malformed words.
     Syntax = 2,
+    /// A numeric argument does not parse (decimal; the `unlock` key in hex).
     BadNumber = 3,
     /// NaN or infinite.
     NotFinite = 4,
+    /// A number outside its documented range (e.g. |a| > 32767 rad/s, `cal start 0`).
     OutOfRange = 5,
+    /// The `*XXXX` suffix is not 4 hex digits or not the CRC-16 of the line before it.
     BadChecksum = 6,
+    /// The line was longer than `line::MAX_LINE` bytes; it was discarded unread.
     LineTooLong = 7,
     /// Non-printable bytes in the line.
     InvalidCharacters = 8,
@@ -44,9 +49,11 @@ pub enum ErrorCode {
     WrongState = 11,
     /// The calibration fit failed a validity check (the reason code follows).
     FitRefused = 12,
+    /// `store` failed: flash driver error, read-back mismatch or an implausible record.
     FlashError = 13,
     /// Too many wrong keys: wait before trying again.
     RateLimited = 14,
+    /// `unlock` with a key that is not the device's; the device locks.
     WrongKey = 15,
 }
 
@@ -70,10 +77,12 @@ impl ErrorCode {
         Self::WrongKey,
     ];
 
+    /// The number after `ERR`.
     pub const fn code(self) -> u8 {
         self as u8
     }
 
+    /// The short text after the code.
     pub const fn text(self) -> &'static str {
         match self {
             Self::UnknownCommand => "unknown command (try help)",

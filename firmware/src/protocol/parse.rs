@@ -12,15 +12,20 @@ use super::ErrorCode;
 /// Which coefficient.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Coefficient {
+    /// a, the coefficient of P1.
     A,
+    /// b, the coefficient of P2.
     B,
 }
 
 /// Every command of the protocol (see the README for examples).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Command {
+    /// `help` | `?`: the command list.
     Help,
+    /// `id` | `identify`: firmware, board, serial number, scale factor, timer clock.
     Identify,
+    /// `status`: signal, dither, rate, counters, compensation, tracking, source, lock.
     Status,
     /// `get a` | `get b` | `get coeffs`: one coefficient, or both with Omega_L and eps.
     Get(Option<Coefficient>),
@@ -32,10 +37,14 @@ pub enum Command {
     Tracking(bool),
     /// `cal start <cycles> [<warmup cycles>]`: one calibration run (pooled with a completed one).
     CalStart {
+        /// Dither cycles to feed into the fit, 1..=[`MAX_CAL_CYCLES`].
         cycles: u32,
+        /// Cycles discarded first, 0..=[`MAX_CAL_CYCLES`] (default 0).
         warmup_cycles: u32,
     },
+    /// `cal status`: the session's state and cycles collected.
     CalStatus,
+    /// `cal abort`: drop the runs and any fit; back to idle.
     CalAbort,
     /// `cal result`: solve the pooled runs (once complete) and report the fit.
     CalResult,
@@ -51,6 +60,7 @@ pub enum Command {
     Stream(Option<u16>),
     /// `unlock <key>`: allow commands that change coefficients or flash.
     Unlock(u32),
+    /// `lock`: lock at once.
     Lock,
 }
 

@@ -33,17 +33,26 @@ pub const MAX_FRAME: usize = FRAME_BODY + 2;
 /// One streamed cycle.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StreamRecord {
+    /// Frame number, +1 per frame sent (wrapping): a gap means lost frames.
     pub sequence: u32,
+    /// Total beat phase at the cycle's closing turnaround, Q32 fringes (wrapping).
     pub end_phase_q32: i64,
+    /// Beat-phase increment over the cycle before compensation, Q32 fringes.
     pub raw_increment_q32: i64,
+    /// The increment after subtracting a P1 + b P2, Q32 fringes.
     pub compensated_increment_q32: i64,
+    /// The cycle's lock-in term P1, s.
     pub p1_s: f32,
+    /// The cycle's lock-in term P2, s.
     pub p2_s: f32,
+    /// Cycle duration, capture-timer ticks (`id` reports the timer's Hz).
     pub duration_ticks: u32,
+    /// The cycle's `output::CycleFlags` bits.
     pub flags: u8,
 }
 
 impl StreamRecord {
+    /// The frame for cycle `c`, numbered `sequence`.
     pub fn from_cycle(sequence: u32, c: &CycleRecord) -> Self {
         Self {
             sequence,
@@ -121,6 +130,7 @@ pub fn encode_frame(record: &StreamRecord, out: &mut [u8; MAX_FRAME]) -> usize {
 pub enum FrameError {
     /// Wrong length or broken COBS structure.
     Malformed,
+    /// The CRC-32 does not match the payload.
     BadCrc,
 }
 
@@ -168,11 +178,14 @@ pub fn decode_frame(encoded: &[u8]) -> Result<StreamRecord, FrameError> {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct GapCounter {
     last: Option<u32>,
+    /// Frames missing between the sequence numbers received.
     pub lost: u64,
+    /// Frames received.
     pub received: u64,
 }
 
 impl GapCounter {
+    /// One frame received with `sequence`: counts it and any gap before it.
     pub fn observe(&mut self, sequence: u32) {
         if let Some(last) = self.last {
             self.lost += sequence.wrapping_sub(last).wrapping_sub(1) as u64;

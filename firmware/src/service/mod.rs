@@ -80,9 +80,11 @@ impl ServiceConfig {
 
 /// A service just booted: the settings its readout must start with, and what the load found.
 pub struct Booted<F: NorFlash> {
+    /// The service, locked, owning the flash.
     pub service: Service<F>,
     /// The compensation settings loaded from flash (or the defaults).
     pub settings: CompensationSettings,
+    /// What the load found: loaded or defaults (and why), and the store's health.
     pub report: LoadReport,
 }
 

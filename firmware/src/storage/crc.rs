@@ -41,6 +41,7 @@ impl Default for Crc32 {
 }
 
 impl Crc32 {
+    /// Nothing fed yet (register 0xFFFF_FFFF).
     pub const fn new() -> Self {
         Self {
             register: 0xFFFF_FFFF,

@@ -18,7 +18,9 @@ pub struct RamFlash<const SECTORS: usize, const SECTOR_BYTES: usize> {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum RamFlashError {
+    /// The range runs past the end of the last sector.
     OutOfBounds,
+    /// A write not on 4-byte words, or an erase not on sector boundaries.
     NotAligned,
 }
 

@@ -70,23 +70,41 @@ pub const COMMIT_MARKER: u32 = 0xA5C3_3C5A;
 
 /// Byte offsets of the version-1 fields (see the module table).
 pub mod offset {
+    /// Magic [`super::MAGIC`], u16.
     pub const MAGIC: usize = 0;
+    /// Format version, u8.
     pub const VERSION: usize = 2;
+    /// Frame length in 32-bit words, u8.
     pub const LENGTH_WORDS: usize = 3;
+    /// Sequence number, u32.
     pub const SEQUENCE: usize = 4;
+    /// Gyro serial number, u32.
     pub const SERIAL_NUMBER: usize = 8;
+    /// Boot count at the time of storing, u32.
     pub const BOOT_COUNT: usize = 12;
+    /// Coefficient a, Q15.16 rad/s, i32.
     pub const A_Q16: usize = 16;
+    /// Coefficient b, Q15.16 rad/s, i32.
     pub const B_Q16: usize = 20;
+    /// Compensation enabled, u8: 0 or 1.
     pub const ENABLED: usize = 24;
+    /// Flags, u8: bit 0 fit present, bit 1 reset record.
     pub const FLAGS: usize = 25;
+    /// Fit: runs pooled, u16.
     pub const FIT_RUNS: usize = 26;
+    /// Fit: dither cycles, u32.
     pub const FIT_CYCLES: usize = 28;
+    /// Fit: standard error of a, rad/s, f32.
     pub const FIT_A_STD: usize = 32;
+    /// Fit: standard error of b, rad/s, f32.
     pub const FIT_B_STD: usize = 36;
+    /// Fit: residual standard deviation, rad, f32.
     pub const FIT_RESIDUAL_STD: usize = 40;
+    /// Fit: variance reduction, f32.
     pub const FIT_VARIANCE_REDUCTION: usize = 44;
+    /// Fit: condition number, f32.
     pub const FIT_CONDITION_NUMBER: usize = 48;
+    /// Fit: mean input rate, rad/s of beat phase, f32.
     pub const FIT_MEAN_RATE: usize = 52;
     /// CRC of `[0, CRC)`; in any frame of length n bytes it sits at n - 8.
     pub const CRC: usize = 56;
@@ -109,7 +127,10 @@ pub enum RecordError {
     /// The commit marker is not (fully) programmed: a write that did not finish.
     NotCommitted,
     /// A valid frame of a format version this firmware cannot read.
-    UnknownVersion { version: u8 },
+    UnknownVersion {
+        /// The frame's format version.
+        version: u8,
+    },
     /// The enabled byte is neither 0 nor 1, or unknown flag bits are set.
     BadFlags,
     /// A fit statistic is NaN or outside its possible range, or fit bytes without a fit.
@@ -126,11 +147,17 @@ pub struct FitSummary {
     pub cycles: u32,
     /// Runs pooled (saturates at `u16::MAX`).
     pub runs: u16,
+    /// Standard error of a, rad/s (>= 0).
     pub a_std_rad_per_s: f32,
+    /// Standard error of b, rad/s (>= 0).
     pub b_std_rad_per_s: f32,
+    /// Residual standard deviation of the per-cycle output, rad (>= 0).
     pub residual_std_rad: f32,
+    /// 1 - residual variance / output variance (<= 1).
     pub variance_reduction: f32,
+    /// Condition number of the normalised P1/P2 covariance (>= 1; infinite when collinear).
     pub condition_number: f32,
+    /// Mean output rate over all runs (the input rate), rad/s of beat phase.
     pub mean_rate_rad_per_s: f32,
 }
 
@@ -242,8 +269,11 @@ impl CalibrationRecord {
 /// The header of any frame, as far as the first [`ALIGN_BYTES`] tell (CRC not yet checked).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FrameHeader {
+    /// Format version (any; only [`FORMAT_VERSION`] can be decoded).
     pub version: u8,
+    /// Frame length, bytes: a whole number of [`ALIGN_BYTES`] units, at most [`MAX_FRAME_BYTES`].
     pub length_bytes: usize,
+    /// Sequence number.
     pub sequence: u32,
 }
 

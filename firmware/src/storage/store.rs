@@ -73,9 +73,15 @@ pub enum StoreError<E> {
     /// Read-back differs from what was programmed, at this driver offset. The marker is written
     /// only after the body verified, so a body mismatch leaves an uncommitted (ignored) record.
     /// The next store appends after it; retrying is the caller's choice.
-    Verify { offset: u32 },
+    Verify {
+        /// Driver offset of the first 16-byte unit that read back differently.
+        offset: u32,
+    },
     /// Flash that must be erased is not (at this offset): the erase did not complete.
-    NotErased { offset: u32 },
+    NotErased {
+        /// Driver offset of the first 16-byte unit that is not all 0xFF.
+        offset: u32,
+    },
     /// The sequence number would overflow (2^32 stores: beyond the flash's endurance).
     SequenceExhausted,
 }
@@ -84,7 +90,9 @@ pub enum StoreError<E> {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SkippedFrame {
+    /// Its format version (not [`FORMAT_VERSION`]).
     pub version: u8,
+    /// Its sequence number: new records are numbered above it.
     pub sequence: u32,
 }
 
@@ -97,7 +105,10 @@ pub enum DefaultsReason {
     /// Something is stored, but no valid record of this format version.
     NoValidRecord,
     /// The newest record was written by `reset_to_defaults` (with this sequence number).
-    Reset { sequence: u32 },
+    Reset {
+        /// Sequence number of that reset record.
+        sequence: u32,
+    },
     /// The flash could not be read.
     ReadFailed,
 }
@@ -107,15 +118,22 @@ pub enum DefaultsReason {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum LoadOutcome {
     /// The stored calibration with this sequence number is in force.
-    Loaded { sequence: u32 },
+    Loaded {
+        /// Sequence number of the record loaded.
+        sequence: u32,
+    },
     /// The defaults are in force.
-    Defaults { reason: DefaultsReason },
+    Defaults {
+        /// Why: a fresh board, nothing valid, a reset record or a read error.
+        reason: DefaultsReason,
+    },
 }
 
 /// The outcome and the health of the store.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LoadReport {
+    /// Which record is in force: a loaded one or the defaults.
     pub outcome: LoadOutcome,
     /// The newest valid frame of an unknown (newer) format version, if any: skipped, untouched.
     pub newer_format: Option<SkippedFrame>,
@@ -214,6 +232,7 @@ impl CalibrationStore {
         Ok(Self { geometry })
     }
 
+    /// Where the two sectors are.
     pub fn geometry(&self) -> Geometry {
         self.geometry
     }

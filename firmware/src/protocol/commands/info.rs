@@ -19,8 +19,11 @@ unlock<key> lock help";
 /// What `status` reports of the executor's own state.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StatusFlags {
+    /// Online tracking of a and b runs (`track=on`).
     pub tracking: bool,
+    /// Where the coefficients in force came from (`coeffs=`).
     pub source: Source,
+    /// Protected commands are allowed now (`locked=no`).
     pub unlocked: bool,
 }
 

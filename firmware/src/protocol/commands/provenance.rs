@@ -11,9 +11,12 @@ use crate::storage::{DefaultsReason, FitSummary, LoadOutcome, LoadReport};
 /// Where the coefficients in force came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Source {
+    /// The stored record, unchanged since it was loaded or stored.
     Flash {
+        /// Its sequence number.
         sequence: u32,
     },
+    /// The defaults, since boot or `reload` (and why: nothing stored, a reset, ...).
     Defaults(DefaultsReason),
     /// Changed since the last store or load.
     Unsaved,
@@ -32,6 +35,7 @@ impl Source {
 /// The coefficients' source and fit, and the boot count a stored record carries.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Provenance {
+    /// Where the coefficients in force came from.
     pub source: Source,
     /// The fit behind the coefficients in force (stored with them), if any.
     pub fit: Option<FitSummary>,
