@@ -1,7 +1,8 @@
 //! The firmware in the loop: the simulated board feeding the firmware's own readout, one half
-//! dither cycle at a time. Every host run of the firmware's signal chain goes through
-//! [`Harness`]: the sweep of `rlg-sim`, the system tests, the scheduled-latch tests, and the
-//! simulated device (`device.rs`, which adds the serial protocol and the flash on top).
+//! dither cycle at a time. The host runs of the firmware's signal chain go through [`Harness`]:
+//! the sweep of `rlg-sim`, the system tests, the scheduled-latch tests; the API also serves the
+//! simulated device (`device.rs`, which adds the serial protocol and the flash on top: one half
+//! cycle at a time, a stalled CPU, the readout between steps).
 //!
 //! # One step
 //!
