@@ -88,7 +88,9 @@ impl LatchTiming {
 /// The board around the gyro.
 #[derive(Clone, Debug)]
 pub struct BoardConfig {
+    /// The photodiode channels, their ADC and comparators.
     pub photodiodes: PhotodiodeConfig,
+    /// The encoder timer (register width, start value, direction).
     pub counter: CounterConfig,
     /// Capture-timer frequency, Hz.
     pub timer_hz: f64,
@@ -105,7 +107,9 @@ pub struct BoardConfig {
     /// Drift of the photodiode phase offset eps (thermal, ageing), rad/s, applied from t = 0
     /// until `eps_drift_until_s`: the photodiodes see psi - eps(t).
     pub eps_drift_rad_per_s: f64,
+    /// End of the eps drift, s.
     pub eps_drift_until_s: f64,
+    /// Seed of the board's noise (photodiodes, latch jitter).
     pub seed: u64,
 }
 
@@ -161,8 +165,11 @@ impl BoardConfig {
 /// Why a board cannot be built.
 #[derive(Debug)]
 pub enum BoardError {
+    /// The counter cannot follow the comparators.
     Counter(crate::counter::CounterError),
+    /// The photodiode configuration is invalid.
     Photodiodes(crate::photodiode::PhotodiodeConfigError),
+    /// Another setting is invalid; the text says which.
     Config(&'static str),
 }
 
@@ -221,6 +228,7 @@ pub struct SimBoard {
 }
 
 impl SimBoard {
+    /// The board around `gyro`, at t = 0.
     pub fn new(mut gyro: Gyro, config: BoardConfig) -> Result<Self, BoardError> {
         config
             .photodiodes
