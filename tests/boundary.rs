@@ -14,9 +14,9 @@ mod common;
 
 use common::{paper_gyro, TAU};
 use firmware::sample::{TurnaroundKind, TurnaroundSample};
-use hal_sim::board::{BoardConfig, SimBoard};
 use hal_sim::counter::ideal_quadrant_index;
-use hal_sim::gyro::{Gyro, Turnaround};
+use hal_sim::gyro::Turnaround;
+use hal_sim::harness::{Harness, HarnessOptions};
 use hal_sim::input::InputProfile;
 use std::collections::BTreeMap;
 
@@ -24,31 +24,30 @@ use std::collections::BTreeMap;
 fn latches(
     seconds: f64,
 ) -> (
-    SimBoard,
+    Harness,
     Vec<(f64, TurnaroundSample)>,
     BTreeMap<u64, Turnaround>,
 ) {
     let params = paper_gyro(31);
-    let gyro = Gyro::new(params, InputProfile::constant(10.0)).unwrap();
-    let mut board = SimBoard::new(gyro, BoardConfig::for_gyro(&params)).unwrap();
+    let mut harness = HarnessOptions::new(params, InputProfile::constant(10.0))
+        .build()
+        .unwrap();
     let (mut samples, mut truth) = (Vec::new(), BTreeMap::new());
-    let mut lissajous = Vec::new();
-    while board.time_s() < seconds {
-        let sample = board.next_half_cycle(&mut lissajous);
-        samples.push((board.last_latch().unwrap().latch_s, sample));
-        for tr in board.take_traversals() {
+    harness.run_until(seconds, |h, half| {
+        samples.push((half.latch_s(), half.sample));
+        for tr in h.take_traversals() {
             truth.insert(tr.turnaround.time_s.to_bits(), tr.turnaround);
         }
-    }
-    (board, samples, truth)
+    });
+    (harness, samples, truth)
 }
 
 #[test]
 fn turnaround_samples_follow_the_firmware_conventions() {
-    let (board, samples, truth) = latches(0.3);
-    let config = BoardConfig::for_gyro(board.gyro().params());
+    let (harness, samples, truth) = latches(0.3);
+    let config = harness.board().config();
     let pd = config.photodiodes;
-    let eps_rad = board.gyro().params().eps_rad;
+    let eps_rad = harness.gyro().params().eps_rad;
     // 1 mV of noise on a 1.32 V amplitude is 7.6e-4 rad per channel: 0.01 rad is 13 sigma.
     const PHASE_TOLERANCE_RAD: f64 = 0.01;
 

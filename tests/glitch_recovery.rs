@@ -44,12 +44,12 @@ mod common;
 use std::collections::BTreeMap;
 
 use common::{paper_gyro, TAU};
-use firmware::readout::{Readout, ReadoutConfig, ReadoutCounters};
+use firmware::readout::{ReadoutConfig, ReadoutCounters};
 use firmware::signal::compensation::{Coefficients, CompensationSettings};
 use firmware::signal::cycle::CycleRecord;
 use firmware::signal::output::CycleFlags;
-use hal_sim::board::{BoardConfig, SimBoard};
-use hal_sim::gyro::Gyro;
+use hal_sim::board::SimBoard;
+use hal_sim::harness::{Feed, HarnessOptions};
 use hal_sim::input::InputProfile;
 use hal_sim::params::GyroParams;
 use hal_sim::photodiode::PhotodiodeFault;
@@ -98,20 +98,11 @@ impl Run {
     }
 }
 
-/// The firmware-in-the-loop: steps the board to each turnaround, feeds the Lissajous stream and
-/// the latch to the readout, hands each cycle back to the board. `inject(board, half_cycle)` runs
-/// before each latch and returns whether the latch reaches the readout. (One function, so that
-/// hal-sim's harness can replace it.)
+/// The firmware in the loop (hal-sim's harness) with the exact a, b. `inject(board, half_cycle)`
+/// runs before each latch and returns whether the latch reaches the readout (the conversions
+/// always do).
 fn run_chain(params: &GyroParams, mut inject: impl FnMut(&mut SimBoard, usize) -> bool) -> Run {
-    let gyro = Gyro::new(*params, InputProfile::constant(INPUT_DEG_H)).unwrap();
-    let board_config = BoardConfig::for_gyro(params);
-    let mut board = SimBoard::new(gyro, board_config.clone()).unwrap();
-    let config = ReadoutConfig::for_board(
-        board_config.timer_hz,
-        params.dither_hz,
-        firmware::profile::BoardProfile::F405.counter_width,
-    );
-    let omega_l = board.gyro().derived().omega_l_rad_per_s;
+    let omega_l = params.derive().unwrap().omega_l_rad_per_s;
     let phase = params.eps_rad + TAU / 8.0;
     let settings = CompensationSettings {
         coefficients: Coefficients::from_rad_per_s(
@@ -121,29 +112,28 @@ fn run_chain(params: &GyroParams, mut inject: impl FnMut(&mut SimBoard, usize) -
         .unwrap(),
         enabled: true,
     };
-    let mut readout = Readout::new(&config, settings);
+    let mut harness = HarnessOptions::new(*params, InputProfile::constant(INPUT_DEG_H))
+        .compensation(settings)
+        .build()
+        .unwrap();
     let (mut cycles, mut latches_s) = (Vec::new(), Vec::new());
-    let mut lissajous = Vec::new();
-    while board.time_s() < RUN_S {
-        let deliver = inject(&mut board, latches_s.len());
-        let sample = board.next_half_cycle(&mut lissajous);
-        latches_s.push(board.time_s());
-        for &(a, b) in &lissajous {
-            readout.on_lissajous_sample(&config, a, b);
-        }
-        if !deliver {
-            continue;
-        }
-        if let Some(record) = readout.on_turnaround(&config, sample) {
-            board.on_cycle(&record);
-            cycles.push((board.time_s(), record));
+    while harness.time_s() < RUN_S {
+        let feed = if inject(harness.board_mut(), latches_s.len()) {
+            Feed::Everything
+        } else {
+            Feed::MissTurnaround
+        };
+        let half = harness.step_with(feed);
+        latches_s.push(half.latch_s());
+        if let Some(record) = half.record {
+            cycles.push((half.latch_s(), record));
         }
     }
     Run {
         cycles,
         latches_s,
-        counters: readout.counters(),
-        config,
+        counters: harness.readout().counters(),
+        config: *harness.config(),
     }
 }
 

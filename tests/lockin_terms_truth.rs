@@ -25,11 +25,9 @@
 mod common;
 
 use common::{paper_gyro, TAU};
-use firmware::readout::{Readout, ReadoutConfig};
 use firmware::sample::TurnaroundKind;
-use firmware::signal::compensation::CompensationSettings;
-use hal_sim::board::{BoardConfig, SimBoard};
-use hal_sim::gyro::Gyro;
+use hal_sim::board::BoardConfig;
+use hal_sim::harness::HarnessOptions;
 use hal_sim::input::InputProfile;
 use hal_sim::params::{AmplitudeModulation, GyroParams};
 
@@ -47,16 +45,10 @@ fn correlation(x: &[f64], y: &[f64]) -> f64 {
 
 /// (model, truth) per cycle, for `seconds` of gyro time at `rate_deg_h`.
 fn model_and_truth(params: &GyroParams, rate_deg_h: f64, seconds: f64) -> (Vec<f64>, Vec<f64>) {
-    let gyro = Gyro::new(*params, InputProfile::constant(rate_deg_h)).unwrap();
-    let board_config = BoardConfig::for_gyro(params);
-    let mut board = SimBoard::new(gyro, board_config.clone()).unwrap();
-    let config = ReadoutConfig::for_board(
-        board_config.timer_hz,
-        params.dither_hz,
-        firmware::profile::BoardProfile::F405.counter_width,
-    );
-    let mut readout = Readout::new(&config, CompensationSettings::default());
-    let omega_l = board.gyro().derived().omega_l_rad_per_s;
+    let mut harness = HarnessOptions::new(*params, InputProfile::constant(rate_deg_h))
+        .build()
+        .unwrap();
+    let omega_l = harness.gyro().derived().omega_l_rad_per_s;
     let (a, b) = (
         omega_l * (params.eps_rad + TAU / 8.0).cos(),
         omega_l * (params.eps_rad + TAU / 8.0).sin(),
@@ -64,29 +56,24 @@ fn model_and_truth(params: &GyroParams, rate_deg_h: f64, seconds: f64) -> (Vec<f
     // Firmware cycles: (start time, end time, model); truth: phi at each "+" turnaround.
     let mut cycles = Vec::new();
     let mut plus_phi = std::collections::BTreeMap::new();
-    let mut lissajous = Vec::new();
     let mut last_plus_s = None;
-    while board.time_s() < seconds {
-        let sample = board.next_half_cycle(&mut lissajous);
-        for &(a_code, b_code) in &lissajous {
-            readout.on_lissajous_sample(&config, a_code, b_code);
-        }
-        let t = board.time_s();
-        if let Some(record) = readout.on_turnaround(&config, sample) {
+    harness.run_until(seconds, |h, half| {
+        let t = half.latch_s();
+        if let Some(record) = &half.record {
             if record.output.flags.is_empty() && t > 0.5 {
                 let model = a * record.terms.p1_s as f64 + b * record.terms.p2_s as f64;
                 cycles.push((last_plus_s.unwrap(), t, model));
             }
         }
-        if sample.kind == TurnaroundKind::Plus {
+        if half.sample.kind == TurnaroundKind::Plus {
             last_plus_s = Some(t);
         }
-        for tr in board.take_traversals() {
+        for tr in h.take_traversals() {
             if tr.turnaround.kind == TurnaroundKind::Plus {
                 plus_phi.insert(tr.turnaround.time_s.to_bits(), tr.turnaround.phi_rad);
             }
         }
-    }
+    });
     let (mut model, mut truth) = (Vec::new(), Vec::new());
     for (start, end, m) in cycles {
         if let (Some(p0), Some(p1)) = (plus_phi.get(&start.to_bits()), plus_phi.get(&end.to_bits()))

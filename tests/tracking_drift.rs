@@ -5,7 +5,8 @@
 //! drifts by +5 % and eps by 0.15 rad (thermal drift, compressed in time), then 20 s inside it
 //! (2 deg/h), where the
 //! compensation is what makes the output follow the input at all and where tracking is frozen.
-//! Both readouts start from the exact coefficients at t = 0 and see the same simulated board.
+//! Both readouts start from the exact coefficients at t = 0 and see the same simulated board
+//! (hal-sim's harness runs the tracked one; the static one is replayed the same half cycles).
 //! Acceptance: inside the band the tracked compensation's error is well below the static
 //! one's, and the tracked coefficients end within 1 % of Omega_L of the drifted truth.
 //!
@@ -19,11 +20,10 @@ mod common;
 
 use common::{paper_gyro, TAU};
 use firmware::calibration::tracking::{TrackingLoop, TrackingLoopConfig};
-use firmware::readout::{Readout, ReadoutConfig};
+use firmware::readout::Readout;
 use firmware::signal::compensation::{Coefficients, CompensationSettings};
 use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
-use hal_sim::board::{BoardConfig, SimBoard};
-use hal_sim::gyro::Gyro;
+use hal_sim::harness::HarnessOptions;
 use hal_sim::input::InputProfile;
 
 const DRIFT_END_S: f64 = 60.0;
@@ -41,18 +41,7 @@ fn tracking_beats_a_static_fit_when_lock_in_and_eps_drift() {
         ..paper_gyro(41)
     };
     let input = InputProfile::steps(13.888, &[(DRIFT_END_S, INSIDE_DEG_H)]);
-    let gyro = Gyro::new(params, input).unwrap();
-    let mut board_config = BoardConfig::for_gyro(&params);
-    board_config.eps_drift_rad_per_s = EPS_DRIFT_RAD / DRIFT_END_S;
-    board_config.eps_drift_until_s = DRIFT_END_S;
-    let mut board = SimBoard::new(gyro, board_config.clone()).unwrap();
-    let config = ReadoutConfig::for_board(
-        board_config.timer_hz,
-        params.dither_hz,
-        firmware::profile::BoardProfile::F405.counter_width,
-    );
-
-    let omega_l = board.gyro().derived().omega_l_rad_per_s;
+    let omega_l = params.derive().unwrap().omega_l_rad_per_s;
     let truth = |omega_l: f64, eps: f64| {
         (
             omega_l * (eps + TAU / 8.0).cos(),
@@ -64,8 +53,14 @@ fn tracking_beats_a_static_fit_when_lock_in_and_eps_drift() {
         coefficients: Coefficients::from_rad_per_s(a0 as f32, b0 as f32).unwrap(),
         enabled: true,
     };
+    // The harness's own readout is the tracked one; the static one is fed the same half cycles
+    // (`replay_into`). The latch is exact, so the board does not depend on which one it follows.
+    let mut options = HarnessOptions::new(params, input).compensation(start);
+    options.board.eps_drift_rad_per_s = EPS_DRIFT_RAD / DRIFT_END_S;
+    options.board.eps_drift_until_s = DRIFT_END_S;
+    let mut harness = options.build().unwrap();
+    let config = *harness.config();
     let mut fixed = Readout::new(&config, start);
-    let mut tracked = Readout::new(&config, start);
     // A memory of 500 cycles (1.3 s): this test compresses hours of drift into 60 s; the lag is
     // memory x drift per cycle (2.2 rad/s), the estimation noise about as much.
     let loop_config = TrackingLoopConfig::with_memory(500.0);
@@ -74,30 +69,24 @@ fn tracking_beats_a_static_fit_when_lock_in_and_eps_drift() {
     let averager_config = AveragerConfig {
         window_cycles: u32::MAX,
         mode: AveragingMode::WholePeriods,
-        timer_hz: board_config.timer_hz,
+        timer_hz: harness.board().config().timer_hz,
         scale_factor_arcsec: params.scale_factor_arcsec,
     };
     let (mut fixed_rate, mut tracked_rate) = (RateAverager::new(), RateAverager::new());
-    let mut lissajous = Vec::new();
     let mut tracked_at_drift_end = None;
-    while board.time_s() < END_S {
-        let sample = board.next_half_cycle(&mut lissajous);
-        for &(a, b) in &lissajous {
-            fixed.on_lissajous_sample(&config, a, b);
-            tracked.on_lissajous_sample(&config, a, b);
-        }
-        let t = board.time_s();
+    harness.run_until(END_S, |h, half| {
+        let t = half.latch_s();
         let measuring = t > MEASURE_FROM_S;
-        if let Some(c) = fixed.on_turnaround(&config, sample) {
+        if let Some(c) = h.replay_into(&mut fixed) {
             if measuring {
                 fixed_rate.push(&averager_config, c.output);
             }
         }
-        if let Some(c) = tracked.on_turnaround(&config, sample) {
+        if let Some(c) = &half.record {
             if let Some(coefficients) =
-                tracking.on_cycle(&loop_config, &c, c.duration_s(&config.cycle))
+                tracking.on_cycle(&loop_config, c, c.duration_s(&config.cycle))
             {
-                tracked.stage_compensation(CompensationSettings {
+                h.readout_mut().stage_compensation(CompensationSettings {
                     coefficients,
                     enabled: true,
                 });
@@ -113,7 +102,7 @@ fn tracking_beats_a_static_fit_when_lock_in_and_eps_drift() {
                     .coefficients_rad_per_s(&loop_config.tracking),
             );
         }
-    }
+    });
 
     let (a_end, b_end) = truth(
         omega_l * (1.0 + LOCK_IN_DRIFT),

@@ -15,7 +15,7 @@
 //! - [`LatchTiming::Scheduled`]: what the board does. The pick-off comparator's edges are found
 //!   on the analytic dither pick-off ([`Gyro::dither_pickoff_arcsec`] against the comparator
 //!   threshold: bracketing in steps of T/32, then bisection to 10 ps), delayed by the pick-off
-//!   path and captured by the 84 MHz timer ([`CaptureTimer`], whole ticks), and fed to the
+//!   path and captured by the profile's 84 MHz timer ([`CaptureTimer`], whole ticks), and fed to the
 //!   firmware's own [`Scheduler`] (`firmware::signal::turnaround_schedule`) with the input-rate
 //!   shift that [`rate_shift_ticks`] computes from the latest [`CycleRecord`] the caller hands
 //!   back ([`SimBoard::on_cycle`]). The latch is taken at the sampling instant: the compare
@@ -40,15 +40,14 @@ use crate::gyro::Gyro;
 use crate::gyro::TurnaroundTime;
 use crate::params::GyroParams;
 use crate::photodiode::{PhotodiodeConfig, Photodiodes};
+use firmware::profile::BoardProfile;
+use firmware::readout::ReadoutConfig;
 use firmware::sample::{TurnaroundKind, TurnaroundSample};
 use firmware::signal::cycle::CycleRecord;
 use firmware::signal::turnaround_schedule::{rate_shift_ticks, Edge, Scheduler, SchedulerConfig};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
-
-/// Capture-timer frequency of the STM32F405's 32-bit TIM2/TIM5 (APB1 timer clock), Hz.
-pub const TIMER_HZ: f64 = 84e6;
 
 /// How the turnaround latch is timed.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -74,25 +73,24 @@ pub enum LatchTiming {
 }
 
 impl LatchTiming {
-    /// Scheduled from the pick-off with the board's nominal delays (18 ticks pick-off path, 70
-    /// ticks ADC aperture: `firmware::board::turnaround`) and the rate shift on.
+    /// Scheduled from the pick-off with the board profile's delays ([`BoardProfile::F405`]:
+    /// pick-off path and ADC aperture) and the rate shift on.
     pub const fn scheduled(comparator_offset_arcsec: f64) -> Self {
         Self::Scheduled {
             comparator_offset_arcsec,
-            pickoff_delay_ticks: 18,
-            aperture_delay_ticks: 70,
+            pickoff_delay_ticks: BoardProfile::F405.pickoff_delay_ticks,
+            aperture_delay_ticks: BoardProfile::F405.aperture_delay_ticks,
             rate_shift: true,
         }
     }
 }
 
-/// Dither frequencies the simulated scheduler accepts, Hz (the board's range).
-const SCHEDULER_DITHER_HZ: (u32, u32) = (200, 1500);
-
 /// The board around the gyro.
 #[derive(Clone, Debug)]
 pub struct BoardConfig {
+    /// The photodiode channels, their ADC and comparators.
     pub photodiodes: PhotodiodeConfig,
+    /// The encoder timer (register width, start value, direction).
     pub counter: CounterConfig,
     /// Capture-timer frequency, Hz.
     pub timer_hz: f64,
@@ -109,18 +107,21 @@ pub struct BoardConfig {
     /// Drift of the photodiode phase offset eps (thermal, ageing), rad/s, applied from t = 0
     /// until `eps_drift_until_s`: the photodiodes see psi - eps(t).
     pub eps_drift_rad_per_s: f64,
+    /// End of the eps drift, s.
     pub eps_drift_until_s: f64,
+    /// Seed of the board's noise (photodiodes, latch jitter).
     pub seed: u64,
 }
 
 impl BoardConfig {
     /// The default board for a gyro: realistic photodiodes (offsets, unequal gains, quadrature
-    /// error, noise, 12-bit ADC), a 32-bit encoder timer, an exact latch.
+    /// error, noise, 12-bit ADC), the encoder and capture timers of [`BoardProfile::F405`], an
+    /// exact latch.
     pub fn for_gyro(params: &GyroParams) -> Self {
         Self {
             photodiodes: PhotodiodeConfig::default(),
             counter: CounterConfig::default(),
-            timer_hz: TIMER_HZ,
+            timer_hz: f64::from(BoardProfile::F405.timer_hz),
             lissajous_rate_hz: 12_345.0,
             latch: LatchTiming::Exact,
             latch_offset_s: 0.0,
@@ -132,11 +133,43 @@ impl BoardConfig {
     }
 }
 
+impl BoardConfig {
+    /// The firmware's profile of this board: [`BoardProfile::F405`] with this board's timer
+    /// clock, counter width and (when scheduled) latch delays, i.e. a firmware configured for the
+    /// simulated hardware. The scheduler's and the readout's settings come from it.
+    pub fn profile(&self) -> BoardProfile {
+        let f405 = BoardProfile::F405;
+        let (pickoff_delay_ticks, aperture_delay_ticks) = match self.latch {
+            LatchTiming::Scheduled {
+                pickoff_delay_ticks,
+                aperture_delay_ticks,
+                ..
+            } => (pickoff_delay_ticks, aperture_delay_ticks),
+            LatchTiming::Exact => (f405.pickoff_delay_ticks, f405.aperture_delay_ticks),
+        };
+        BoardProfile {
+            timer_hz: self.timer_hz.round() as u32,
+            counter_width: self.counter.width,
+            pickoff_delay_ticks,
+            aperture_delay_ticks,
+            ..f405
+        }
+    }
+
+    /// The firmware's readout settings for this board and a dither near `dither_hz`.
+    pub fn readout_config(&self, dither_hz: f64) -> ReadoutConfig {
+        self.profile().readout_config(dither_hz)
+    }
+}
+
 /// Why a board cannot be built.
 #[derive(Debug)]
 pub enum BoardError {
+    /// The counter cannot follow the comparators.
     Counter(crate::counter::CounterError),
+    /// The photodiode configuration is invalid.
     Photodiodes(crate::photodiode::PhotodiodeConfigError),
+    /// Another setting is invalid; the text says which.
     Config(&'static str),
 }
 
@@ -195,6 +228,7 @@ pub struct SimBoard {
 }
 
 impl SimBoard {
+    /// The board around `gyro`, at t = 0.
     pub fn new(mut gyro: Gyro, config: BoardConfig) -> Result<Self, BoardError> {
         config
             .photodiodes
@@ -245,22 +279,15 @@ impl SimBoard {
                 "comparator threshold must be finite, the timer below 2^32 Hz",
             ));
         }
-        let timer_hz = config.timer_hz.round() as u32;
         Ok(Some(Pickoff {
             threshold_arcsec: comparator_offset_arcsec,
             pickoff_delay_s: pickoff_delay_ticks as f64 / config.timer_hz,
             aperture_delay_s: aperture_delay_ticks as f64 / config.timer_hz,
             rate_shift,
-            config: SchedulerConfig::for_dither_range(
-                timer_hz,
-                SCHEDULER_DITHER_HZ.0,
-                SCHEDULER_DITHER_HZ.1,
-                pickoff_delay_ticks,
-                aperture_delay_ticks,
-                // The pick-off reads the dither angle in the sense of the beat phase: after a
-                // rising edge comes a maximum, a "-" turnaround (as `board::turnaround`).
-                TurnaroundKind::Minus,
-            ),
+            // The profile's dither range and pick-off polarity (the pick-off reads the dither
+            // angle in the sense of the beat phase: after a rising edge comes a maximum, a "-"
+            // turnaround), with this board's timer and delays.
+            config: config.profile().scheduler_config(),
             scheduler: Scheduler::new(),
             cursor_s: 0.0,
         }))
@@ -427,6 +454,11 @@ impl SimBoard {
     /// The input-rate shift in use, ticks (Omega_i/|psi_ddot|, from the last [`Self::on_cycle`]).
     pub fn rate_shift_ticks(&self) -> i32 {
         self.rate_shift_ticks
+    }
+
+    /// The board's configuration.
+    pub fn config(&self) -> &BoardConfig {
+        &self.config
     }
 
     /// How the turnarounds were latched so far.

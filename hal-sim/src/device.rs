@@ -18,26 +18,26 @@
 //! so a host splitting at 0x00 sees either a frame or a line starting with `OK`/`ERR` (text
 //! never contains 0x00); the answer to `stream on` is still plain text.
 
-use crate::board::{BoardConfig, BoardError, SimBoard};
+use crate::board::{BoardConfig, BoardError};
 use crate::flash::CalibrationFlash;
-use crate::gyro::Gyro;
+use crate::harness::{Feed, Harness, HarnessError, HarnessOptions};
 use crate::input::InputProfile;
 use crate::params::GyroParams;
 use firmware::profile::BoardProfile;
 use firmware::protocol::execute::Identity;
-use firmware::readout::{Readout, ReadoutConfig};
+use firmware::readout::Readout;
 use firmware::service::ports::{Clock, ReadoutAccess, SerialTx};
 use firmware::service::{Service, ServiceConfig};
 use firmware::storage::Geometry;
 
 /// The simulated board with its firmware.
 pub struct SimDevice {
-    board: SimBoard,
-    config: ReadoutConfig,
-    readout: Readout,
+    /// The gyro, the peripherals and the firmware's readout (firmware in the loop).
+    harness: Harness,
+    /// The firmware's command service, the board's main loop.
     service: Service<CalibrationFlash>,
+    /// Bytes sent to the host, not yet taken.
     output: Vec<u8>,
-    lissajous: Vec<(u16, u16)>,
     /// Simulated seconds the CPU is still stalled by a flash operation.
     stall_s: f64,
 }
@@ -56,7 +56,8 @@ pub const SIM_IDENTITY: Identity = Identity {
 impl SimDevice {
     /// Powers up a board on `flash`: loads the newest valid calibration (or the defaults) and
     /// starts the readout with it, locked, as the firmware does at reset. The board's profile is
-    /// the F405's, built for this gyro (its nominal dither and scale factor).
+    /// the simulated board's ([`BoardConfig::profile`]), built for this gyro (its nominal dither
+    /// and scale factor).
     pub fn boot(
         params: GyroParams,
         input: InputProfile,
@@ -64,13 +65,11 @@ impl SimDevice {
         mut flash: CalibrationFlash,
         boot_count: u32,
     ) -> Result<Self, BoardError> {
-        let gyro =
-            Gyro::new(params, input).map_err(|_| BoardError::Config("invalid gyro parameters"))?;
-        let board = SimBoard::new(gyro, BoardConfig::for_gyro(&params))?;
+        let board = BoardConfig::for_gyro(&params);
         let profile = BoardProfile {
             nominal_dither_hz: params.dither_hz,
             scale_factor_arcsec: params.scale_factor_arcsec,
-            ..BoardProfile::F405
+            ..board.profile()
         };
         let config = ServiceConfig::for_profile(
             &profile,
@@ -81,14 +80,21 @@ impl SimDevice {
         flash.power_on();
         let booted = Service::boot(config, flash, Some(boot_count))
             .map_err(|_| BoardError::Config("flash geometry"))?;
-        Ok(Self {
-            readout: Readout::new(&config.readout, booted.settings),
-            service: booted.service,
-            config: config.readout,
-            output: Vec::new(),
-            lissajous: Vec::new(),
-            stall_s: 0.0,
+        let harness = HarnessOptions {
             board,
+            ..HarnessOptions::new(params, input)
+        }
+        .compensation(booted.settings)
+        .build()
+        .map_err(|e| match e {
+            HarnessError::Gyro(_) => BoardError::Config("invalid gyro parameters"),
+            HarnessError::Board(e) => e,
+        })?;
+        Ok(Self {
+            harness,
+            service: booted.service,
+            output: Vec::new(),
+            stall_s: 0.0,
         })
     }
 
@@ -106,47 +112,50 @@ impl SimDevice {
 
     /// The firmware's readout state.
     pub fn readout(&self) -> &Readout {
-        &self.readout
+        self.harness.readout()
     }
 
     /// Simulated time, s.
     pub fn time_s(&self) -> f64 {
-        self.board.time_s()
+        self.harness.time_s()
     }
 
     /// Runs the gyro and the firmware for `seconds` of simulated time.
     pub fn run_for(&mut self, seconds: f64) {
-        let end = self.board.time_s() + seconds;
-        while self.board.time_s() < end {
+        let end = self.harness.time_s() + seconds;
+        while self.harness.time_s() < end {
             self.half_cycle();
         }
     }
 
-    /// One half dither cycle: the ADC stream and the turnaround interrupt, then the cycle task.
+    /// One half dither cycle: the ADC stream and the turnaround interrupt (the harness), then
+    /// the main loop's cycle work (the service).
     fn half_cycle(&mut self) {
-        let sample = self.board.next_half_cycle(&mut self.lissajous);
         if self.stall_s > 0.0 {
             // The CPU is stalled by the flash: the peripherals run on, the firmware sees nothing.
-            self.stall_s -= 0.5 / self.board.gyro().params().dither_hz;
+            let before_s = self.harness.time_s();
+            self.harness.step_with(Feed::Stalled);
+            self.stall_s -= self.harness.time_s() - before_s;
             if self.stall_s <= 0.0 {
-                self.readout.resynchronise();
+                self.harness.readout_mut().resynchronise();
             }
             return;
         }
-        for &(a, b) in &self.lissajous {
-            self.readout.on_lissajous_sample(&self.config, a, b);
-        }
-        let Some(record) = self.readout.on_turnaround(&self.config, sample) else {
+        let Some(record) = self.harness.step().record else {
             return;
         };
-        self.board.on_cycle(&record);
+        let now_ms = self.now_ms();
         let mut ports = SimPorts {
-            readout: &mut self.readout,
+            readout: self.harness.readout_mut(),
             output: &mut self.output,
-            now_ms: (self.board.time_s() * 1000.0) as u32,
+            now_ms,
             paused: false,
         };
         self.service.on_cycle(&record, &mut ports);
+    }
+
+    fn now_ms(&self) -> u32 {
+        (self.harness.time_s() * 1000.0) as u32
     }
 
     /// Serial bytes from the host: every completed line is executed and answered at once, by
@@ -154,10 +163,11 @@ impl SimDevice {
     pub fn receive(&mut self, bytes: &[u8]) {
         for &byte in bytes {
             let busy_before_s = self.service.flash().stats().busy_s;
+            let now_ms = self.now_ms();
             let mut ports = SimPorts {
-                readout: &mut self.readout,
+                readout: self.harness.readout_mut(),
                 output: &mut self.output,
-                now_ms: (self.board.time_s() * 1000.0) as u32,
+                now_ms,
                 paused: false,
             };
             self.service.on_byte(byte, &mut ports);

@@ -1,11 +1,16 @@
 //! A simulated ring laser gyro and readout board, so the firmware's logic runs on x86.
 //!
-//! Two rooms:
+//! The rooms:
 //! - the gyro ([`params`], [`units`], [`input`], [`dither`], [`noise`], [`phase`], [`gyro`]):
 //!   the phase equation (docs/physics.md Eq. 6) integrated with the dither phase known analytically;
 //! - the board ([`photodiode`], [`counter`], [`clock`], [`flash`]): the peripherals
 //!   the firmware reads, producing exactly the plain structs of `firmware::sample`;
-//! - [`board`]: gyro and peripherals assembled into what the firmware's interrupts receive.
+//! - [`board`]: gyro and peripherals assembled into what the firmware's interrupts receive;
+//! - [`harness`]: the board with the firmware's readout in the loop, one half dither cycle per
+//!   step: every firmware-in-the-loop run (the sweep, the system tests) goes through it.
+//!
+//! The board's facts (timer clock, counter width, latch delays, dither range) are the
+//! firmware's (`firmware::profile::BoardProfile::F405`), not repeated here.
 
 pub mod dither;
 pub mod gyro;
@@ -22,3 +27,4 @@ pub mod photodiode;
 
 pub mod board;
 pub mod device;
+pub mod harness;

@@ -23,10 +23,10 @@
 //! Each comparator squares its channel against a threshold at the channel's mid-level plus an
 //! optional trim error, with optional hysteresis (a Schmitt trigger): it switches high above
 //! `threshold + hysteresis/2`, low below `threshold - hysteresis/2`, and otherwise keeps its
-//! state ([`Comparator`]). For the noise-free counter, [`EdgeGeometry`] turns the same thresholds
-//! into edge positions in phase: a Schmitt trigger on `cos(x)` is exactly an ideal comparator
-//! behind a backlash (play) of half-width `w` on the phase, which is what [`crate::counter`]
-//! uses to count without sampling.
+//! state. The comparators are not sampled: [`EdgeGeometry`] turns the thresholds into edge
+//! positions in phase (a Schmitt trigger on `cos(x)` is exactly an ideal comparator behind a
+//! backlash (play) of half-width `w` on the phase), which is what [`crate::counter`] uses to
+//! count. The tests hold it against a voltage-domain Schmitt trigger.
 //!
 //! # Limits (what a real board does that this model does not)
 //!
@@ -315,48 +315,12 @@ impl Photodiodes {
 
 /// A zero-mean Gaussian sample of RMS `rms_v`; draws nothing when `rms_v == 0` so that a noise-free
 /// configuration does not advance the stream.
-pub(crate) fn gaussian_v(rng: &mut ChaCha8Rng, rms_v: f64) -> f64 {
+fn gaussian_v(rng: &mut ChaCha8Rng, rms_v: f64) -> f64 {
     if rms_v == 0.0 {
         return 0.0;
     }
     let z: f64 = StandardNormal.sample(rng);
     rms_v * z
-}
-
-/// A comparator with hysteresis acting on voltages (a Schmitt trigger).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Comparator {
-    high_above_v: f64,
-    low_below_v: f64,
-    state: bool,
-}
-
-impl Comparator {
-    /// The comparator of `channel`, starting in `initial_state`.
-    pub fn new(channel: &ChannelConfig, initial_state: bool) -> Self {
-        let c = &channel.comparator;
-        let threshold_v = channel.mid_level_v + c.threshold_offset_v;
-        Self {
-            high_above_v: threshold_v + c.hysteresis_v / 2.0,
-            low_below_v: threshold_v - c.hysteresis_v / 2.0,
-            state: initial_state,
-        }
-    }
-
-    /// Feed one input level; returns the output.
-    pub fn update(&mut self, v: f64) -> bool {
-        if v > self.high_above_v {
-            self.state = true;
-        } else if v < self.low_below_v {
-            self.state = false;
-        }
-        self.state
-    }
-
-    /// Current output.
-    pub fn state(&self) -> bool {
-        self.state
-    }
 }
 
 /// A noise-free comparator's edges in phase, for a channel `mid + amp cos(psi_H - phase)`.
@@ -395,10 +359,5 @@ impl EdgeGeometry {
     pub fn edge_index(&self, y_rad: f64) -> i64 {
         let c = self.half_high_rad;
         ((y_rad - c) / TAU).floor() as i64 + ((y_rad + c) / TAU).floor() as i64
-    }
-
-    /// The output at `psi_h_rad` for a comparator with no history (its backlash centred).
-    pub fn state_without_history(&self, psi_h_rad: f64) -> bool {
-        self.edge_index(psi_h_rad - self.phase_rad) & 1 != 0
     }
 }

@@ -1,18 +1,23 @@
-//! The fringe counter against the analytic quadrant count, and the sampled edge stream.
+//! The fringe counter against the analytic quadrant count, the firmware's quadrature table and
+//! a sampled Schmitt trigger.
 //!
 //! Tolerances: the models are deterministic and discrete, so counts, codes, bytes and ticks are
 //! compared exactly, marked "(exact)"; statistical and floating checks state bound and reason.
 
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
+mod schmitt;
+
+use firmware::signal::fringe_count::CounterWidth;
+use firmware::signal::quadrature::{QuadratureDecoder, QUADRANT_OF_STATE};
 use hal_sim::clock::CaptureTimer;
 use hal_sim::counter::{
-    ideal_quadrant_index, latch_turnaround, Channel, CounterConfig, CounterError, CounterWidth,
-    EdgeSampler, Glitch, QuadratureCounter, QuadratureState, StateDecoder,
+    ideal_quadrant_index, latch_turnaround, CounterConfig, CounterError, QuadratureCounter,
 };
 use hal_sim::photodiode::{PhotodiodeConfig, Photodiodes};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use schmitt::SchmittTrigger;
 
 fn ideal_counter(psi0: f64, config: CounterConfig) -> QuadratureCounter {
     QuadratureCounter::new(&PhotodiodeConfig::ideal(), config, psi0).unwrap()
@@ -59,16 +64,17 @@ fn ideal_count_is_path_independent() {
     }
 }
 
-/// The comparator states follow the Gray sequence 10, 11, 01, 00 over the four quadrants. (exact)
+/// The comparator states follow the Gray sequence 10, 11, 01, 00 over the four quadrants: the
+/// firmware's table (`signal::quadrature`) reads each state as the quadrant psi_H is in. (exact)
 #[test]
-fn states_follow_gray_sequence() {
+fn states_follow_the_firmware_quadrant_table() {
     let mut counter = ideal_counter(-FRAC_PI_2 + 0.1, CounterConfig::default());
-    let expected = [(true, false), (true, true), (false, true), (false, false)];
     for q in 0..12 {
         let psi = -FRAC_PI_2 + 0.1 + FRAC_PI_2 * f64::from(q);
         counter.advance_to(psi);
-        let s = counter.state();
-        assert_eq!((s.a, s.b), expected[q as usize % 4], "quadrant {q}");
+        let quadrant = ideal_quadrant_index(psi).rem_euclid(4) as u8;
+        let state = counter.state().bits();
+        assert_eq!(QUADRANT_OF_STATE[state as usize], quadrant, "quadrant {q}");
     }
 }
 
@@ -159,8 +165,9 @@ fn hysteresis_shifts_edges_and_stops_chatter() {
 }
 
 /// Quadrature error, unequal gains and threshold trims move the edges but the count still changes
-/// by exactly 4 per fringe, and the continuous counter's states equal those of Schmitt triggers
-/// fed the noise-free voltages at the same points (exact).
+/// by exactly 4 per fringe, the counter's states equal those of Schmitt triggers fed the
+/// noise-free voltages at the same points, and the firmware's software decoder fed those states
+/// counts what the counter's register counts (exact).
 #[test]
 fn imperfect_channels_agree_with_voltage_comparators() {
     let mut config = PhotodiodeConfig::ideal();
@@ -173,17 +180,27 @@ fn imperfect_channels_agree_with_voltage_comparators() {
     config.b.comparator.hysteresis_v = 0.03;
     let psi0 = 0.4;
     let mut counter = QuadratureCounter::new(&config, CounterConfig::default(), psi0).unwrap();
-    let mut sampler = EdgeSampler::new(&config, 1.0, 0.0, psi0, 0);
-    let mut decoder = StateDecoder::new(CounterConfig::default(), 1, counter.state());
+    let initial = counter.state();
+    let mut triggers = [
+        SchmittTrigger::new(&config.a, initial.a),
+        SchmittTrigger::new(&config.b, initial.b),
+    ];
+    let mut decoder = QuadratureDecoder::new(initial.bits());
+    let (register0, decoded0) = (counter.count(), decoder.count());
     let mut rng = ChaCha8Rng::seed_from_u64(11);
     let mut psi = psi0;
     for _ in 0..200_000 {
         psi += rng.random_range(-0.3..0.32);
         counter.advance_to(psi);
-        let s = sampler.next_state(&mut |_| psi);
-        assert_eq!(s, counter.state(), "at {psi}");
-        decoder.push(s);
-        assert_eq!(decoder.count(), counter.count());
+        let [va, vb] = config.levels_v(psi);
+        let (a, b) = (triggers[0].update(va), triggers[1].update(vb));
+        let s = counter.state();
+        assert_eq!((s.a, s.b), (a, b), "at {psi}");
+        decoder.step(s.bits());
+        assert_eq!(
+            decoder.count() - decoded0,
+            delta32(register0, counter.count())
+        );
     }
     assert_eq!(decoder.illegal_transitions(), 0);
     let start = counter.count();
@@ -222,170 +239,6 @@ fn glitch_injection() {
     assert_eq!(counter.edges_since_start(), 20);
 }
 
-/// Peak beat 590 kHz (2.36 M edges/s). A ramp and a dither-like sine sampled at 10 MHz give no
-/// two-bit jumps, and the decoder's count equals the analytic floor; sampled at 2 MHz the stream
-/// has illegal transitions. (exact)
-#[test]
-fn sampled_stream_needs_a_fast_enough_sampler() {
-    let beat_hz = 590e3;
-    let config = PhotodiodeConfig::ideal();
-    let ramp = |t: f64| 0.01 + TAU * beat_hz * t;
-    let run = |rate_hz: f64, psi: &dyn Fn(f64) -> f64, duration_s: f64| {
-        let mut sampler = EdgeSampler::new(&config, rate_hz, 0.0, psi(0.0), 1);
-        let initial = ideal_counter(psi(0.0), CounterConfig::default()).state();
-        let mut decoder = StateDecoder::new(CounterConfig::default(), 1, initial);
-        for s in sampler.states_until(psi, duration_s) {
-            decoder.push(s);
-        }
-        let last_t = sampler.sample_time_s(sampler.next_index() - 1);
-        (decoder, psi(last_t))
-    };
-    let (fast, psi_end) = run(10e6, &ramp, 1e-3);
-    assert_eq!(fast.illegal_transitions(), 0);
-    let expected = ideal_quadrant_index(psi_end) - ideal_quadrant_index(ramp(0.0));
-    assert_eq!(delta32(0, fast.count()), expected);
-    assert!(expected > 2000);
-
-    // Dither: 389 Hz sine with a peak beat rate of 590 kHz, plus a slow drift.
-    let w_d = TAU * 389.0;
-    let dither = move |t: f64| 0.3 + TAU * beat_hz / w_d * (w_d * t).sin() + 50.0 * t;
-    let (fast, psi_end) = run(10e6, &dither, 6e-3);
-    assert_eq!(fast.illegal_transitions(), 0);
-    let expected = ideal_quadrant_index(psi_end) - ideal_quadrant_index(dither(0.0));
-    assert_eq!(delta32(0, fast.count()), expected);
-
-    let (slow, _) = run(2e6, &ramp, 1e-3);
-    assert!(
-        slow.illegal_transitions() > 100,
-        "{}",
-        slow.illegal_transitions()
-    );
-}
-
-/// `fill_bits`, `fill` and `states_until` produce the same stream; same seed same bits, with
-/// noise; another seed differs. (exact)
-#[test]
-fn sampled_stream_apis_agree_and_are_deterministic() {
-    let config = PhotodiodeConfig::default();
-    let psi = |t: f64| TAU * 400e3 * t;
-    let collect = |seed: u64| {
-        let mut sampler = EdgeSampler::new(&config, 10e6, 0.0, 0.0, seed);
-        sampler
-            .states_until(psi, 1e-3)
-            .map(|s| s.bits())
-            .collect::<Vec<u8>>()
-    };
-    let a = collect(9);
-    assert_eq!(a.len(), 10_000);
-    assert_eq!(a, collect(9));
-    let mut bits = vec![0u8; 10_000];
-    EdgeSampler::new(&config, 10e6, 0.0, 0.0, 9).fill_bits(&mut psi.clone(), &mut bits);
-    assert_eq!(a, bits);
-    let mut states = vec![QuadratureState::default(); 10_000];
-    EdgeSampler::new(&config, 10e6, 0.0, 0.0, 9).fill(&mut psi.clone(), &mut states);
-    assert!(states.iter().zip(&a).all(|(s, &b)| s.bits() == b));
-    // Near-threshold dwell with big noise makes the seeds differ.
-    let noisy = PhotodiodeConfig {
-        noise_rms_v: 0.05,
-        ..PhotodiodeConfig::default()
-    };
-    let at_edge = |seed| {
-        let mut s = EdgeSampler::new(&noisy, 10e6, 0.0, 0.0, seed);
-        s.states_until(|_| FRAC_PI_2, 1e-4)
-            .map(|s| s.bits())
-            .collect::<Vec<_>>()
-    };
-    assert_ne!(at_edge(1), at_edge(2));
-}
-
-/// Noise at a threshold: with no hysteresis the comparator chatters (many transitions, net count
-/// within +-1 of the truth); hysteresis of 10 sigma suppresses it (zero transitions in 1e5
-/// samples: a 5-sigma excursion has probability ~3e-7 per sample).
-#[test]
-fn noise_chatter_and_hysteresis() {
-    let mut config = PhotodiodeConfig::ideal();
-    config.noise_rms_v = 2e-3;
-    let psi_at_edge = FRAC_PI_2; // A's threshold crossing.
-    let transitions = |config: &PhotodiodeConfig| {
-        let mut sampler = EdgeSampler::new(config, 10e6, 0.0, psi_at_edge, 4);
-        let mut decoder = StateDecoder::new(
-            CounterConfig::default(),
-            1,
-            QuadratureState { a: false, b: true },
-        );
-        let mut changes = 0;
-        let mut last = None;
-        for s in sampler.states_until(|_| psi_at_edge, 1e-2) {
-            if last.is_some_and(|l| l != s) {
-                changes += 1;
-            }
-            last = Some(s);
-            decoder.push(s);
-        }
-        (changes, delta32(0, decoder.count()))
-    };
-    let (changes, net) = transitions(&config);
-    assert!(changes > 1000, "{changes}");
-    assert!(net.abs() <= 1, "{net}");
-    config.a.comparator.hysteresis_v = 0.04;
-    config.b.comparator.hysteresis_v = 0.04;
-    assert_eq!(transitions(&config).0, 0);
-}
-
-/// Sampled-stream glitches: a 1-sample pulse counts +1 then -1 without a filter; a filter of 3
-/// samples ignores pulses of 2 samples entirely and only delays real edges. (exact)
-#[test]
-fn input_filter_ignores_short_pulses() {
-    let config = PhotodiodeConfig::ideal();
-    let psi = |t: f64| 0.2 + TAU * 100e3 * t; // 400 k edges/s: 25 samples per edge at 10 MHz
-    let run = |filter: u32, glitches: &[Glitch]| {
-        let mut sampler = EdgeSampler::new(&config, 10e6, 0.0, psi(0.0), 0);
-        for g in glitches {
-            sampler.inject_glitch(*g);
-        }
-        let initial = ideal_counter(psi(0.0), CounterConfig::default()).state();
-        let mut decoder = StateDecoder::new(CounterConfig::default(), filter, initial);
-        let mut trace = Vec::new();
-        for s in sampler.states_until(psi, 1e-4) {
-            decoder.push(s);
-            trace.push(decoder.count());
-        }
-        (trace, decoder.illegal_transitions())
-    };
-    let glitches = [
-        Glitch {
-            start_index: 110,
-            len_samples: 1,
-            channel: Channel::A,
-        },
-        Glitch {
-            start_index: 300,
-            len_samples: 2,
-            channel: Channel::B,
-        },
-        Glitch {
-            start_index: 612,
-            len_samples: 2,
-            channel: Channel::A,
-        },
-    ];
-    let (clean, _) = run(1, &[]);
-    let (glitched, illegal) = run(1, &glitches);
-    assert_eq!(illegal, 0);
-    assert_ne!(clean, glitched);
-    assert_eq!(clean.last(), glitched.last());
-    assert_eq!(delta32(clean[110], glitched[110]).abs(), 1);
-    assert_eq!(glitched[111], clean[111]);
-    let (clean3, _) = run(3, &[]);
-    let (glitched3, _) = run(3, &glitches);
-    assert_eq!(clean3, glitched3);
-    // The filter delays each accepted edge by 2 samples.
-    let first_edge = clean.iter().position(|&c| c != clean[0]).unwrap();
-    let first_edge3 = clean3.iter().position(|&c| c != clean3[0]).unwrap();
-    assert_eq!(first_edge3, first_edge + 2);
-    assert_eq!(clean.last(), clean3.last());
-}
-
 /// The turnaround latch builds the firmware's sample from the three peripherals. (exact)
 #[test]
 fn latch_builds_turnaround_sample() {
@@ -411,18 +264,13 @@ fn latch_builds_turnaround_sample() {
     assert_eq!(sample.adc_b_code, pd_config.adc.code(vb));
 }
 
-/// Throughput of the sampled stream and of the continuous counter (informational; run with
+/// Throughput of the counter (informational; run with
 /// `cargo test -p hal-sim --test board_counter -- --ignored --nocapture`).
 #[test]
 #[ignore]
 fn throughput() {
     let config = PhotodiodeConfig::default();
     let psi = |t: f64| TAU * 590e3 * t;
-    let mut sampler = EdgeSampler::new(&config, 10e6, 0.0, 0.0, 0);
-    let start = std::time::Instant::now();
-    let ones = sampler.states_until(psi, 1.0).filter(|s| s.a).count();
-    let wall_s = start.elapsed().as_secs_f64();
-    println!("sampler: 1e7 samples (1 s at 10 MHz) in {wall_s:.3} s ({ones} A-high)");
     let mut counter = QuadratureCounter::new(&config, CounterConfig::default(), 0.0).unwrap();
     let start = std::time::Instant::now();
     for i in 0..10_000_000u32 {

@@ -5,10 +5,13 @@
 
 use std::f64::consts::{FRAC_PI_2, PI};
 
+mod schmitt;
+
 use hal_sim::photodiode::{
-    AdcConfig, AdcRounding, ChannelConfig, Comparator, ComparatorConfig, PhotodiodeConfig,
+    AdcConfig, AdcRounding, ChannelConfig, ComparatorConfig, PhotodiodeConfig,
     PhotodiodeConfigError, Photodiodes,
 };
+use schmitt::SchmittTrigger;
 
 /// The ADC: mid-scale, rounding modes, clamping (exact).
 #[test]
@@ -110,7 +113,8 @@ fn same_seed_same_codes() {
     assert_ne!(run(5), run(6));
 }
 
-/// A comparator with hysteresis switches at threshold +- hysteresis/2 and holds in between. (exact)
+/// The reference Schmitt trigger switches at threshold +- hysteresis/2 and holds in between.
+/// (exact)
 #[test]
 fn comparator_hysteresis() {
     let channel = ChannelConfig {
@@ -121,7 +125,7 @@ fn comparator_hysteresis() {
             hysteresis_v: 0.04,
         },
     };
-    let mut c = Comparator::new(&channel, false);
+    let mut c = SchmittTrigger::new(&channel, false);
     assert!(!c.update(1.11));
     assert!(!c.update(1.119));
     assert!(c.update(1.1201));
@@ -147,7 +151,7 @@ fn edge_geometry() {
     assert!((g[0].half_high_rad - FRAC_PI_2).abs() < 1e-12);
     // A Schmitt trigger on the voltage agrees with the backlash picture on a slow ramp up: it
     // goes high at x = -pi/2 + w (tolerance: the ramp step, 1e-6 rad).
-    let mut c = Comparator::new(&config.a, false);
+    let mut c = SchmittTrigger::new(&config.a, false);
     let mut x = -PI;
     while !c.update(config.levels_v(x)[0]) {
         x += 1e-6;

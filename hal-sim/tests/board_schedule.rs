@@ -13,13 +13,12 @@
 //!   stays within 0.01 deg/h of the input at 0, +-2 and +-5 deg/h.
 
 use firmware::calibration::fit::FitAccumulator;
-use firmware::readout::{Readout, ReadoutConfig};
 use firmware::sample::TurnaroundKind;
 use firmware::signal::compensation::{Coefficients, CompensationSettings};
 use firmware::signal::cycle::CycleRecord;
 use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
-use hal_sim::board::{BoardConfig, LatchTiming, SimBoard};
-use hal_sim::gyro::Gyro;
+use hal_sim::board::{BoardConfig, LatchRecord, LatchTiming};
+use hal_sim::harness::{Harness, HarnessOptions};
 use hal_sim::input::InputProfile;
 use hal_sim::params::{AmplitudeModulation, GyroParams};
 use rayon::prelude::*;
@@ -42,49 +41,37 @@ fn params(seed: u64, jitter: f64) -> GyroParams {
     }
 }
 
-/// A board on `params` at a constant rate with `latch`, and the firmware's readout for it.
-fn board(params: &GyroParams, rate_deg_h: f64, latch: LatchTiming) -> (SimBoard, ReadoutConfig) {
-    let gyro = Gyro::new(*params, InputProfile::constant(rate_deg_h)).unwrap();
-    let config = BoardConfig {
-        latch,
-        ..BoardConfig::for_gyro(params)
-    };
-    let readout = ReadoutConfig::for_board(
-        config.timer_hz,
-        params.dither_hz,
-        firmware::profile::BoardProfile::F405.counter_width,
-    );
-    (SimBoard::new(gyro, config).unwrap(), readout)
+/// The firmware in the loop on `params` at a constant rate, the latch timed by `latch`.
+fn harness(
+    params: &GyroParams,
+    rate_deg_h: f64,
+    latch: LatchTiming,
+    settings: CompensationSettings,
+) -> Harness {
+    HarnessOptions::new(*params, InputProfile::constant(rate_deg_h))
+        .latch(latch)
+        .compensation(settings)
+        .build()
+        .unwrap()
 }
 
-/// Runs `seconds` with the firmware's readout in the loop (each record handed back to the
-/// board, as the harness does); calls `on_cycle` for every record after `warmup_s`.
+/// Runs `harness` to `seconds`; after `warmup_s` calls `on_latch` for every latch and
+/// `on_cycle` for every cycle record.
 fn run(
-    board: &mut SimBoard,
-    config: &ReadoutConfig,
-    settings: CompensationSettings,
+    harness: &mut Harness,
     warmup_s: f64,
     seconds: f64,
-    mut on_half_cycle: impl FnMut(&SimBoard),
+    mut on_latch: impl FnMut(&LatchRecord),
     mut on_cycle: impl FnMut(&CycleRecord),
 ) {
-    let mut readout = Readout::new(config, settings);
-    let mut lissajous = Vec::new();
-    while board.time_s() < seconds {
-        let sample = board.next_half_cycle(&mut lissajous);
-        for &(a, b) in &lissajous {
-            readout.on_lissajous_sample(config, a, b);
-        }
-        if board.time_s() > warmup_s {
-            on_half_cycle(board);
-        }
-        if let Some(record) = readout.on_turnaround(config, sample) {
-            board.on_cycle(&record);
-            if board.time_s() > warmup_s {
-                on_cycle(&record);
+    harness.run_until(seconds, |_, half| {
+        if half.latch_s() > warmup_s {
+            on_latch(&half.latch);
+            if let Some(record) = &half.record {
+                on_cycle(record);
             }
         }
-    }
+    });
 }
 
 /// Latch timing errors (latch - true turnaround, s) over 2 s after a 0.1 s warm-up.
@@ -107,16 +94,13 @@ fn timing(rate_deg_h: f64, offset_fraction: f64, jitter: f64, rate_shift: bool) 
     if let LatchTiming::Scheduled { rate_shift: on, .. } = &mut latch {
         *on = rate_shift;
     }
-    let (mut board, config) = board(&p, rate_deg_h, latch);
+    let mut h = harness(&p, rate_deg_h, latch, CompensationSettings::default());
     let (mut plus, mut minus, mut latches) = (Vec::new(), Vec::new(), Vec::new());
     run(
-        &mut board,
-        &config,
-        CompensationSettings::default(),
+        &mut h,
         0.1,
         2.1,
-        |b| {
-            let l = b.last_latch().unwrap();
+        |l| {
             let err = l.latch_s - l.turnaround.time_s;
             match l.turnaround.kind {
                 TurnaroundKind::Plus => plus.push(err),
@@ -126,9 +110,9 @@ fn timing(rate_deg_h: f64, offset_fraction: f64, jitter: f64, rate_shift: bool) 
         },
         |_| {},
     );
-    let stats = board.latch_stats();
+    let stats = h.board().latch_stats();
     // The truth from the gyro's own log, independent of what the board thought it aimed at.
-    let log: Vec<f64> = board
+    let log: Vec<f64> = h
         .take_traversals()
         .iter()
         .map(|t| t.turnaround.time_s)
@@ -248,23 +232,25 @@ fn without_the_rate_shift_the_latch_misses_by_omega_over_psi_ddot() {
 #[test]
 fn no_edges_fall_back_to_the_exact_turnaround() {
     let p = params(3, 0.0);
-    let (mut board, config) = board(&p, 10.0, LatchTiming::scheduled(2.0 * 450.0));
+    let mut h = harness(
+        &p,
+        10.0,
+        LatchTiming::scheduled(2.0 * 450.0),
+        CompensationSettings::default(),
+    );
     let mut n = 0;
     run(
-        &mut board,
-        &config,
-        CompensationSettings::default(),
+        &mut h,
         0.0,
         0.05,
-        |b| {
-            let l = b.last_latch().unwrap();
+        |l| {
             assert!(!l.scheduled);
             assert_eq!(l.latch_s, l.turnaround.time_s);
             n += 1;
         },
         |_| {},
     );
-    let stats = board.latch_stats();
+    let stats = h.board().latch_stats();
     assert_eq!(stats.edges, 0);
     assert_eq!(stats.fallbacks, n);
     assert!(n > 30, "{n} latches");
@@ -287,12 +273,11 @@ fn end_to_end(latch: LatchTiming) -> Vec<(f64, f64)> {
     let runs: Vec<FitAccumulator> = [-RANGE_DEG_H, RANGE_DEG_H]
         .par_iter()
         .map(|&rate| {
-            let (mut board, config) = board(&p, rate, latch);
+            let mut h = harness(&p, rate, latch, CompensationSettings::default());
+            let config = *h.config();
             let mut fit = FitAccumulator::new();
             run(
-                &mut board,
-                &config,
-                CompensationSettings::default(),
+                &mut h,
                 0.5,
                 10.5,
                 |_| {},
@@ -319,18 +304,16 @@ fn end_to_end(latch: LatchTiming) -> Vec<(f64, f64)> {
     [0.0, 2.0, -2.0, 5.0, -5.0]
         .par_iter()
         .map(|&rate| {
-            let (mut board, config) = board(&p, rate, latch);
+            let mut h = harness(&p, rate, latch, settings);
             let averager = AveragerConfig {
                 window_cycles: u32::MAX,
                 mode: AveragingMode::WholePeriods,
-                timer_hz: config.cycle.timer_hz as f64,
+                timer_hz: h.board().config().timer_hz,
                 scale_factor_arcsec: p.scale_factor_arcsec,
             };
             let mut compensated = RateAverager::new();
             run(
-                &mut board,
-                &config,
-                settings,
+                &mut h,
                 0.5,
                 5.5,
                 |_| {},
@@ -371,28 +354,17 @@ fn compensated_output_meets_the_acceptance_with_the_scheduled_latch() {
 #[test]
 fn the_residual_timing_error_adds_to_the_scheduled_instant() {
     let p = params(5, 0.0);
-    let gyro = Gyro::new(p, InputProfile::constant(ONE_DEG_PER_S)).unwrap();
     let offset_s = 0.5e-6;
-    let config = BoardConfig {
-        latch: LatchTiming::scheduled(0.0),
-        latch_offset_s: offset_s,
-        ..BoardConfig::for_gyro(&p)
-    };
-    let readout = ReadoutConfig::for_board(
-        config.timer_hz,
-        p.dither_hz,
-        firmware::profile::BoardProfile::F405.counter_width,
-    );
-    let mut board = SimBoard::new(gyro, config).unwrap();
+    let mut options = HarnessOptions::new(p, InputProfile::constant(ONE_DEG_PER_S))
+        .latch(LatchTiming::scheduled(0.0));
+    options.board.latch_offset_s = offset_s;
+    let mut h = options.build().unwrap();
     let mut worst: f64 = 0.0;
     run(
-        &mut board,
-        &readout,
-        CompensationSettings::default(),
+        &mut h,
         0.1,
         0.5,
-        |b| {
-            let l = b.last_latch().unwrap();
+        |l| {
             assert!(l.scheduled);
             worst = worst.max((l.latch_s - l.turnaround.time_s - offset_s).abs());
         },

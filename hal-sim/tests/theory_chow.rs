@@ -11,10 +11,10 @@
 //! 150 deg/h (|J0| near its envelope, band ~3.8 deg/h).
 
 use core::f64::consts::TAU;
+use firmware::calibration::validation::chow_dead_band_rad_per_s;
 use hal_sim::gyro::Gyro;
 use hal_sim::input::InputProfile;
 use hal_sim::params::GyroParams;
-use hal_sim::phase::theory::chow_dead_band;
 use hal_sim::units::{
     arcsec_to_beat_rad, beat_rad_per_s_to_deg_per_h, deg_per_h_to_beat_rad_per_s,
 };
@@ -46,7 +46,7 @@ fn mean_output(p: GyroParams, input_deg_h: f64, slips: f64) -> f64 {
 fn check_set(p: GyroParams) {
     let d = p.derive().unwrap();
     let sf = p.scale_factor_arcsec;
-    let chow = chow_dead_band(
+    let chow = chow_dead_band_rad_per_s(
         d.omega_l_rad_per_s,
         arcsec_to_beat_rad(p.dither_amplitude_arcsec, sf),
     );

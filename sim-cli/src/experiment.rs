@@ -1,8 +1,9 @@
 //! The paper's experiment on the simulated gyro, with the firmware's signal chain in the loop.
 //!
-//! A run feeds the simulated board's half-cycles (Lissajous samples, then the turnaround latch)
-//! to the firmware's [`Readout`], exactly as the ADC and turnaround interrupts would, and
-//! collects the per-cycle records. On top of runs:
+//! A run is hal-sim's [`Harness`](hal_sim::harness::Harness): the simulated board's
+//! half-cycles (Lissajous samples, then the turnaround latch) go to the firmware's `Readout`,
+//! exactly as the ADC and turnaround interrupts would, and the per-cycle records come back. On
+//! top of runs:
 //!
 //! - [`calibrate`]: the paper's Step 2, runs at rates outside the dead band with compensation off,
 //!   pooled into the least-squares fit of a and b (one intercept per run);
@@ -10,12 +11,11 @@
 //!   compensated output of the same cycles, each averaged over whole output periods.
 
 use firmware::calibration::fit::{FitAccumulator, FitResult, SolveError};
-use firmware::readout::{Readout, ReadoutConfig};
+use firmware::readout::ReadoutConfig;
 use firmware::signal::compensation::{CoefficientError, Coefficients, CompensationSettings};
 use firmware::signal::cycle::CycleRecord;
 use firmware::signal::output::{AveragerConfig, AveragingMode, CycleOutput, RateAverager};
-use hal_sim::board::{BoardConfig, SimBoard};
-use hal_sim::gyro::Gyro;
+use hal_sim::harness::HarnessOptions;
 use hal_sim::input::InputProfile;
 use hal_sim::params::GyroParams;
 
@@ -56,8 +56,9 @@ pub fn run_seed(seed: u64, rate_deg_h: f64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// Runs the board at a constant input rate and hands every recorded cycle to `on_cycle`.
-/// The run's noise comes from [`run_seed`].
+/// Runs the board at a constant input rate (hal-sim's
+/// [`Harness`](hal_sim::harness::Harness), firmware in the loop) and hands every cycle closed
+/// after the warm-up to `on_cycle`. The run's noise comes from [`run_seed`].
 pub fn run_constant_rate(
     params: &GyroParams,
     rate_deg_h: f64,
@@ -65,38 +66,21 @@ pub fn run_constant_rate(
     settings: CompensationSettings,
     mut on_cycle: impl FnMut(&ReadoutConfig, &CycleRecord),
 ) -> Result<(), ExperimentError> {
-    let params = &GyroParams {
+    let params = GyroParams {
         seed: run_seed(params.seed, rate_deg_h),
         ..*params
     };
-    let gyro = Gyro::new(*params, InputProfile::constant(rate_deg_h))
-        .map_err(|e| ExperimentError::Simulator(format!("{e:?}")))?;
-    let board_config = BoardConfig::for_gyro(params);
-    let mut board = SimBoard::new(gyro, board_config.clone())
-        .map_err(|e| ExperimentError::Simulator(format!("{e:?}")))?;
-    let config = ReadoutConfig::for_board(
-        board_config.timer_hz,
-        params.dither_hz,
-        firmware::profile::BoardProfile::F405.counter_width,
+    let mut harness = HarnessOptions::new(params, InputProfile::constant(rate_deg_h))
+        .compensation(settings)
+        .build()
+        .map_err(|e| ExperimentError::Simulator(e.to_string()))?;
+    let config = *harness.config();
+    harness.run_cycles(
+        length.warmup_s,
+        length.warmup_s + length.record_s,
+        |record| on_cycle(&config, record),
     );
-    let mut readout = Readout::new(&config, settings);
-    let mut lissajous = Vec::new();
-    let end_s = length.warmup_s + length.record_s;
-    loop {
-        let sample = board.next_half_cycle(&mut lissajous);
-        for &(a, b) in &lissajous {
-            readout.on_lissajous_sample(&config, a, b);
-        }
-        if board.time_s() > end_s {
-            return Ok(());
-        }
-        if let Some(record) = readout.on_turnaround(&config, sample) {
-            board.on_cycle(&record);
-            if board.time_s() > length.warmup_s {
-                on_cycle(&config, &record);
-            }
-        }
-    }
+    Ok(())
 }
 
 /// The paper's Step 2: runs at each calibration rate with compensation off; the per-cycle

@@ -36,6 +36,14 @@ pub enum CounterWidth {
 }
 
 impl CounterWidth {
+    /// Mask of the register's bits: 0xFFFF or 0xFFFF_FFFF.
+    pub const fn mask(self) -> u32 {
+        match self {
+            CounterWidth::Bits16 => 0xFFFF,
+            CounterWidth::Bits32 => u32::MAX,
+        }
+    }
+
     /// Largest step magnitude that is unambiguous in this width: 2^(width-1) - 1.
     pub const fn max_unambiguous_step(self) -> u32 {
         match self {

@@ -22,8 +22,9 @@
 //!   slow `chi` drifts by `-Omega_L^2/(2 omega) + ...`, integrated by a Chebyshev
 //!   interpolant in `ln|t - t_zero|` (dense output anywhere in the segment).
 //! - [`integrator`] walks the timeline and reports turnarounds and per-traversal errors;
-//!   [`reference`] is the brute-force RK4 the tests hold it against; [`theory`] has the
-//!   closed forms (Eq. 5, Chow's J0 band, the stationary-phase traversal error).
+//!   [`reference`](mod@reference) is the brute-force RK4 the tests hold it against; [`theory`]
+//!   has the closed forms (Eq. 5, the stationary-phase traversal error; Chow's J0 band is the
+//!   firmware's).
 //!
 //! Measured (tests `theory_convergence`, bench `phase`): per-traversal error ~4e-8 rad at the
 //! defaults against the converged reference, order >= 6 under step halving, ~50-60

@@ -1,0 +1,386 @@
+//! The firmware in the loop: the simulated board feeding the firmware's own readout, one half
+//! dither cycle at a time. The host runs of the firmware's signal chain go through [`Harness`]:
+//! the sweep of `rlg-sim`, the system tests, the scheduled-latch tests; the API also serves the
+//! simulated device (`device.rs`, which adds the serial protocol and the flash on top: one half
+//! cycle at a time, a stalled CPU, the readout between steps).
+//!
+//! # One step
+//!
+//! A step ([`Harness::step`]) is one half dither cycle, in the order the board's interrupts see
+//! it:
+//! 1. the board ([`SimBoard::next_half_cycle`]) runs the gyro to the next turnaround latch
+//!    (exact, or scheduled from the pick-off: [`LatchTiming`]), collecting the free-running
+//!    photodiode conversions on the way;
+//! 2. the conversions go to [`Readout::on_lissajous_sample`] (the ADC DMA stream), then the latch
+//!    to [`Readout::on_turnaround`] (the turnaround interrupt);
+//! 3. a dither cycle the latch closed goes back to the board ([`SimBoard::on_cycle`]: the
+//!    input-rate shift of the next scheduled latches, the board's cycle task) **before** the
+//!    caller sees it, so no caller can forget it.
+//!
+//! The step returns a [`HalfCycle`]: the latched sample, the latch instant with the true
+//! turnaround it was meant for, and the closed cycle. [`Feed`] says what the firmware sees of a
+//! step: everything, the conversions but not the latch (a missed interrupt), or nothing (the
+//! CPU stalled by a flash erase while the peripherals run on; the caller then calls
+//! [`Readout::resynchronise`] through [`Harness::readout_mut`], as the firmware does).
+//!
+//! # Running
+//!
+//! - [`Harness::run_until`]: steps until a simulated time, handing each half cycle and the
+//!   harness itself to a callback (which may inject faults, stage compensation settings or read
+//!   the truth between steps);
+//! - [`Harness::run_cycles`]: the common case, every cycle closed in a time window (the warm-up
+//!   before it skipped);
+//! - [`Harness::step`] / [`Harness::step_with`] for loops that need more control.
+//!
+//! The board and the gyro's truth stay reachable between steps ([`Harness::board`],
+//! [`Harness::board_mut`] for fault injection, [`Harness::take_traversals`]), and so does the
+//! readout ([`Harness::readout_mut`]: staging compensation, resynchronising, counters).
+//!
+//! # Design and trade-offs
+//!
+//! - The harness owns one board and one readout: the board's rate shift follows that readout's
+//!   cycles, as on the board. A second readout on the same signals (a static and a tracked
+//!   compensation side by side) is fed by [`Harness::replay_into`], which hands it exactly what
+//!   the harness's own readout got in the last step, through the same code; its cycles do not
+//!   go back to the board. (Two harnesses with the same seed would also see the same latches as
+//!   long as the latch is exact, but a scheduled latch depends on the readout's cycles, and the
+//!   board would be simulated twice.)
+//! - Callbacks, not iterators: a callback gets `&mut Harness` between steps, which an iterator
+//!   over half cycles borrowing the harness could not give.
+//! - The readout's settings come from the board's profile ([`BoardConfig::readout_config`],
+//!   i.e. `firmware::profile::BoardProfile::F405` with the simulated board's timer and counter):
+//!   the firmware is configured for the board it runs on, never by a copy of its constants.
+
+use crate::board::{BoardConfig, BoardError, LatchRecord, LatchTiming, SimBoard};
+use crate::gyro::{Gyro, Traversal};
+use crate::input::InputProfile;
+use crate::params::{GyroParams, ParamError};
+use firmware::readout::{Readout, ReadoutConfig};
+use firmware::sample::TurnaroundSample;
+use firmware::signal::compensation::CompensationSettings;
+use firmware::signal::cycle::CycleRecord;
+
+/// Everything a [`Harness`] is built from.
+#[derive(Clone, Debug)]
+pub struct HarnessOptions {
+    /// The gyro: scale factor, lock-in, eps, the dither model (amplitude jitter, random-noise
+    /// dither), the noise (angle random walk) and the seed of every random process.
+    pub params: GyroParams,
+    /// What the gyro measures.
+    pub input: InputProfile,
+    /// The board around the gyro: photodiodes, counter, latch timing, eps drift, its own seed.
+    pub board: BoardConfig,
+    /// The compensation settings the readout starts with (on a board: from flash).
+    pub compensation: CompensationSettings,
+}
+
+impl HarnessOptions {
+    /// The default board for `params` ([`BoardConfig::for_gyro`]: exact latch), compensation off.
+    pub fn new(params: GyroParams, input: InputProfile) -> Self {
+        Self {
+            board: BoardConfig::for_gyro(&params),
+            params,
+            input,
+            compensation: CompensationSettings::default(),
+        }
+    }
+
+    /// With the turnaround latch timed by `latch`.
+    pub fn latch(mut self, latch: LatchTiming) -> Self {
+        self.board.latch = latch;
+        self
+    }
+
+    /// With the readout starting from `settings`.
+    pub fn compensation(mut self, settings: CompensationSettings) -> Self {
+        self.compensation = settings;
+        self
+    }
+
+    /// Builds the harness.
+    pub fn build(self) -> Result<Harness, HarnessError> {
+        Harness::new(self)
+    }
+}
+
+/// Why a harness cannot be built.
+#[derive(Debug)]
+pub enum HarnessError {
+    /// The gyro parameters are invalid.
+    Gyro(ParamError),
+    /// The board configuration is invalid.
+    Board(BoardError),
+}
+
+impl core::fmt::Display for HarnessError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Gyro(e) => write!(f, "gyro: {e}"),
+            Self::Board(e) => write!(f, "board: {e:?}"),
+        }
+    }
+}
+
+impl std::error::Error for HarnessError {}
+
+/// What the firmware sees of one half cycle.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Feed {
+    /// Both interrupts: the photodiode conversions, then the turnaround latch.
+    #[default]
+    Everything,
+    /// The conversions only: the turnaround interrupt was missed.
+    MissTurnaround,
+    /// Nothing: the CPU is stalled (a flash erase) while the peripherals run on. The firmware
+    /// calls [`Readout::resynchronise`] when it runs again.
+    Stalled,
+}
+
+/// One half dither cycle as the harness ran it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HalfCycle {
+    /// What the turnaround interrupt latched (delivered to the readout or not, see [`Feed`]).
+    pub sample: TurnaroundSample,
+    /// When it was latched, and the true turnaround it was meant for.
+    pub latch: LatchRecord,
+    /// The dither cycle this latch closed, already handed back to the board.
+    pub record: Option<CycleRecord>,
+}
+
+impl HalfCycle {
+    /// Simulated time of the latch, s.
+    pub fn latch_s(&self) -> f64 {
+        self.latch.latch_s
+    }
+}
+
+/// The simulated board with the firmware's readout in the loop.
+pub struct Harness {
+    board: SimBoard,
+    config: ReadoutConfig,
+    readout: Readout,
+    /// The photodiode conversions of the last half cycle.
+    lissajous: Vec<(u16, u16)>,
+    /// The last latch and what the readout was fed of it (for [`Harness::replay_into`]).
+    last: Option<(TurnaroundSample, Feed)>,
+}
+
+impl Harness {
+    /// A gyro, its board and the firmware's readout at t = 0.
+    pub fn new(options: HarnessOptions) -> Result<Self, HarnessError> {
+        let gyro = Gyro::new(options.params, options.input).map_err(HarnessError::Gyro)?;
+        let config = options.board.readout_config(options.params.dither_hz);
+        let board = SimBoard::new(gyro, options.board).map_err(HarnessError::Board)?;
+        Ok(Self {
+            readout: Readout::new(&config, options.compensation),
+            board,
+            config,
+            lissajous: Vec::new(),
+            last: None,
+        })
+    }
+
+    /// One half dither cycle with everything fed to the readout.
+    pub fn step(&mut self) -> HalfCycle {
+        self.step_with(Feed::Everything)
+    }
+
+    /// One half dither cycle, the readout fed as `feed` says; a closed cycle goes back to the
+    /// board before it is returned.
+    pub fn step_with(&mut self, feed: Feed) -> HalfCycle {
+        let sample = self.board.next_half_cycle(&mut self.lissajous);
+        let latch = self
+            .board
+            .last_latch()
+            .expect("the board records every latch");
+        let record = feed_readout(
+            &mut self.readout,
+            &self.config,
+            &self.lissajous,
+            sample,
+            feed,
+        );
+        if let Some(record) = &record {
+            self.board.on_cycle(record);
+        }
+        self.last = Some((sample, feed));
+        HalfCycle {
+            sample,
+            latch,
+            record,
+        }
+    }
+
+    /// Steps until the simulated time reaches `end_s` (the last latch is the first at or past
+    /// it), calling `each` after every half cycle with the harness, which it may change.
+    pub fn run_until(&mut self, end_s: f64, mut each: impl FnMut(&mut Self, &HalfCycle)) {
+        while self.time_s() < end_s {
+            let half = self.step();
+            each(self, &half);
+        }
+    }
+
+    /// Runs to `until_s` and hands `on_cycle` every cycle closed by a latch in
+    /// `(from_s, until_s]`: the cycles before `from_s` are the warm-up.
+    pub fn run_cycles(
+        &mut self,
+        from_s: f64,
+        until_s: f64,
+        mut on_cycle: impl FnMut(&CycleRecord),
+    ) {
+        self.run_until(until_s, |_, half| {
+            let t = half.latch_s();
+            if let Some(record) = &half.record {
+                if t > from_s && t <= until_s {
+                    on_cycle(record);
+                }
+            }
+        });
+    }
+
+    /// Feeds another readout the last half cycle exactly as the harness's own readout got it
+    /// (the same conversions and latch, the same [`Feed`]); returns the cycle it closes. Its
+    /// cycles do not go back to the board. Nothing happens before the first step.
+    pub fn replay_into(&self, readout: &mut Readout) -> Option<CycleRecord> {
+        let (sample, feed) = self.last?;
+        feed_readout(readout, &self.config, &self.lissajous, sample, feed)
+    }
+
+    /// Simulated time of the last latch, s.
+    pub fn time_s(&self) -> f64 {
+        self.board.time_s()
+    }
+
+    /// The photodiode conversions of the last half cycle.
+    pub fn lissajous(&self) -> &[(u16, u16)] {
+        &self.lissajous
+    }
+
+    /// The board (latch statistics, the last latch, its configuration).
+    pub fn board(&self) -> &SimBoard {
+        &self.board
+    }
+
+    /// The board, for fault injection between steps (counter glitches, photodiode faults).
+    pub fn board_mut(&mut self) -> &mut SimBoard {
+        &mut self.board
+    }
+
+    /// The gyro, with its truth.
+    pub fn gyro(&self) -> &Gyro {
+        self.board.gyro()
+    }
+
+    /// Drains the gyro's log of completed traversals (the truth about lock-in).
+    pub fn take_traversals(&mut self) -> Vec<Traversal> {
+        self.board.take_traversals()
+    }
+
+    /// The readout's settings.
+    pub fn config(&self) -> &ReadoutConfig {
+        &self.config
+    }
+
+    /// The firmware's readout state (counters, compensation in force, measured dither).
+    pub fn readout(&self) -> &Readout {
+        &self.readout
+    }
+
+    /// The readout, between steps: staging compensation settings, resynchronising after a
+    /// stall.
+    pub fn readout_mut(&mut self) -> &mut Readout {
+        &mut self.readout
+    }
+}
+
+/// The readout's two interrupts for one half cycle, as `feed` says: the conversions, then the
+/// latch. Returns the cycle the latch closes.
+fn feed_readout(
+    readout: &mut Readout,
+    config: &ReadoutConfig,
+    lissajous: &[(u16, u16)],
+    sample: TurnaroundSample,
+    feed: Feed,
+) -> Option<CycleRecord> {
+    if feed == Feed::Stalled {
+        return None;
+    }
+    for &(a_code, b_code) in lissajous {
+        readout.on_lissajous_sample(config, a_code, b_code);
+    }
+    match feed {
+        Feed::Everything => readout.on_turnaround(config, sample),
+        Feed::MissTurnaround | Feed::Stalled => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn harness() -> Harness {
+        HarnessOptions::new(GyroParams::default(), InputProfile::constant(10.0))
+            .build()
+            .unwrap()
+    }
+
+    /// A replayed readout sees what the harness's own readout saw: the same cycles, bit for
+    /// bit, whatever the feed.
+    #[test]
+    fn a_replayed_readout_matches_the_harness_readout() {
+        let mut h = harness();
+        let mut twin = Readout::new(h.config(), CompensationSettings::default());
+        let mut cycles = 0;
+        for i in 0..400 {
+            let feed = match i {
+                150 => Feed::MissTurnaround,
+                200..=210 => Feed::Stalled,
+                _ => Feed::Everything,
+            };
+            let half = h.step_with(feed);
+            assert_eq!(h.replay_into(&mut twin), half.record, "half cycle {i}");
+            cycles += usize::from(half.record.is_some());
+            if i == 210 {
+                h.readout_mut().resynchronise();
+                twin.resynchronise();
+            }
+        }
+        assert!(cycles > 150, "{cycles} cycles");
+        assert_eq!(h.readout().counters(), twin.counters());
+    }
+
+    /// A stalled half cycle feeds nothing; the board runs on.
+    #[test]
+    fn a_stall_feeds_nothing() {
+        let mut h = harness();
+        h.step();
+        let before = h.readout().counters();
+        let t = h.time_s();
+        let half = h.step_with(Feed::Stalled);
+        assert!(half.latch_s() > t);
+        assert_eq!(half.record, None);
+        assert_eq!(h.readout().counters(), before);
+        h.step_with(Feed::MissTurnaround);
+        assert_eq!(h.readout().counters().turnarounds, before.turnarounds);
+    }
+
+    /// `run_until` stops at the first latch at or past its end; `run_cycles` hands over exactly
+    /// the cycles closed inside its window.
+    #[test]
+    fn run_cycles_keeps_to_its_window() {
+        let mut h = harness();
+        let (mut latches, mut ends) = (Vec::new(), Vec::new());
+        h.run_until(0.05, |_, half| {
+            latches.push(half.latch_s());
+            if half.record.is_some() {
+                ends.push(half.latch_s());
+            }
+        });
+        assert!(latches[latches.len() - 2] < 0.05 && h.time_s() >= 0.05);
+        let in_window = ends.iter().filter(|&&t| t > 0.02 && t <= 0.05).count();
+        let mut n = 0;
+        harness().run_cycles(0.02, 0.05, |_| n += 1);
+        assert_eq!(n, in_window);
+        assert!(n > 10 && n < ends.len(), "{n} of {}", ends.len());
+    }
+}
