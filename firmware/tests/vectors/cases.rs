@@ -13,7 +13,6 @@ pub const CASES: &[Case] = &[
     Case::abs_tol("micromath_trig", 1e-6, micromath_trig),
     // The signal chain (firmware::signal): the turnaround front end ...
     Case::exact("signal::fringe_count", frontend::fringe_count),
-    Case::exact("signal::quadrature", frontend::quadrature),
     Case::exact("signal::fractional_fringe", frontend::fractional_fringe),
     Case::exact("signal::lissajous", frontend::lissajous),
     Case::exact("signal::fringe_phase", frontend::fringe_phase),

@@ -1,9 +1,9 @@
-//! Cases for the turnaround front end of `firmware::signal`: count extension, x4 decoding,
-//! CORDIC atan2, the Lissajous (Heydemann) normalisation and the fringe phase resolver.
+//! Cases for the turnaround front end of `firmware::signal`: count extension, CORDIC atan2, the
+//! Lissajous (Heydemann) normalisation and the fringe phase resolver.
 use super::{Outputs, Rng};
 use firmware::signal::lissajous::NormalisedLevels;
 use firmware::signal::{
-    fractional_fringe, fringe_count, fringe_phase, lissajous, quadrature, turnaround_schedule,
+    fractional_fringe, fringe_count, fringe_phase, lissajous, turnaround_schedule,
 };
 use micromath::F32Ext as M; // through the trait: the same code on host and target
 
@@ -40,38 +40,6 @@ pub fn fringe_count(out: &mut Outputs) {
             out.i64(counter.count());
             out.u32(counter.glitches());
         }
-    }
-}
-
-/// The x4 software decoder: every transition, single steps, and the table-driven batch path
-/// over Gray-code walks with stills, illegal jumps and junk in the high bits.
-pub fn quadrature(out: &mut Outputs) {
-    use quadrature::{transition, QuadratureDecoder, QUADRANT_OF_STATE};
-    let state_of_quadrant =
-        |q: u8| QUADRANT_OF_STATE.iter().position(|&s| s == q & 3).unwrap() as u8;
-    let mut rng = Rng::new(0x5eed_0031);
-    for previous in 0..4u8 {
-        for current in 0..8u8 {
-            out.i32(transition(previous, current).step() as i32);
-        }
-    }
-    let mut decoder = QuadratureDecoder::new(rng.u32() as u8);
-    let mut stepped = decoder;
-    let mut samples = [0u8; 512];
-    for _ in 0..8 {
-        let mut quadrant = QUADRANT_OF_STATE[decoder.state() as usize];
-        for s in samples.iter_mut() {
-            quadrant = quadrant.wrapping_add([0, 1, 3, 1, 3, 1, 3, 2][(rng.u32() % 8) as usize]);
-            *s = state_of_quadrant(quadrant) | (rng.u32() as u8 & 0xfc);
-        }
-        out.i64(decoder.decode(&samples));
-        out.i64(decoder.count());
-        out.u32(decoder.illegal_transitions());
-        for &s in &samples {
-            out.i32(stepped.step(s).step() as i32);
-        }
-        out.i64(stepped.count());
-        out.u32(stepped.illegal_transitions());
     }
 }
 
