@@ -21,12 +21,12 @@ mod app {
     use core::sync::atomic::Ordering;
     use firmware::board::turnaround::{self, scheduler_config, IMPLAUSIBLE};
     use firmware::sample::TurnaroundKind;
-    use firmware::signal::compensation::Q32_PER_FRINGE;
     use firmware::signal::cycle::CycleRecord;
     use firmware::signal::output::CycleOutput;
     use firmware::signal::turnaround_schedule::{
         opposite, rate_shift_ticks, Edge, Scheduler, SchedulerConfig,
     };
+    use firmware::units::Q32_PER_FRINGE;
 
     const TIMER_HZ: u32 = 84_000_000;
     const CONFIG: SchedulerConfig = scheduler_config(TIMER_HZ, 200, 1500);

@@ -10,11 +10,13 @@
 #![cfg_attr(not(test), no_std)]
 
 pub mod calibration;
+pub mod math;
 pub mod profile;
 pub mod protocol;
 pub mod readout;
 pub mod sample;
 pub mod signal;
+pub mod units;
 
 pub mod storage;
 #[cfg(test)]

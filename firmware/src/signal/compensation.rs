@@ -29,13 +29,13 @@
 //! where a lock-in correction runs at most at the dead-band rate (a few fringes per second).
 
 use super::lockin_terms::LockinTerms;
+use crate::math::{round_f32_to_i32, round_to_i64};
+use crate::units::Q32_PER_FRINGE;
 
 /// 2^16: the Q15.16 scale of a and b.
 pub const COEFFICIENT_SCALE: f32 = 65536.0;
 /// Largest magnitude a Q15.16 coefficient can hold, rad/s.
 pub const COEFFICIENT_MAX_RAD_PER_S: f32 = 32767.0;
-/// One fringe (2 pi rad of beat phase) in Q32 fringes.
-pub const Q32_PER_FRINGE: f64 = 4_294_967_296.0;
 
 /// Why a coefficient value was refused. Nothing changes when it is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -65,14 +65,7 @@ pub fn rad_per_s_to_q16(value_rad_per_s: f32) -> Result<i32, CoefficientError> {
     if value_rad_per_s.abs() > COEFFICIENT_MAX_RAD_PER_S {
         return Err(CoefficientError::OutOfRange);
     }
-    let scaled = value_rad_per_s * COEFFICIENT_SCALE;
-    // Round half away from zero without `f32::round` (absent from core on stable).
-    let rounded = if scaled >= 0.0 {
-        (scaled + 0.5) as i32
-    } else {
-        (scaled - 0.5) as i32
-    };
-    Ok(rounded)
+    Ok(round_f32_to_i32(value_rad_per_s * COEFFICIENT_SCALE))
 }
 
 impl Coefficients {
@@ -104,12 +97,7 @@ impl Coefficients {
 /// correction is below 1, far inside the range).
 pub fn rad_to_q32_fringes(phase_rad: f32) -> i64 {
     let fringes = phase_rad as f64 / core::f64::consts::TAU;
-    let scaled = fringes * Q32_PER_FRINGE;
-    if scaled >= 0.0 {
-        (scaled + 0.5) as i64
-    } else {
-        (scaled - 0.5) as i64
-    }
+    round_to_i64(fringes * Q32_PER_FRINGE)
 }
 
 /// The settings the turnaround interrupt applies, swapped as one.
@@ -294,7 +282,7 @@ mod tests {
     #[test]
     fn radians_to_q32_fringes() {
         let q = rad_to_q32_fringes(0.018);
-        let want = 0.018_f32 as f64 / core::f64::consts::TAU * 4_294_967_296.0;
+        let want = 0.018_f32 as f64 / core::f64::consts::TAU * Q32_PER_FRINGE;
         assert!((q as f64 - want).abs() <= 0.5);
         assert_eq!(rad_to_q32_fringes(-0.018), -q);
     }

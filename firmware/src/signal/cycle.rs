@@ -24,9 +24,7 @@ use super::lockin_terms::{
 };
 use super::output::{CycleFlags, CycleOutput};
 use crate::sample::TurnaroundKind;
-
-/// 2^32 as f64: Q32 fringes per fringe.
-const Q32_PER_FRINGE: f64 = 4_294_967_296.0;
+use crate::units::Q32_PER_FRINGE;
 
 /// What the turnaround front end hands over for one turnaround.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -285,7 +283,7 @@ mod tests {
 
     const TIMER_HZ: f32 = 84e6;
     const DITHER_HZ: f64 = 389.0;
-    const Q32: f64 = 4_294_967_296.0;
+    const Q32: f64 = Q32_PER_FRINGE;
 
     /// Readings of an ideal sine dither (amplitude `amp` rad) on a constant rate. Traversal `i`
     /// adds `err(i, psi0)`, where psi0 is the actual phase latched at its turnaround (all earlier

@@ -54,8 +54,9 @@
 //! the reading falls back to the centre of the count's quadrant (error <= 1/8 turn) and is
 //! flagged.
 
-use crate::signal::fractional_fringe::{atan2_q32, radius_sq_q30};
+use crate::math::{atan2_q32, radius_sq_q30};
 use crate::signal::lissajous::NormalisedLevels;
+use crate::units::Q32_PER_FRINGE;
 
 /// Eighth of a turn in Q32 turns: half a quadrant.
 const EIGHTH_TURN_Q32: u32 = 1 << 29;
@@ -181,7 +182,7 @@ impl FringePhase {
     #[inline]
     pub fn delta_fringes_f64(&self, earlier: &FringePhase) -> f64 {
         let d = self.as_q32_i128() - earlier.as_q32_i128();
-        d as f64 * (1.0 / 4_294_967_296.0)
+        d as f64 * (1.0 / Q32_PER_FRINGE)
     }
 
     /// The whole value in Q32 fringes (96 significant bits in an `i128`).
@@ -370,7 +371,7 @@ mod tests {
 
     /// Error of a reading against the truth psi/2pi (mod the learned constant `base`), turns.
     fn error_turns(reading: &FringeReading, psi: f64, base: f64) -> f64 {
-        let got = reading.phase.as_q32_i128() as f64 / 4_294_967_296.0;
+        let got = reading.phase.as_q32_i128() as f64 / Q32_PER_FRINGE;
         got - psi / TAU - base
     }
 
@@ -386,7 +387,7 @@ mod tests {
             let mut rng = XorShift(11 + i as u64);
             let mut psi = 0.3;
             let first = r.resolve(&cfg, count(psi, delta, 12_345), levels(psi));
-            let base = first.phase.as_q32_i128() as f64 / 4_294_967_296.0 - psi / TAU;
+            let base = first.phase.as_q32_i128() as f64 / Q32_PER_FRINGE - psi / TAU;
             // The base is a whole number of turns when the count edges are ideal.
             for step in 0..100_000 {
                 psi += (rng.uniform() - 0.5) * 2e4;
@@ -402,13 +403,13 @@ mod tests {
                 );
                 if step > 5000 {
                     // After the learned offset has settled.
-                    let bound = (0.125 + delta.abs() / TAU) * 4_294_967_296.0 + 64.0;
+                    let bound = (0.125 + delta.abs() / TAU) * Q32_PER_FRINGE + 64.0;
                     assert!(reading.disagreement_q32.unsigned_abs() as f64 <= bound);
                 }
             }
             assert_eq!(r.glitches(), 0);
             // The mean disagreement estimates the comparator offset (uniform phi; EMA noise ~1 deg rms: 8 deg).
-            let mean = r.mean_disagreement_q32() as f64 / 4_294_967_296.0 * TAU;
+            let mean = r.mean_disagreement_q32() as f64 / Q32_PER_FRINGE * TAU;
             println!(
                 "delta {delta_deg} deg: mean disagreement {:.1} deg",
                 mean.to_degrees()

@@ -55,8 +55,9 @@
 //! excessive quadrature error, incomplete coverage of the figure, or coefficients out of
 //! range. [`LissajousTracker`] then keeps the previous coefficients and reports the reason.
 
+use crate::math::{atan2_q32, positive, powi_f64, round_to_i64, saturate_i32, solve5, sqrt_f64};
 use crate::sample::ADC_FULL_SCALE_CODE;
-use crate::signal::fractional_fringe::atan2_q32;
+use crate::units::Q32_PER_FRINGE;
 
 /// Origin of the integer moment coordinates (mid-scale of the 12-bit ADC).
 pub const ORIGIN_CODE: i32 = 2048;
@@ -177,12 +178,6 @@ impl NormalisedLevels {
     pub fn sin_f32(self) -> f32 {
         self.sin_q30 as f32 * (1.0 / (1u64 << 30) as f32)
     }
-}
-
-/// Saturating `i64 -> i32`.
-#[inline]
-fn saturate_i32(x: i64) -> i32 {
-    x.clamp(i32::MIN as i64, i32::MAX as i64) as i32
 }
 
 impl LissajousCoefficients {
@@ -398,7 +393,7 @@ impl LissajousAccumulator {
             offset_b_code: shape.offset_b as f32,
             radius_a_code: shape.radius_a as f32,
             radius_b_code: shape.radius_b as f32,
-            quadrature_error_rad: (alpha_q32 as f64 * (core::f64::consts::TAU / 4_294_967_296.0))
+            quadrature_error_rad: (alpha_q32 as f64 * (core::f64::consts::TAU / Q32_PER_FRINGE))
                 as f32,
             quadrature_error_q32: alpha_q32,
             samples: self.n,
@@ -410,7 +405,7 @@ impl LissajousAccumulator {
     fn fit_conic(&self) -> Result<[f64; 5], FitRejection> {
         let n = self.n as f64;
         // Moment of total order k, scaled by 2048^-k and averaged: all O(1) for full-scale data.
-        let m = |sum: i64, order: i32| sum as f64 / (pow(SCALE, order) * n);
+        let m = |sum: i64, order: i32| sum as f64 / (powi_f64(SCALE, order) * n);
         let (u, v) = (m(self.s_u, 1), m(self.s_v, 1));
         let (uu, uv, vv) = (m(self.s_uu, 2), m(self.s_uv, 2), m(self.s_vv, 2));
         let (uuu, uuv, uvv, vvv) = (
@@ -523,117 +518,6 @@ impl EllipseShape {
         )
         .ok_or(FitRejection::OutOfRange)
     }
-}
-
-/// Gauss-Jordan elimination with partial pivoting of a 5x5 system given as an augmented
-/// 5x6 matrix. `None` if a pivot falls below 1e-12 of the largest diagonal entry.
-fn solve5(a: &mut [[f64; 6]; 5]) -> Option<[f64; 5]> {
-    let mut scale: f64 = 0.0;
-    for (i, row) in a.iter().enumerate() {
-        scale = max_f64(scale, abs_f64(row[i]));
-    }
-    if !positive(scale) || !scale.is_finite() {
-        return None;
-    }
-    let tiny = scale * 1e-12;
-    for col in 0..5 {
-        // Pivot: the largest |entry| in this column at or below the diagonal.
-        let mut pivot_row = col;
-        for row in col + 1..5 {
-            if abs_f64(a[row][col]) > abs_f64(a[pivot_row][col]) {
-                pivot_row = row;
-            }
-        }
-        if !positive(abs_f64(a[pivot_row][col]) - tiny) {
-            return None;
-        }
-        a.swap(col, pivot_row);
-        let pivot_values = a[col];
-        for (row, values) in a.iter_mut().enumerate() {
-            if row == col {
-                continue;
-            }
-            let factor = values[col] / pivot_values[col];
-            for (v, p) in values.iter_mut().zip(pivot_values.iter()).skip(col) {
-                *v -= factor * p;
-            }
-        }
-    }
-    let mut x = [0.0; 5];
-    for (i, (xi, row)) in x.iter_mut().zip(a.iter()).enumerate() {
-        *xi = row[5] / row[i];
-    }
-    if x.iter().all(|v| v.is_finite()) {
-        Some(x)
-    } else {
-        None
-    }
-}
-
-/// `x > 0`, false for NaN.
-#[inline]
-fn positive(x: f64) -> bool {
-    x > 0.0
-}
-
-#[inline]
-fn abs_f64(x: f64) -> f64 {
-    if x < 0.0 {
-        -x
-    } else {
-        x
-    }
-}
-
-#[inline]
-fn max_f64(a: f64, b: f64) -> f64 {
-    if b > a {
-        b
-    } else {
-        a
-    }
-}
-
-/// `base^exp` by repeated multiplication (exact for the powers of two used here).
-fn pow(base: f64, exp: i32) -> f64 {
-    let mut r = 1.0;
-    for _ in 0..exp {
-        r *= base;
-    }
-    r
-}
-
-/// Round half away from zero, saturating (`as` saturates, NaN -> 0).
-fn round_to_i64(x: f64) -> i64 {
-    if x >= 0.0 {
-        (x + 0.5) as i64
-    } else {
-        (x - 0.5) as i64
-    }
-}
-
-/// Square root from basic operations only (bit-identical on every IEEE target): exponent-halving
-/// first guess (within a factor 1.5 of the root), then Newton steps to convergence (within
-/// 1 ulp of the correctly rounded root). Tiny inputs are scaled by an exact power of two first
-/// so that the guess is good for subnormals too. 0 for x <= 0 or NaN.
-fn sqrt_f64(x: f64) -> f64 {
-    if !positive(x) {
-        return 0.0;
-    }
-    if !x.is_finite() {
-        return x;
-    }
-    let two_pow = |e: i64| f64::from_bits(((1023 + e) as u64) << 52);
-    let (x, undo) = if x < two_pow(-500) {
-        (x * two_pow(600), two_pow(-300))
-    } else {
-        (x, 1.0)
-    };
-    let mut y = f64::from_bits((x.to_bits() >> 1) + (1023u64 << 51));
-    for _ in 0..8 {
-        y = 0.5 * (y + x / y);
-    }
-    y * undo
 }
 
 /// Per-window fitting with the coefficients in use: the previous ones are kept when a window
@@ -1084,25 +968,5 @@ mod tests {
         assert!(!acc.add(0, 0));
         assert_eq!(acc.len(), MAX_WINDOW_SAMPLES);
         assert_eq!(acc.s_vvvv, 2048i64.pow(4) * MAX_WINDOW_SAMPLES as i64);
-    }
-
-    #[test]
-    fn sqrt_matches_std() {
-        let mut rng = XorShift(3);
-        for _ in 0..100_000 {
-            let x = f64::from_bits(rng.next() >> 2); // positive, wide exponent range
-            if !x.is_finite() || x == 0.0 {
-                continue;
-            }
-            let got = sqrt_f64(x);
-            let exact = x.sqrt();
-            assert!(
-                ((got - exact) / exact).abs() <= 2.3e-16,
-                "{x}: {got} vs {exact}"
-            );
-        }
-        assert_eq!(sqrt_f64(-1.0), 0.0);
-        assert_eq!(sqrt_f64(f64::NAN), 0.0);
-        assert_eq!(sqrt_f64(4.0), 2.0);
     }
 }

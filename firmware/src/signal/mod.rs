@@ -13,7 +13,6 @@
 
 pub mod compensation;
 pub mod cycle;
-pub mod fractional_fringe;
 pub mod fringe_count;
 pub mod fringe_phase;
 pub mod lissajous;

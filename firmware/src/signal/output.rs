@@ -17,6 +17,8 @@
 //! division runs once per window in f64 (software floating point on the M4F, IEEE-exact like
 //! the host's, so both report the same bits).
 
+use crate::units::Q32_PER_FRINGE;
+
 /// Flags raised during a cycle (bit set; OR-ed over an averaging window).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -178,7 +180,7 @@ impl RateAverager {
             Some((rate, span)) => (rate, span, true),
             None => {
                 let span = (self.time_ticks - self.window_start_ticks) as f64 / ticks_per_s;
-                let phase = (self.phase_q32 - self.window_start_phase_q32) as f64 / 4_294_967_296.0;
+                let phase = (self.phase_q32 - self.window_start_phase_q32) as f64 / Q32_PER_FRINGE;
                 let rate = if span > 0.0 { phase / span } else { 0.0 };
                 (rate, span, false)
             }
@@ -207,7 +209,7 @@ impl RateAverager {
 mod tests {
     use super::*;
 
-    const Q32: f64 = 4_294_967_296.0;
+    const Q32: f64 = Q32_PER_FRINGE;
 
     fn config(mode: AveragingMode, window_cycles: u32) -> AveragerConfig {
         AveragerConfig {

@@ -57,9 +57,9 @@
 //! register code, `examples/board_cost.rs`); [`rate_shift_ticks`] runs once per cycle in the
 //! cycle task (single-precision floating point, one f64 conversion).
 
-use super::compensation::Q32_PER_FRINGE;
 use super::cycle::CycleRecord;
 use crate::sample::TurnaroundKind;
+use crate::units::Q32_PER_FRINGE;
 
 /// A pick-off comparator edge.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

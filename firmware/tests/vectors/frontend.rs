@@ -1,10 +1,9 @@
 //! Cases for the turnaround front end of `firmware::signal`: count extension, CORDIC atan2, the
 //! Lissajous (Heydemann) normalisation and the fringe phase resolver.
 use super::{Outputs, Rng};
+use firmware::math;
 use firmware::signal::lissajous::NormalisedLevels;
-use firmware::signal::{
-    fractional_fringe, fringe_count, fringe_phase, lissajous, turnaround_schedule,
-};
+use firmware::signal::{fringe_count, fringe_phase, lissajous, turnaround_schedule};
 use micromath::F32Ext as M; // through the trait: the same code on host and target
 
 /// Count extension of 16- and 32-bit encoder registers: wraps, steps near the bound, glitches
@@ -45,7 +44,7 @@ pub fn fringe_count(out: &mut Outputs) {
 
 /// CORDIC atan2 in Q32 turns over random and extreme inputs, and the Q30 radius.
 pub fn fractional_fringe(out: &mut Outputs) {
-    use fractional_fringe::{atan2_q32, radius_sq_q30};
+    use math::{atan2_q32, radius_sq_q30};
     let mut rng = Rng::new(0x5eed_0032);
     let edges = [0, 1, -1, i32::MAX, i32::MIN, 1 << 30, -(1 << 30)];
     for y in edges {

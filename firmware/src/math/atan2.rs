@@ -1,8 +1,9 @@
-//! Fractional fringe: the position inside one fringe from the two normalised photodiode levels.
+//! `atan2` in Q32 turns by an integer CORDIC, bit-exact on every target.
 //!
-//! `psi_H = atan2(sin, cos)` as a phase in **Q32 turns**: a `u32` where a full turn (one fringe,
-//! 2 pi rad of beat phase, four x4 counts) is 2^32, so wrapping arithmetic is turn arithmetic and
-//! one LSB is 2^-32 turn = 1.46e-9 rad.
+//! The angle comes out in **Q32 turns**: a `u32` where a full turn (2 pi rad) is 2^32, so
+//! wrapping arithmetic is turn arithmetic and one LSB is 2^-32 turn = 1.46e-9 rad. In the
+//! signal chain one turn is one fringe: the fractional fringe is `atan2_q32(sin psi_H,
+//! cos psi_H)` of the normalised photodiode levels (`crate::signal::fringe`).
 //!
 //! # Algorithm: integer CORDIC, bit-exact
 //!
@@ -146,8 +147,8 @@ fn cordic_first_octant(big: u32, small: u32) -> u32 {
 
 /// `c^2 + s^2` of a normalised pair in Q30 (1.0 = 2^30), saturating at `u32::MAX`.
 ///
-/// For the Q30 levels of [`crate::signal::lissajous`] a healthy signal gives about 2^30; a
-/// much smaller value means the fringe contrast is gone and the phase is noise.
+/// For the normalised photodiode levels (Q30) a healthy signal gives about 2^30; a much smaller
+/// value means the fringe contrast is gone and the phase is noise.
 #[inline]
 pub fn radius_sq_q30(cos_q30: i32, sin_q30: i32) -> u32 {
     let c = cos_q30 as i64;
@@ -167,6 +168,7 @@ mod tests {
     use super::*;
     use std::f64::consts::PI;
 
+    /// A turn in LSB (2^32).
     const TURN: f64 = 4_294_967_296.0;
 
     /// Signed difference in LSB between the CORDIC and the f64 reference, modulo a turn.
