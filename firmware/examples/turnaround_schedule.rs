@@ -1,7 +1,7 @@
 //! Self-check of the turnaround prediction on the MCU in QEMU:
 //! `cargo fw-run --example turnaround_schedule` (exit status 0 = all checks pass).
 //!
-//! The scheduler is plain logic (`signal::turnaround_schedule`, unit-tested on the host); this
+//! The scheduler is plain logic (`signal::turnaround`, unit-tested on the host); this
 //! checks the same code compiled for the M4F with the board's settings
 //! (`board::turnaround::scheduler_config`: its delays and pick-off polarity) and its counters,
 //! on synthetic pick-off edges in 84 MHz ticks:
@@ -21,9 +21,9 @@ mod app {
     use core::sync::atomic::Ordering;
     use firmware::board::turnaround::{self, scheduler_config, IMPLAUSIBLE};
     use firmware::sample::TurnaroundKind;
-    use firmware::signal::cycle::CycleRecord;
-    use firmware::signal::output::CycleOutput;
-    use firmware::signal::turnaround_schedule::{
+    use firmware::signal::lockin::CycleOutput;
+    use firmware::signal::lockin::CycleRecord;
+    use firmware::signal::turnaround::{
         opposite, rate_shift_ticks, Edge, Scheduler, SchedulerConfig,
     };
     use firmware::units::Q32_PER_FRINGE;

@@ -15,12 +15,13 @@
 
 use crate::sample::TurnaroundSample;
 use crate::signal::compensation::{CompensationSettings, Compensator};
-use crate::signal::cycle::{CycleAssembler, CycleConfig, CycleRecord, TurnaroundReading};
-use crate::signal::fringe_count::{CountUpdate, CounterWidth, FringeCountConfig, FringeCounter};
-use crate::signal::fringe_phase::{FringePhaseConfig, FringeResolver};
-use crate::signal::lissajous::{LissajousCoefficients, LissajousConfig, LissajousTracker};
-use crate::signal::lockin_terms::LevelPair;
-use crate::signal::output::CycleFlags;
+use crate::signal::count::{CountUpdate, CounterWidth, FringeCountConfig, FringeCounter};
+use crate::signal::fringe::{
+    FringePhaseConfig, FringeResolver, LissajousCoefficients, LissajousConfig, LissajousTracker,
+};
+use crate::signal::lockin::{
+    CycleAssembler, CycleConfig, CycleFlags, CycleRecord, LevelPair, TurnaroundReading,
+};
 
 /// Highest x4 edge rate the count extension accepts between reads, edges/s: above the
 /// 2.4 M edges/s of the docs/physics.md parameter set with margin.

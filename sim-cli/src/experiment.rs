@@ -12,8 +12,9 @@
 use firmware::calibration::fit::{FitAccumulator, FitResult, SolveError};
 use firmware::readout::{Readout, ReadoutConfig};
 use firmware::signal::compensation::{CoefficientError, Coefficients, CompensationSettings};
-use firmware::signal::cycle::CycleRecord;
-use firmware::signal::output::{AveragerConfig, AveragingMode, CycleOutput, RateAverager};
+use firmware::signal::lockin::CycleOutput;
+use firmware::signal::lockin::CycleRecord;
+use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use hal_sim::board::{BoardConfig, SimBoard};
 use hal_sim::gyro::Gyro;
 use hal_sim::input::InputProfile;

@@ -52,7 +52,7 @@ use super::{adc, clocks, encoder, flash, pac, turnaround, usart, watchdog, Owned
 use crate::protocol::execute::Identity;
 use crate::readout::{Readout, ReadoutConfig};
 use crate::sample::TurnaroundSample;
-use crate::signal::cycle::CycleRecord;
+use crate::signal::lockin::CycleRecord;
 use crate::storage::Geometry;
 use pac::Interrupt;
 

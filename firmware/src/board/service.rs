@@ -28,7 +28,7 @@ use crate::protocol::respond::MAX_RESPONSE;
 use crate::protocol::stream::{encode_frame, MAX_FRAME};
 use crate::readout::{Readout, ReadoutConfig};
 use crate::signal::compensation::CompensationSettings;
-use crate::signal::cycle::CycleRecord;
+use crate::signal::lockin::CycleRecord;
 use crate::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use crate::storage::{
     CalibrationRecord, CalibrationStore, Geometry, LoadReport, ReadoutPaused, StoreError,

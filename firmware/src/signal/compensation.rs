@@ -28,7 +28,7 @@
 //! summed in integers, so the sum of corrections loses nothing over days: 2^31 fringes of range,
 //! where a lock-in correction runs at most at the dead-band rate (a few fringes per second).
 
-use super::lockin_terms::LockinTerms;
+use super::lockin::LockinTerms;
 use crate::math::{round_f32_to_i32, round_to_i64};
 use crate::units::Q32_PER_FRINGE;
 

@@ -4,7 +4,7 @@
 //!
 //! The fringes are counted in hardware: the board's TIM5 runs in encoder mode (x4, 95 ns input
 //! filter, `board::encoder`) and keeps up with the 2.4 M edges/s peak of the docs/physics.md
-//! parameter set; the chain only extends the latched register ([`fringe_count`]). A software
+//! parameter set; the chain only extends the latched register ([`count`]). A software
 //! decoder of sampled comparator states (`signal/quadrature.rs`) existed until issue 11 and
 //! was removed: nothing on the readout path called it (only its tests, a resolver test, the
 //! `cost` example and a golden-vector case), and sampling the comparators at twice the peak
@@ -12,10 +12,8 @@
 //! in QEMU, ~38 M instructions/s). git history keeps it for a board without an encoder timer.
 
 pub mod compensation;
-pub mod cycle;
-pub mod fringe_count;
-pub mod fringe_phase;
-pub mod lissajous;
-pub mod lockin_terms;
+pub mod count;
+pub mod fringe;
+pub mod lockin;
 pub mod output;
-pub mod turnaround_schedule;
+pub mod turnaround;

@@ -2,14 +2,14 @@
 //! Lissajous (Heydemann) normalisation and the fringe phase resolver.
 use super::{Outputs, Rng};
 use firmware::math;
-use firmware::signal::lissajous::NormalisedLevels;
-use firmware::signal::{fringe_count, fringe_phase, lissajous, turnaround_schedule};
+use firmware::signal::fringe::NormalisedLevels;
+use firmware::signal::{count, fringe, turnaround};
 use micromath::F32Ext as M; // through the trait: the same code on host and target
 
 /// Count extension of 16- and 32-bit encoder registers: wraps, steps near the bound, glitches
 /// and resynchronisation.
 pub fn fringe_count(out: &mut Outputs) {
-    use fringe_count::{CountUpdate, CounterWidth, FringeCountConfig, FringeCounter};
+    use count::{CountUpdate, CounterWidth, FringeCountConfig, FringeCounter};
     let mut rng = Rng::new(0x5eed_0030);
     out.u32(FringeCountConfig::max_step_for(2_400_000, 1285, 1_000_000));
     out.u32(FringeCountConfig::max_step_for(u32::MAX, u32::MAX, 0));
@@ -88,7 +88,7 @@ fn levels(out: &mut Outputs, l: NormalisedLevels) {
 /// The Heydemann fit window by window (good ellipses, and ones it must refuse: a line, a tiny
 /// signal, a partial arc), its coefficients, and the normalisation of random codes.
 pub fn lissajous(out: &mut Outputs) {
-    use lissajous::{LissajousCoefficients, LissajousConfig, LissajousTracker};
+    use fringe::{LissajousCoefficients, LissajousConfig, LissajousTracker};
     let mut rng = Rng::new(0x5eed_0033);
     let config = LissajousConfig {
         window_samples: 600,
@@ -148,7 +148,7 @@ pub fn lissajous(out: &mut Outputs) {
 /// The fringe phase resolver along a dithering phase path: count and levels agree, with
 /// comparator skew, the odd lost count (glitch) and lost signal, under two board conventions.
 pub fn fringe_phase(out: &mut Outputs) {
-    use fringe_phase::{FringeConvention, FringePhase, FringePhaseConfig, FringeResolver};
+    use fringe::{FringeConvention, FringePhase, FringePhaseConfig, FringeResolver};
     let mut rng = Rng::new(0x5eed_0034);
     let q30 = (1u32 << 30) as f32;
     let conventions = [
@@ -212,12 +212,9 @@ pub fn fringe_phase(out: &mut Outputs) {
 /// offset (unequal high and low times), jitter, the odd missing edge, and input-rate shifts.
 pub fn turnaround_schedule(out: &mut Outputs) {
     use firmware::sample::TurnaroundKind;
-    use firmware::signal::cycle::CycleRecord;
-    use firmware::signal::lockin_terms::LockinTerms;
-    use firmware::signal::output::{CycleFlags, CycleOutput};
-    use turnaround_schedule::{
-        rate_shift_ticks, shift_ticks_for_rate, Edge, Scheduler, SchedulerConfig,
-    };
+    use firmware::signal::lockin::{CycleFlags, CycleOutput, CycleRecord, LockinTerms};
+    use firmware::signal::output::rate_shift_ticks;
+    use turnaround::{shift_ticks_for_rate, Edge, Scheduler, SchedulerConfig};
     let mut rng = Rng::new(0x5eed_0035);
     let timer_hz = 84_000_000;
     let config =

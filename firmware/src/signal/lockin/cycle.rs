@@ -18,13 +18,54 @@
 //! the dither's) means a turnaround was missed or a spurious one seen: the cycle in progress is
 //! dropped, assembly restarts, and the next cycle carries [`CycleFlags::TURNAROUND_MISSED`].
 
-use super::compensation::Compensator;
-use super::lockin_terms::{
+use super::terms::{
     sine_dither_accel_rad_per_s2, traversal_terms, traversal_time_s, LevelPair, LockinTerms,
 };
-use super::output::{CycleFlags, CycleOutput};
 use crate::sample::TurnaroundKind;
+use crate::signal::compensation::Compensator;
 use crate::units::Q32_PER_FRINGE;
+
+/// Flags raised during a cycle (bit set; OR-ed over an averaging window).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CycleFlags(pub u8);
+
+impl CycleFlags {
+    /// Photodiode amplitude too small to normalise (fractional fringe unavailable).
+    pub const SIGNAL_LOST: Self = Self(1 << 0);
+    /// The encoder count jumped by more than physically possible, or disagreed with the levels.
+    pub const COUNTER_GLITCH: Self = Self(1 << 1);
+    /// A turnaround was not seen when expected (the cycle spans more than one dither period).
+    pub const TURNAROUND_MISSED: Self = Self(1 << 2);
+    /// No compensation time constant could be formed (no dither, or an implausible one).
+    pub const DITHER_INVALID: Self = Self(1 << 3);
+
+    pub const fn empty() -> Self {
+        Self(0)
+    }
+    pub const fn union(self, other: Self) -> Self {
+        Self(self.0 | other.0)
+    }
+    pub const fn contains(self, other: Self) -> bool {
+        self.0 & other.0 == other.0
+    }
+    pub const fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+}
+
+/// One dither cycle's output.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CycleOutput {
+    /// Compensated beat-phase increment over the cycle, Q32 fringes.
+    pub increment_q32: i64,
+    /// The lock-in correction subtracted from it, Q32 fringes (0 with compensation off).
+    pub correction_q32: i64,
+    /// Cycle duration in capture-timer ticks.
+    pub duration_ticks: u32,
+    pub flags: CycleFlags,
+}
 
 /// What the turnaround front end hands over for one turnaround.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -57,9 +57,7 @@
 //! register code, `examples/board_cost.rs`); [`rate_shift_ticks`] runs once per cycle in the
 //! cycle task (single-precision floating point, one f64 conversion).
 
-use super::cycle::CycleRecord;
 use crate::sample::TurnaroundKind;
-use crate::units::Q32_PER_FRINGE;
 
 /// A pick-off comparator edge.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -223,23 +221,6 @@ pub fn opposite(kind: TurnaroundKind) -> TurnaroundKind {
     }
 }
 
-/// The input-rate shift `Omega_i / |psi_ddot|` of the next turnarounds, in ticks of a timer at
-/// `timer_hz`, from one cycle (docs/physics.md pitfall 3): Omega_i = the cycle's increment over its
-/// duration, psi_ddot = measured amplitude x (2 pi f)^2. The increment is the compensated one
-/// (the lock-in error removed: the best estimate of the input rate; with compensation off it is
-/// the raw increment). 0 without a usable dither or duration.
-pub fn rate_shift_ticks(record: &CycleRecord, timer_hz: u32) -> i32 {
-    let duration_s = record.output.duration_ticks as f32 / timer_hz as f32;
-    let fringes = (record.output.increment_q32 as f64 / Q32_PER_FRINGE) as f32;
-    let rate_rad_per_s = fringes * core::f32::consts::TAU / duration_s;
-    shift_ticks_for_rate(
-        rate_rad_per_s,
-        record.dither_amplitude_rad,
-        record.dither_hz,
-        timer_hz,
-    )
-}
-
 /// `Omega_i / |psi_ddot|` in ticks for a rate (rad/s of beat phase) and a sine dither of
 /// `amplitude_rad` (beat phase) at `dither_hz`: `psi_ddot = amplitude * (2 pi f)^2`. Clamped to
 /// +-T/16: beyond that the parabolic turnaround model no longer holds anyway. 0 for a
@@ -263,7 +244,6 @@ pub fn shift_ticks_for_rate(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::signal::output::CycleOutput;
 
     const TIMER_HZ: u32 = 84_000_000;
     /// One dither period at 389 Hz, ticks (rounded to even, so T/4 is exact).
@@ -427,56 +407,5 @@ mod tests {
         run(&mut s, 1_000, 2, 0, 0);
         s.reset();
         assert_eq!(s, Scheduler::new());
-    }
-
-    /// A record of one 389 Hz cycle advancing `fringes`, at the docs/physics.md dither amplitude.
-    fn record(fringes: f64, dither_hz: f32, amplitude_rad: f32) -> CycleRecord {
-        let duration_ticks = (TIMER_HZ as f64 / 389.0).round() as u32;
-        CycleRecord {
-            output: CycleOutput {
-                increment_q32: (fringes * Q32_PER_FRINGE).round() as i64,
-                duration_ticks,
-                ..Default::default()
-            },
-            raw_increment_q32: 0,
-            terms: Default::default(),
-            end_phase_q32: 0,
-            dither_amplitude_rad: amplitude_rad,
-            dither_hz,
-        }
-    }
-
-    #[test]
-    fn rate_shift_of_one_degree_per_second() {
-        // 1 deg/s = 3600 arcsec/s at SF 1.8655 arcsec/pulse; 450 arcsec amplitude, 389 Hz:
-        // Omega_i / (A w^2) = 1.34 us = 112 ticks, with the sign of the rate.
-        let sf = 1.8655;
-        let amplitude = (450.0 / sf * core::f64::consts::TAU) as f32;
-        let per_cycle = 3600.0 / sf / 389.0;
-        let plus = rate_shift_ticks(&record(per_cycle, 389.0, amplitude), TIMER_HZ);
-        let minus = rate_shift_ticks(&record(-per_cycle, 389.0, amplitude), TIMER_HZ);
-        assert!((110..=115).contains(&plus), "{plus} ticks");
-        assert_eq!(minus, -plus);
-        // Earth rate: a few ns.
-        let earth = rate_shift_ticks(&record(15.0 / sf / 389.0, 389.0, amplitude), TIMER_HZ);
-        assert_eq!(earth, 0);
-    }
-
-    #[test]
-    fn no_usable_dither_or_duration_gives_no_shift() {
-        let r = record(5.0, 389.0, 0.0);
-        assert_eq!(rate_shift_ticks(&r, TIMER_HZ), 0);
-        let r = record(5.0, 0.0, 1515.6);
-        assert_eq!(rate_shift_ticks(&r, TIMER_HZ), 0);
-        let mut r = record(5.0, 389.0, 1515.6);
-        r.output.duration_ticks = 0;
-        assert_eq!(rate_shift_ticks(&r, TIMER_HZ), 0);
-    }
-
-    #[test]
-    fn a_huge_rate_is_clamped_to_a_sixteenth_period() {
-        let r = record(1e5, 389.0, 1515.6);
-        let limit = (TIMER_HZ as f32 / 389.0 / 16.0) as i32;
-        assert_eq!(rate_shift_ticks(&r, TIMER_HZ), limit);
     }
 }

@@ -17,13 +17,13 @@
 //! - after [`FringeCountConfig::resync_after`] consecutive glitches the register is taken to
 //!   have really jumped (e.g. reset): the raw value becomes the new reference with the count
 //!   still held ([`CountUpdate::Resynced`]). The motion during the glitch is lost; the fractional
-//!   fringe of [`crate::signal::fringe_phase`] then flags the quadrant disagreement.
+//!   fringe of [`crate::signal::fringe`] then flags the quadrant disagreement.
 //!
 //! Never panics: all arithmetic is wrapping on `u32`/`i64`.
 //!
 //! Sign: the count goes up when psi_H increases if the encoder inputs are wired A -> TI1,
 //! B -> TI2 in the timer's default polarity; the count sign is a board convention handled in
-//! [`crate::signal::fringe_phase::FringeConvention`].
+//! [`crate::signal::fringe::FringeConvention`].
 
 /// Width of the hardware encoder register.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
