@@ -4,9 +4,13 @@
 //!   board) goes to [`Readout::on_lissajous_sample`]: the Heydemann fit learns the offsets, gains
 //!   and quadrature error of the channels from the signal itself.
 //! - The turnaround interrupt latches a [`TurnaroundSample`] and calls
-//!   [`Readout::on_turnaround`]: count extension -> normalisation -> fringe phase (count plus
-//!   fractional fringe) -> cycle assembly (P1/P2, latch split) -> compensation. A completed
-//!   dither cycle comes back as a [`CycleRecord`].
+//!   [`Readout::on_turnaround`]: count extension (stage 1, `signal::count`) -> normalisation and
+//!   fringe phase, count plus fractional fringe (stage 3, `signal::fringe`) -> cycle assembly,
+//!   P1/P2 and the latch split (stage 4, `signal::lockin`) -> compensation of the closed cycle
+//!   (stage 5, `signal::compensation`). A completed dither cycle comes back as a
+//!   [`CycleRecord`]. The stages know nothing of each other's state: this is the one place
+//!   that wires them (stage 2, the turnaround schedule, runs in the pick-off interrupt;
+//!   stage 6, the output, in the cycle task).
 //!
 //! Coefficients (immutable, `Copy`) live in [`ReadoutConfig`]; the state in [`Readout`]. New
 //! compensation settings are staged with [`Readout::stage_compensation`] and take effect whole
@@ -152,9 +156,8 @@ impl Readout {
             timestamp_ticks: sample.timestamp_ticks,
             flags,
         };
-        let record = self
-            .cycles
-            .on_turnaround(&config.cycle, &mut self.compensator, turnaround)?;
+        let record = self.cycles.on_turnaround(&config.cycle, turnaround)?;
+        let record = self.compensator.compensate(record);
         self.counters.cycles = self.counters.cycles.wrapping_add(1);
         Some(record)
     }

@@ -1,5 +1,7 @@
-//! Turnaround prediction: pick-off comparator edges (capture-timer ticks) in, the instant to
-//! latch the fringe count and sample both photodiodes out.
+//! Stage 2, the turnaround: pick-off comparator edges (capture-timer ticks) in, the instant to
+//! latch the fringe count and sample both photodiodes out. What the latch takes is a
+//! [`crate::sample::TurnaroundSample`] (the hardware/logic boundary), which the readout hands
+//! to stages 1, 3 and 4.
 //!
 //! Plain logic, shared by the board (`board::turnaround`: TIM2 captures the edges, the compare
 //! fires the latch; registers, fixed delays and the atomic counters stay there) and the
@@ -27,8 +29,9 @@
 //! The input rate moves the turnaround (pitfall 3): the lock-in-free rate Omega_i + psi_ddot (t -
 //! t_p) is zero at `t_p - Omega_i/psi_ddot` for a "+" turnaround and `t_p + Omega_i/|psi_ddot|`
 //! for a "-" one. The cycle task computes `Omega_i/|psi_ddot|` in timer ticks from each cycle's
-//! rate and measured dither ([`rate_shift_ticks`]) and hands it to the next edges; at 1 deg/s of
-//! input it is 1.3 us, at Earth rate 6 ns.
+//! rate and measured dither ([`rate_shift_ticks`](crate::signal::output::rate_shift_ticks), in
+//! stage 6) and hands it to the next edges; at 1 deg/s of input it is 1.3 us, at Earth rate
+//! 6 ns. The feedback arrives as a plain `i32`, so this stage imports nothing of the later ones.
 //!
 //! Fixed delays subtracted ([`SchedulerConfig`], calibrated on a board with a scope on the
 //! compare's test point): the pick-off path (comparator, input filter, resynchronisation) and the
@@ -54,7 +57,7 @@
 //!
 //! # Cost
 //! `on_edge` is integer-only, no division (about 55 instructions on the M4 with the board's
-//! register code, `examples/board_cost.rs`); [`rate_shift_ticks`] runs once per cycle in the
+//! register code, `examples/board_cost.rs`); `output::rate_shift_ticks` runs once per cycle in the
 //! cycle task (single-precision floating point, one f64 conversion).
 
 use crate::sample::TurnaroundKind;
@@ -158,7 +161,7 @@ impl Scheduler {
     }
 
     /// One edge captured at `t_ticks` (wrapping); `rate_shift_ticks` = Omega_i/|psi_ddot| in
-    /// ticks (signed, [`rate_shift_ticks`]). Integer only, no division.
+    /// ticks (signed, [`rate_shift_ticks`](crate::signal::output::rate_shift_ticks)). Integer only, no division.
     pub fn on_edge(
         &mut self,
         config: &SchedulerConfig,

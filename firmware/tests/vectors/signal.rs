@@ -171,7 +171,10 @@ pub fn cycle_assembly(out: &mut Outputs) {
             timestamp_ticks: ticks,
             flags: CycleFlags(if rng.one_in(100) { 2 } else { 0 }),
         };
-        let Some(r) = assembler.on_turnaround(&config, &mut comp, reading) else {
+        let Some(r) = assembler
+            .on_turnaround(&config, reading)
+            .map(|r| comp.compensate(r))
+        else {
             continue;
         };
         out.i64(r.output.increment_q32);

@@ -17,12 +17,16 @@
 //! A reading out of sequence (two turnarounds of one kind in a row, or a half period far from
 //! the dither's) means a turnaround was missed or a spurious one seen: the cycle in progress is
 //! dropped, assembly restarts, and the next cycle carries [`CycleFlags::TURNAROUND_MISSED`].
+//!
+//! The assembler does not compensate: a closed [`CycleRecord`] leaves with its output increment
+//! equal to the raw one and a zero correction, and the compensation stage
+//! (`crate::signal::compensation`, called by `crate::readout`) subtracts a P1 + b P2 from cycles
+//! whose flags allow it ([`CycleFlags::compensable`]).
 
 use super::terms::{
     sine_dither_accel_rad_per_s2, traversal_terms, traversal_time_s, LevelPair, LockinTerms,
 };
 use crate::sample::TurnaroundKind;
-use crate::signal::compensation::Compensator;
 use crate::units::Q32_PER_FRINGE;
 
 /// Flags raised during a cycle (bit set; OR-ed over an averaging window).
@@ -52,13 +56,20 @@ impl CycleFlags {
     pub const fn is_empty(self) -> bool {
         self.0 == 0
     }
+    /// The cycle's P1/P2 can be trusted for compensation: the levels were seen at every
+    /// turnaround and k was measured (neither [`Self::SIGNAL_LOST`] nor
+    /// [`Self::DITHER_INVALID`]). A counter glitch or a missed turnaround leaves P1/P2 valid.
+    pub const fn compensable(self) -> bool {
+        !self.contains(Self::SIGNAL_LOST) && !self.contains(Self::DITHER_INVALID)
+    }
 }
 
 /// One dither cycle's output.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CycleOutput {
-    /// Compensated beat-phase increment over the cycle, Q32 fringes.
+    /// Beat-phase increment over the cycle, Q32 fringes: compensated by the compensation stage
+    /// (the raw increment as the assembler hands it over).
     pub increment_q32: i64,
     /// The lock-in correction subtracted from it, Q32 fringes (0 with compensation off).
     pub correction_q32: i64,
@@ -105,6 +116,7 @@ impl CycleConfig {
 /// One dither cycle, everything the output, the calibration and the stream need.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CycleRecord {
+    /// The increment, its correction (none until the compensation stage), duration and flags.
     pub output: CycleOutput,
     /// Measured increment before compensation, Q32 fringes.
     pub raw_increment_q32: i64,
@@ -175,7 +187,6 @@ impl CycleAssembler {
     pub fn on_turnaround(
         &mut self,
         config: &CycleConfig,
-        compensator: &mut Compensator,
         reading: TurnaroundReading,
     ) -> Option<CycleRecord> {
         if !self.in_sequence(config, &reading) {
@@ -214,7 +225,7 @@ impl CycleAssembler {
                 let closed = self
                     .open
                     .take()
-                    .and_then(|open| self.close(compensator, open, share, flags, &reading));
+                    .and_then(|open| self.close(open, share, flags, &reading));
                 self.open = Some(OpenCycle {
                     start_phase_q32: reading.phase_q32,
                     start_ticks: reading.timestamp_ticks,
@@ -230,7 +241,6 @@ impl CycleAssembler {
 
     fn close(
         &mut self,
-        compensator: &mut Compensator,
         open: OpenCycle,
         share: LockinTerms,
         flags: CycleFlags,
@@ -242,17 +252,11 @@ impl CycleAssembler {
         let terms = open.terms + share.scaled(0.5);
         let flags = open.flags.union(flags);
         let raw_increment_q32 = reading.phase_q32.wrapping_sub(open.start_phase_q32);
-        let trusted =
-            !flags.contains(CycleFlags::SIGNAL_LOST) && !flags.contains(CycleFlags::DITHER_INVALID);
-        let correction_q32 = if trusted {
-            compensator.cycle_correction(terms)
-        } else {
-            0
-        };
         Some(CycleRecord {
             output: CycleOutput {
-                increment_q32: raw_increment_q32.wrapping_sub(correction_q32),
-                correction_q32,
+                // Uncompensated: the compensation stage subtracts its correction.
+                increment_q32: raw_increment_q32,
+                correction_q32: 0,
                 duration_ticks: reading.timestamp_ticks.wrapping_sub(open.start_ticks),
                 flags,
             },
@@ -319,62 +323,8 @@ impl CycleAssembler {
 
 #[cfg(test)]
 mod tests {
+    use super::super::synthetic::{assemble, readings, DITHER_HZ, TIMER_HZ};
     use super::*;
-    use crate::signal::compensation::{Coefficients, CompensationSettings};
-
-    const TIMER_HZ: f32 = 84e6;
-    const DITHER_HZ: f64 = 389.0;
-    const Q32: f64 = Q32_PER_FRINGE;
-
-    /// Readings of an ideal sine dither (amplitude `amp` rad) on a constant rate. Traversal `i`
-    /// adds `err(i, psi0)`, where psi0 is the actual phase latched at its turnaround (all earlier
-    /// errors plus half of its own: an implicit equation, solved by iteration).
-    fn readings(
-        amp: f64,
-        rate: f64,
-        n: usize,
-        err: impl Fn(usize, f64) -> f64,
-    ) -> Vec<TurnaroundReading> {
-        let half = 0.5 / DITHER_HZ;
-        let mut accumulated = 0.0;
-        (0..n)
-            .map(|i| {
-                let t = i as f64 * half;
-                let kind = if i.is_multiple_of(2) {
-                    TurnaroundKind::Plus
-                } else {
-                    TurnaroundKind::Minus
-                };
-                let dither = if i.is_multiple_of(2) { -amp } else { amp };
-                let base = dither + rate * t + accumulated;
-                let mut e = 0.0;
-                for _ in 0..20 {
-                    e = err(i, base + 0.5 * e);
-                }
-                let psi = base + 0.5 * e;
-                accumulated += e;
-                TurnaroundReading {
-                    kind,
-                    phase_q32: (psi / core::f64::consts::TAU * Q32).round() as i64,
-                    levels: Some(LevelPair {
-                        cos_psi_h: psi.cos() as f32,
-                        sin_psi_h: psi.sin() as f32,
-                    }),
-                    timestamp_ticks: (t * TIMER_HZ as f64).round() as u32,
-                    flags: CycleFlags::empty(),
-                }
-            })
-            .collect()
-    }
-
-    fn run(readings: &[TurnaroundReading], comp: &mut Compensator) -> Vec<CycleRecord> {
-        let config = CycleConfig::for_dither(TIMER_HZ, DITHER_HZ as f32, 0.2);
-        let mut asm = CycleAssembler::new();
-        readings
-            .iter()
-            .filter_map(|r| asm.on_turnaround(&config, comp, *r))
-            .collect()
-    }
 
     /// Each cycle's increment is rate x period plus the errors of half, one, half traversals;
     /// measured amplitude and frequency match the dither. Tolerances: Q32 rounding of the phase
@@ -384,10 +334,7 @@ mod tests {
         let amp = core::f64::consts::TAU * 450.0 / 1.8655;
         let rate = 46.8;
         let err = |i: usize| 0.01 * ((i as f64) * 0.7).sin();
-        let cycles = run(
-            &readings(amp, rate, 41, |i, _| err(i)),
-            &mut Compensator::default(),
-        );
+        let cycles = assemble(&readings(amp, rate, 41, |i, _| err(i)));
         assert_eq!(cycles.len(), 20);
         for (c, record) in cycles.iter().enumerate() {
             let start = 2 * c;
@@ -398,8 +345,9 @@ mod tests {
             );
             assert_eq!(
                 record.output.increment_q32, record.raw_increment_q32,
-                "compensation off"
+                "not compensated here"
             );
+            assert_eq!(record.output.correction_q32, 0);
             if c > 0 {
                 assert!(record.output.flags.is_empty(), "{:?}", record.output.flags);
                 assert!((record.dither_amplitude_rad as f64 / amp - 1.0).abs() < 1e-5);
@@ -410,56 +358,13 @@ mod tests {
         assert!(cycles[0].output.flags.contains(CycleFlags::DITHER_INVALID));
     }
 
-    /// With compensation on and the true coefficients, the correction removes the parabolic
-    /// traversal errors the readings carry: the compensated increment is rate x period to
-    /// 1e-5 of the 0.018 rad correction (f32 products and the measured k).
-    #[test]
-    fn compensation_removes_the_traversal_errors() {
-        let amp = core::f64::consts::TAU * 450.0 / 1.8655;
-        let (omega_l, eps) = (673.6_f64, 0.3_f64);
-        let accel = amp * (core::f64::consts::TAU * DITHER_HZ).powi(2);
-        let k = (core::f64::consts::TAU / accel).sqrt();
-        let rate = 46.8;
-        // The parabolic traversal error at the actual turnaround phase psi0.
-        let err = move |i: usize, psi0: f64| {
-            if i.is_multiple_of(2) {
-                omega_l * k * (psi0 + core::f64::consts::FRAC_PI_4).cos()
-            } else {
-                omega_l * k * (psi0 + core::f64::consts::FRAC_PI_4).sin()
-            }
-        };
-        let a = omega_l * (eps + core::f64::consts::FRAC_PI_4).cos();
-        let b = omega_l * (eps + core::f64::consts::FRAC_PI_4).sin();
-        // The photodiodes see psi_H = psi - eps.
-        let mut rs = readings(amp, rate, 61, err);
-        for r in &mut rs {
-            let psi = r.phase_q32 as f64 / Q32 * core::f64::consts::TAU;
-            r.levels = Some(LevelPair {
-                cos_psi_h: (psi - eps).cos() as f32,
-                sin_psi_h: (psi - eps).sin() as f32,
-            });
-        }
-        let mut comp = Compensator::new(CompensationSettings {
-            coefficients: Coefficients::from_rad_per_s(a as f32, b as f32).unwrap(),
-            enabled: true,
-        });
-        let cycles = run(&rs, &mut comp);
-        for record in cycles.iter().skip(1) {
-            let compensated = record.output.increment_q32 as f64 / Q32 * core::f64::consts::TAU;
-            let resid = compensated - rate / DITHER_HZ;
-            // f32 levels and products, the measured k and Q32 phase: 1e-4 of the correction.
-            assert!(resid.abs() < 1e-4 * omega_l * k, "resid {resid}");
-            assert!(record.output.correction_q32 != 0);
-        }
-    }
-
     /// A missing "-" turnaround: the cycle in progress is dropped and the next one flagged.
     #[test]
     fn a_missed_turnaround_is_flagged_not_misread() {
         let amp = 1500.0;
         let mut rs = readings(amp, 0.0, 30, |_, _| 0.0);
         rs.remove(11); // a "-" turnaround
-        let cycles = run(&rs, &mut Compensator::default());
+        let cycles = assemble(&rs);
         assert!(cycles
             .iter()
             .any(|c| c.output.flags.contains(CycleFlags::TURNAROUND_MISSED)));
@@ -471,20 +376,22 @@ mod tests {
         }
     }
 
+    /// A reading without levels flags its cycle SIGNAL_LOST: not compensable.
     #[test]
-    fn lost_signal_is_flagged_and_not_compensated() {
+    fn lost_signal_is_flagged() {
         let mut rs = readings(1500.0, 10.0, 20, |_, _| 0.0);
         rs[9].levels = None;
-        let mut comp = Compensator::new(CompensationSettings {
-            coefficients: Coefficients::from_rad_per_s(300.0, 400.0).unwrap(),
-            enabled: true,
-        });
-        let cycles = run(&rs, &mut comp);
+        let cycles = assemble(&rs);
         let lost: Vec<_> = cycles
             .iter()
             .filter(|c| c.output.flags.contains(CycleFlags::SIGNAL_LOST))
             .collect();
         assert_eq!(lost.len(), 1);
-        assert_eq!(lost[0].output.correction_q32, 0);
+        assert!(!lost[0].output.flags.compensable());
+        assert!(cycles[1].output.flags.compensable());
+        assert!(
+            !cycles[0].output.flags.compensable(),
+            "no dither measured yet"
+        );
     }
 }

@@ -9,6 +9,8 @@
 //! stage 5 (`super::compensation`) subtracts a P1 + b P2.
 
 mod cycle;
+#[cfg(test)]
+pub(crate) mod synthetic;
 mod terms;
 
 pub use cycle::{
