@@ -147,8 +147,7 @@ impl Readout {
         }
         let turnaround = TurnaroundReading {
             kind: sample.kind,
-            // Wrapping Q32 fringes: cycle increments are exact differences.
-            phase_q32: reading.phase.as_q32_i128() as i64,
+            phase: reading.phase.total(),
             levels: (!reading.signal_lost).then(|| LevelPair {
                 cos_psi_h: reading.levels.cos_f32(),
                 sin_psi_h: reading.levels.sin_f32(),

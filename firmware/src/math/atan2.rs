@@ -1,8 +1,8 @@
 //! `atan2` in Q32 turns by an integer CORDIC, bit-exact on every target.
 //!
-//! The angle comes out in **Q32 turns**: a `u32` where a full turn (2 pi rad) is 2^32, so
-//! wrapping arithmetic is turn arithmetic and one LSB is 2^-32 turn = 1.46e-9 rad. In the
-//! signal chain one turn is one fringe: the fractional fringe is `atan2_q32(sin psi_H,
+//! The angle comes out as a [`Phase`] in **Q32 turns** (`crate::units`): a full turn (2 pi rad)
+//! is 2^32, so wrapping arithmetic is turn arithmetic and one LSB is 2^-32 turn = 1.46e-9 rad.
+//! In the signal chain one turn is one fringe: the fractional fringe is `atan2_q32(sin psi_H,
 //! cos psi_H)` of the normalised photodiode levels (`crate::signal::fringe`).
 //!
 //! # Algorithm: integer CORDIC, bit-exact
@@ -30,6 +30,8 @@
 //!
 //! `(0, 0)` has no angle; [`atan2_q32`] returns 0 for it. Callers that care (a lost signal)
 //! check the radius first, see [`radius_sq_q30`].
+
+use crate::units::Phase;
 
 /// Number of CORDIC vectoring iterations (`i = 1..=CORDIC_ITERATIONS`).
 pub const CORDIC_ITERATIONS: usize = 27;
@@ -71,34 +73,30 @@ const ATAN_TABLE_Q32: [u32; CORDIC_ITERATIONS + 1] = [
 /// 32 LSB = 7.5e-9 turn = 4.7e-8 rad. Measured worst case: 20 LSB = 4.7e-9 turn.
 pub const MAX_ERROR_Q32: u32 = 32;
 
-/// A quarter turn in Q32 turns.
-pub const QUARTER_TURN_Q32: u32 = 1 << 30;
-/// Half a turn in Q32 turns.
-pub const HALF_TURN_Q32: u32 = 1 << 31;
-
-/// `atan2(y, x)` in Q32 turns (`u32`, a full turn = 2^32), in [0, 2^32): 0 along +x, a quarter
+/// `atan2(y, x)` as a [`Phase`] in Q32 turns (a full turn = 2^32): 0 along +x, a quarter
 /// turn (2^30) along +y. Any scale of the inputs; `(0, 0)` gives 0. Panic-free on all inputs.
 #[inline]
-pub fn atan2_q32(y: i32, x: i32) -> u32 {
+pub fn atan2_q32(y: i32, x: i32) -> Phase {
     let ax = x.unsigned_abs();
     let ay = y.unsigned_abs();
     if ax == 0 && ay == 0 {
-        return 0;
+        return Phase::ZERO;
     }
     // First-quadrant angle t in [0, 1/4 turn]: reduce to the first octant (big >= small).
     let swapped = ay > ax;
     let (big, small) = if swapped { (ay, ax) } else { (ax, ay) };
-    let octant_angle = cordic_first_octant(big, small);
+    let octant_angle = Phase::from_bits(cordic_first_octant(big, small));
     let t = if swapped {
-        QUARTER_TURN_Q32.wrapping_sub(octant_angle)
+        Phase::QUARTER_TURN - octant_angle
     } else {
         octant_angle
     };
+    // The quadrant unfolded with exact wrapping operations.
     match (x < 0, y < 0) {
         (false, false) => t,
-        (true, false) => HALF_TURN_Q32.wrapping_sub(t),
-        (true, true) => HALF_TURN_Q32.wrapping_add(t),
-        (false, true) => 0u32.wrapping_sub(t),
+        (true, false) => Phase::HALF_TURN - t,
+        (true, true) => Phase::HALF_TURN + t,
+        (false, true) => -t,
     }
 }
 
@@ -173,7 +171,7 @@ mod tests {
 
     /// Signed difference in LSB between the CORDIC and the f64 reference, modulo a turn.
     fn error_lsb(y: i32, x: i32) -> i64 {
-        let got = atan2_q32(y, x);
+        let got = atan2_q32(y, x).to_bits();
         let exact = (y as f64).atan2(x as f64) / (2.0 * PI);
         let exact_q32 = (exact.rem_euclid(1.0) * TURN).round() as i64;
         let diff = (got as i64 - exact_q32).rem_euclid(1i64 << 32);
@@ -197,13 +195,14 @@ mod tests {
 
     #[test]
     fn cardinal_directions_and_origin() {
-        assert_eq!(atan2_q32(0, 0), 0);
-        assert_eq!(atan2_q32(0, 1), 0);
-        assert_eq!(atan2_q32(1, 0), QUARTER_TURN_Q32);
-        assert_eq!(atan2_q32(0, -1), HALF_TURN_Q32);
-        assert_eq!(atan2_q32(-1, 0), 3 * QUARTER_TURN_Q32);
-        assert_eq!(atan2_q32(0, i32::MIN), HALF_TURN_Q32);
-        assert_eq!(atan2_q32(i32::MIN, 0), 3 * QUARTER_TURN_Q32);
+        let three_quarters = Phase::from_bits(3 << 30);
+        assert_eq!(atan2_q32(0, 0), Phase::ZERO);
+        assert_eq!(atan2_q32(0, 1), Phase::ZERO);
+        assert_eq!(atan2_q32(1, 0), Phase::QUARTER_TURN);
+        assert_eq!(atan2_q32(0, -1), Phase::HALF_TURN);
+        assert_eq!(atan2_q32(-1, 0), three_quarters);
+        assert_eq!(atan2_q32(0, i32::MIN), Phase::HALF_TURN);
+        assert_eq!(atan2_q32(i32::MIN, 0), three_quarters);
     }
 
     /// The max error over a dense grid of angles at several radii, every octant edge, small
@@ -293,7 +292,7 @@ mod tests {
         for k in 1..100_000u32 {
             let a = k as f64 / 100_000.0 * 2.0 * PI;
             let now = atan2_q32((r * a.sin()) as i32, (r * a.cos()) as i32);
-            let step = now.wrapping_sub(prev) as i32;
+            let step = (now - prev).to_signed();
             assert!(step > -(2 * MAX_ERROR_Q32 as i32), "k={k} step={step}");
             prev = now;
         }

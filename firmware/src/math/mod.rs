@@ -10,9 +10,7 @@ mod atan2;
 mod linear;
 mod scalar;
 
-pub use atan2::{
-    atan2_q32, radius_sq_q30, CORDIC_ITERATIONS, HALF_TURN_Q32, MAX_ERROR_Q32, QUARTER_TURN_Q32,
-};
+pub use atan2::{atan2_q32, radius_sq_q30, CORDIC_ITERATIONS, MAX_ERROR_Q32};
 pub use linear::solve5;
 pub use scalar::{
     abs_f64, max_f64, positive, powi_f64, round_f32_to_i32, round_to_i64, saturate_i32, sqrt_f64,

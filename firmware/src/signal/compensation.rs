@@ -334,7 +334,7 @@ mod tests {
         // The photodiodes see psi_H = psi - eps.
         let mut rs = readings(amp, rate, 61, err);
         for r in &mut rs {
-            let psi = r.phase_q32 as f64 / Q32_PER_FRINGE * core::f64::consts::TAU;
+            let psi = r.phase.to_q32() as f64 / Q32_PER_FRINGE * core::f64::consts::TAU;
             r.levels = Some(LevelPair {
                 cos_psi_h: (psi - eps).cos() as f32,
                 sin_psi_h: (psi - eps).sin() as f32,

@@ -49,13 +49,13 @@ pub fn fractional_fringe(out: &mut Outputs) {
     let edges = [0, 1, -1, i32::MAX, i32::MIN, 1 << 30, -(1 << 30)];
     for y in edges {
         for x in edges {
-            out.u32(atan2_q32(y, x));
+            out.u32(atan2_q32(y, x).to_bits());
             out.u32(radius_sq_q30(x, y));
         }
     }
     for _ in 0..2000 {
         let (y, x) = (rng.i32() >> (rng.u32() % 24), rng.i32() >> (rng.u32() % 24));
-        out.u32(atan2_q32(y, x));
+        out.u32(atan2_q32(y, x).to_bits());
         out.u32(radius_sq_q30(x, y));
     }
 }
@@ -192,7 +192,7 @@ pub fn fringe_phase(out: &mut Outputs) {
             });
             let r = resolver.resolve(&config, convention.orient_count(count), board);
             out.i64(r.phase.turns);
-            out.u32(r.phase.fraction_q32);
+            out.u32(r.phase.fraction.to_bits());
             levels(out, r.levels);
             out.i32(r.disagreement_q32);
             out.bool(r.glitch);

@@ -2,6 +2,7 @@
 use super::{frontend::Figure, Outputs, Rng};
 use firmware::sample::TurnaroundKind;
 use firmware::signal::{compensation, lockin, output};
+use firmware::units::TotalPhase;
 
 /// Edge inputs every float case should see besides the random ones.
 const SPECIAL_F32: [f32; 6] = [0.0, -0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e-40];
@@ -166,7 +167,7 @@ pub fn cycle_assembly(out: &mut Outputs) {
             } else {
                 TurnaroundKind::Minus
             },
-            phase_q32,
+            phase: TotalPhase::from_q32(phase_q32),
             levels: (!rng.one_in(100)).then_some(levels),
             timestamp_ticks: ticks,
             flags: CycleFlags(if rng.one_in(100) { 2 } else { 0 }),

@@ -137,7 +137,8 @@ pub fn fit_window(
     let alpha_q32 = atan2_q32(
         saturate_i32(round_to_i64(shape.sin_alpha * (1u64 << 30) as f64)),
         saturate_i32(round_to_i64(shape.cos_alpha * (1u64 << 30) as f64)),
-    ) as i32;
+    )
+    .to_signed();
     let max_alpha = config
         .max_quadrature_error_q32
         .min(MAX_QUADRATURE_ERROR_Q32);

@@ -17,8 +17,9 @@
 //! coefficients come from the window fit (`ellipse.rs`), or [`LissajousCoefficients::NOMINAL`]
 //! until the first one.
 
-use crate::math::saturate_i32;
+use crate::math::{atan2_q32, radius_sq_q30, saturate_i32};
 use crate::sample::ADC_FULL_SCALE_CODE;
+use crate::units::Phase;
 
 /// Mid-scale of the 12-bit ADC: the origin of the fit's integer moment coordinates and the
 /// nominal offsets.
@@ -59,6 +60,20 @@ impl NormalisedLevels {
     #[inline]
     pub fn sin_f32(self) -> f32 {
         self.sin_q30 as f32 * (1.0 / (1u64 << 30) as f32)
+    }
+
+    /// The fractional fringe: psi_H modulo one fringe, the angle of (cos psi_H, sin psi_H) by
+    /// the bit-exact CORDIC (`math::atan2_q32`, error <= 32 LSB = 4.7e-8 rad).
+    #[inline]
+    pub fn fractional_fringe(self) -> Phase {
+        atan2_q32(self.sin_q30, self.cos_q30)
+    }
+
+    /// cos^2 + sin^2 in Q30 (1.0 = 2^30, saturating): about 2^30 for a healthy signal, much
+    /// less when the fringe contrast is gone.
+    #[inline]
+    pub fn radius_sq_q30(self) -> u32 {
+        radius_sq_q30(self.cos_q30, self.sin_q30)
     }
 }
 

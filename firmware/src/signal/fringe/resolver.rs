@@ -3,8 +3,8 @@
 //!
 //! # Representation: [`FringePhase`], a 96-bit fixed point
 //!
-//! `turns: i64` whole fringes plus `fraction_q32: u32` (Q32 turns), i.e. psi_H / 2 pi =
-//! `turns + fraction_q32 / 2^32`. Resolution 2^-32 fringe; range 2^63 fringes (at the
+//! `turns: i64` whole fringes plus `fraction` (a [`Phase`], Q32 turns), i.e. psi_H / 2 pi =
+//! `turns + fraction / 2^32`. Resolution 2^-32 fringe; range 2^63 fringes (at the
 //! 590 kHz peak beat rate of the docs/physics.md set, 5e5 years): nothing is lost over days of
 //! running. The difference of two readings, [`FringePhase::delta_q32`], is an `i64` in Q32
 //! fringes (2^32 per fringe, [`crate::units`]), exact for
@@ -47,11 +47,8 @@
 
 use super::convention::FringeConvention;
 use super::levels::NormalisedLevels;
-use crate::math::{atan2_q32, radius_sq_q30};
-use crate::units::Q32_PER_FRINGE;
+use crate::units::{Phase, TotalPhase, Q32_PER_FRINGE};
 
-/// Eighth of a turn in Q32 turns: half a quadrant.
-const EIGHTH_TURN_Q32: u32 = 1 << 29;
 /// Disagreement beyond which a reading is a glitch: 3/8 turn (more than a quadrant outside).
 pub const GLITCH_DISAGREEMENT_Q32: u32 = 3 << 29;
 
@@ -85,14 +82,14 @@ impl Default for FringePhaseConfig {
     }
 }
 
-/// psi_H / 2 pi = `turns + fraction_q32 / 2^32` fringes (96-bit fixed point).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord)]
+/// psi_H / 2 pi = `turns + fraction / 2^32` fringes (96-bit fixed point), ordered by value.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FringePhase {
     /// Whole fringes.
     pub turns: i64,
     /// Position inside the fringe, Q32 turns.
-    pub fraction_q32: u32,
+    pub fraction: Phase,
 }
 
 impl FringePhase {
@@ -104,7 +101,7 @@ impl FringePhase {
         let within = ((m & 3) << 30) + offset_q32; // in (-2^32, 2^33)
         Self {
             turns: k.wrapping_add(within >> 32),
-            fraction_q32: within as u32,
+            fraction: Phase::from_bits(within as u32),
         }
     }
 
@@ -126,7 +123,26 @@ impl FringePhase {
     /// The whole value in Q32 fringes (96 significant bits in an `i128`).
     #[inline]
     pub fn as_q32_i128(&self) -> i128 {
-        ((self.turns as i128) << 32) + self.fraction_q32 as i128
+        ((self.turns as i128) << 32) + self.fraction.to_bits() as i128
+    }
+
+    /// The value as a [`TotalPhase`] (Q32 fringes wrapped to 64 bits): what the cycle
+    /// assembler takes differences of.
+    #[inline]
+    pub fn total(&self) -> TotalPhase {
+        TotalPhase::from_q32(self.as_q32_i128() as i64)
+    }
+}
+
+impl Ord for FringePhase {
+    fn cmp(&self, other: &Self) -> core::cmp::Ordering {
+        self.as_q32_i128().cmp(&other.as_q32_i128())
+    }
+}
+
+impl PartialOrd for FringePhase {
+    fn partial_cmp(&self, other: &Self) -> Option<core::cmp::Ordering> {
+        Some(self.cmp(other))
     }
 }
 
@@ -222,7 +238,7 @@ impl FringeResolver {
         // |d| < 2^31, |old| < 2^(31 + MEAN_SHIFT): no overflow.
         let mean = old + ((((d as i64) << MEAN_SHIFT) - old) >> shift);
         self.mean_disagreement_scaled = mean;
-        let limit = (EIGHTH_TURN_Q32 as i64) << MEAN_SHIFT;
+        let limit = (Phase::EIGHTH_TURN.to_bits() as i64) << MEAN_SHIFT;
         let quadrant = 1i64 << (30 + MEAN_SHIFT);
         if let (None, Some(o)) = (config.quadrant_offset, self.learned_offset) {
             if mean > limit {
@@ -244,31 +260,34 @@ impl FringeResolver {
     ) -> FringeReading {
         let levels = config.convention.orient(board_levels);
         let n = config.convention.orient_count(count);
-        let r2 = radius_sq_q30(levels.cos_q30, levels.sin_q30);
+        let r2 = levels.radius_sq_q30();
         if r2 < config.min_radius_sq_q30 || r2 > config.max_radius_sq_q30 {
             self.signal_lost = self.signal_lost.saturating_add(1);
             let offset = self.quadrant_offset(config).unwrap_or(0);
             return FringeReading {
-                phase: FringePhase::from_quarters(n.wrapping_add(offset), EIGHTH_TURN_Q32 as i64),
+                phase: FringePhase::from_quarters(
+                    n.wrapping_add(offset),
+                    Phase::EIGHTH_TURN.to_bits() as i64,
+                ),
                 levels,
                 disagreement_q32: 0,
                 glitch: false,
                 signal_lost: true,
             };
         }
-        let phi = atan2_q32(levels.sin_q30, levels.cos_q30);
+        let phi = levels.fractional_fringe();
         let offset = match self.quadrant_offset(config) {
             Some(o) => o,
             None => {
                 // The quadrant containing phi; `& 3` is the Euclidean remainder mod 4.
-                let o = ((phi >> 30) as i64).wrapping_sub(n) & 3;
+                let o = (phi.quadrant() as i64).wrapping_sub(n) & 3;
                 self.learned_offset = Some(o);
                 o
             }
         };
         let m = n.wrapping_add(offset);
-        let centre_q32 = (((m & 3) as u32) << 30) + EIGHTH_TURN_Q32;
-        let d = phi.wrapping_sub(centre_q32) as i32;
+        let centre = Phase::from_bits(((m & 3) as u32) << 30) + Phase::EIGHTH_TURN;
+        let d = (phi - centre).to_signed();
         let glitch = d.unsigned_abs() > GLITCH_DISAGREEMENT_Q32;
         if glitch {
             self.glitches = self.glitches.saturating_add(1);
@@ -276,7 +295,7 @@ impl FringeResolver {
             self.track_mean(config, d);
         }
         FringeReading {
-            phase: FringePhase::from_quarters(m, EIGHTH_TURN_Q32 as i64 + d as i64),
+            phase: FringePhase::from_quarters(m, Phase::EIGHTH_TURN.to_bits() as i64 + d as i64),
             levels,
             disagreement_q32: d,
             glitch,
@@ -289,6 +308,7 @@ impl FringeResolver {
 mod tests {
     use super::super::levels::LissajousCoefficients;
     use super::*;
+    use crate::math::atan2_q32;
     use std::f64::consts::TAU;
 
     use crate::test_rng::XorShift;
@@ -466,7 +486,7 @@ mod tests {
         assert!(reading.signal_lost);
         // m = 31 quarters -> 7 turns + 3/4 + 1/8.
         assert_eq!(reading.phase.turns, 7);
-        assert_eq!(reading.phase.fraction_q32, (3 << 30) + (1 << 29));
+        assert_eq!(reading.phase.fraction.to_bits(), (3 << 30) + (1 << 29));
         assert_eq!(r.signal_lost(), 1);
     }
 
@@ -488,11 +508,11 @@ mod tests {
         assert!((b.phase.delta_fringes_f64(&a.phase) - 0.25).abs() < 1e-8);
         let far = FringePhase {
             turns: i64::MAX,
-            fraction_q32: 0,
+            fraction: Phase::ZERO,
         };
         let near = FringePhase {
             turns: i64::MIN,
-            fraction_q32: 0,
+            fraction: Phase::ZERO,
         };
         assert_eq!(far.delta_q32(&near), i64::MAX);
         assert_eq!(near.delta_q32(&far), i64::MIN);
@@ -532,7 +552,7 @@ mod tests {
             let reading = r.resolve(&cfg, count, lv);
             if !reading.signal_lost {
                 let o = cfg.convention.orient(lv);
-                assert_eq!(reading.phase.fraction_q32, atan2_q32(o.sin_q30, o.cos_q30));
+                assert_eq!(reading.phase.fraction, atan2_q32(o.sin_q30, o.cos_q30));
             }
         }
     }

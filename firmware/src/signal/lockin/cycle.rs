@@ -27,7 +27,7 @@ use super::terms::{
     sine_dither_accel_rad_per_s2, traversal_terms, traversal_time_s, LevelPair, LockinTerms,
 };
 use crate::sample::TurnaroundKind;
-use crate::units::Q32_PER_FRINGE;
+use crate::units::{TotalPhase, Q32_PER_FRINGE};
 
 /// Flags raised during a cycle (bit set; OR-ed over an averaging window).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -82,8 +82,9 @@ pub struct CycleOutput {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TurnaroundReading {
     pub kind: TurnaroundKind,
-    /// Total beat phase at the turnaround, Q32 fringes, wrapping (differences are exact).
-    pub phase_q32: i64,
+    /// Total beat phase at the turnaround (count plus fractional fringe): its differences are
+    /// the increments.
+    pub phase: TotalPhase,
     /// Normalised photodiode levels; `None` when the signal is lost.
     pub levels: Option<LevelPair>,
     pub timestamp_ticks: u32,
@@ -143,14 +144,14 @@ impl CycleRecord {
 #[derive(Clone, Copy, Debug)]
 struct Seen {
     kind: TurnaroundKind,
-    phase_q32: i64,
+    phase: TotalPhase,
     timestamp_ticks: u32,
 }
 
 /// The open cycle: its starting "+" turnaround and the shares gathered so far.
 #[derive(Clone, Copy, Debug)]
 struct OpenCycle {
-    start_phase_q32: i64,
+    start_phase: TotalPhase,
     start_ticks: u32,
     terms: LockinTerms,
     have_minus: bool,
@@ -197,7 +198,7 @@ impl CycleAssembler {
         self.before_previous = self.previous;
         self.previous = Some(Seen {
             kind: reading.kind,
-            phase_q32: reading.phase_q32,
+            phase: reading.phase,
             timestamp_ticks: reading.timestamp_ticks,
         });
         let mut flags = reading.flags;
@@ -227,7 +228,7 @@ impl CycleAssembler {
                     .take()
                     .and_then(|open| self.close(open, share, flags, &reading));
                 self.open = Some(OpenCycle {
-                    start_phase_q32: reading.phase_q32,
+                    start_phase: reading.phase,
                     start_ticks: reading.timestamp_ticks,
                     terms: share.scaled(0.5),
                     have_minus: false,
@@ -251,7 +252,7 @@ impl CycleAssembler {
         }
         let terms = open.terms + share.scaled(0.5);
         let flags = open.flags.union(flags);
-        let raw_increment_q32 = reading.phase_q32.wrapping_sub(open.start_phase_q32);
+        let raw_increment_q32 = reading.phase - open.start_phase;
         Some(CycleRecord {
             output: CycleOutput {
                 // Uncompensated: the compensation stage subtracts its correction.
@@ -262,7 +263,7 @@ impl CycleAssembler {
             },
             raw_increment_q32,
             terms,
-            end_phase_q32: reading.phase_q32,
+            end_phase_q32: reading.phase.to_q32(),
             dither_amplitude_rad: self.dither_amplitude_rad,
             dither_hz: self.dither_hz,
         })
@@ -285,7 +286,7 @@ impl CycleAssembler {
         self.before_previous = None;
         self.previous = Some(Seen {
             kind: reading.kind,
-            phase_q32: reading.phase_q32,
+            phase: reading.phase,
             timestamp_ticks: reading.timestamp_ticks,
         });
         self.open = None;
@@ -299,14 +300,8 @@ impl CycleAssembler {
         reading: &TurnaroundReading,
     ) -> Option<f32> {
         let (previous, before) = (self.previous?, self.before_previous?);
-        let excursion_q32 = reading
-            .phase_q32
-            .wrapping_sub(previous.phase_q32)
-            .unsigned_abs()
-            + previous
-                .phase_q32
-                .wrapping_sub(before.phase_q32)
-                .unsigned_abs();
+        let excursion_q32 = (reading.phase - previous.phase).unsigned_abs()
+            + (previous.phase - before.phase).unsigned_abs();
         // Sum of two half-cycle excursions = 4 x amplitude.
         let amplitude_rad =
             (excursion_q32 as f64 / Q32_PER_FRINGE * core::f64::consts::TAU / 4.0) as f32;

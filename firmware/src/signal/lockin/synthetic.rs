@@ -4,7 +4,7 @@
 use super::cycle::{CycleAssembler, CycleConfig, CycleFlags, CycleRecord, TurnaroundReading};
 use super::terms::LevelPair;
 use crate::sample::TurnaroundKind;
-use crate::units::Q32_PER_FRINGE;
+use crate::units::{TotalPhase, Q32_PER_FRINGE};
 
 /// The capture-timer clock, Hz.
 pub const TIMER_HZ: f32 = 84e6;
@@ -41,7 +41,7 @@ pub fn readings(
             accumulated += e;
             TurnaroundReading {
                 kind,
-                phase_q32: (psi / core::f64::consts::TAU * Q32).round() as i64,
+                phase: TotalPhase::from_q32((psi / core::f64::consts::TAU * Q32).round() as i64),
                 levels: Some(LevelPair {
                     cos_psi_h: psi.cos() as f32,
                     sin_psi_h: psi.sin() as f32,
