@@ -21,11 +21,9 @@ mod app {
     use core::sync::atomic::Ordering;
     use firmware::board::turnaround::{self, scheduler_config, IMPLAUSIBLE};
     use firmware::sample::TurnaroundKind;
-    use firmware::signal::lockin::CycleOutput;
-    use firmware::signal::lockin::CycleRecord;
-    use firmware::signal::turnaround::{
-        opposite, rate_shift_ticks, Edge, Scheduler, SchedulerConfig,
-    };
+    use firmware::signal::lockin::{CycleOutput, CycleRecord};
+    use firmware::signal::output::rate_shift_ticks;
+    use firmware::signal::turnaround::{opposite, Edge, Scheduler, SchedulerConfig};
     use firmware::units::Q32_PER_FRINGE;
 
     const TIMER_HZ: u32 = 84_000_000;
