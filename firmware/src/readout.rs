@@ -34,9 +34,13 @@ pub const MAX_EDGE_RATE_HZ: u32 = 4_000_000;
 /// Every setting of the signal chain (immutable).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ReadoutConfig {
+    /// Stage 1: the encoder register's width and the step bound.
     pub counter: FringeCountConfig,
+    /// Stage 3: the Lissajous fit's windows and acceptance limits.
     pub lissajous: LissajousConfig,
+    /// Stage 3: the board's wiring convention and the signal-lost bounds.
     pub fringe_phase: FringePhaseConfig,
+    /// Stage 4: the timer clock and the plausible half-period range.
     pub cycle: CycleConfig,
 }
 
@@ -66,12 +70,19 @@ impl ReadoutConfig {
 /// Counters the status command reports.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ReadoutCounters {
+    /// Turnaround latches taken (wrapping).
     pub turnarounds: u32,
+    /// Dither cycles closed (wrapping).
     pub cycles: u32,
+    /// Encoder reads rejected or resynchronised (saturating).
     pub counter_glitches: u32,
+    /// Readings whose count and fractional fringe disagreed by more than a quadrant.
     pub phase_glitches: u32,
+    /// Readings with the normalised radius out of bounds (fringe contrast gone).
     pub signal_lost: u32,
+    /// Lissajous windows accepted.
     pub lissajous_fits: u32,
+    /// Lissajous windows rejected (the previous coefficients kept).
     pub lissajous_rejections: u32,
 }
 
@@ -87,6 +98,7 @@ pub struct Readout {
 }
 
 impl Readout {
+    /// A chain at rest: nominal Lissajous coefficients, no count yet, `settings` in force.
     pub fn new(_config: &ReadoutConfig, settings: CompensationSettings) -> Self {
         Self {
             counter: FringeCounter::new(),
@@ -186,6 +198,7 @@ impl Readout {
         self.compensator.staged_or_active()
     }
 
+    /// The event counters (for `status`).
     pub fn counters(&self) -> ReadoutCounters {
         self.counters
     }

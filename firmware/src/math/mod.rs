@@ -10,12 +10,12 @@
 //!
 //! STYLE.md says to reach for the field's library first: `idsp` has a fixed-point `atan2`
 //! (reciprocal LUT, one Newton step, odd polynomial), a generic CORDIC (`sqrt_atan2`) and
-//! `cossin`; its angles are Q32 turns like those of [`atan2_q32`] (`i32`, a full turn = 2^32). Measured
-//! with idsp 0.23.1 against `f64::atan2` of the same integer inputs (rad; 4 x 10^6 inputs per
-//! domain on the host), and in instructions per call on the emulated Cortex-M4F (QEMU
-//! `-icount shift=0`, TIM2 counting by `firmware::icount` as `cargo fw-icount` does; mean over
-//! 256 chain-domain inputs with the loop's own cost subtracted; the workspace's release profile,
-//! `opt-level = "s"`, fat LTO):
+//! `cossin`; its angles are Q32 turns like those of [`atan2_q32`] (`i32`, a full turn = 2^32).
+//! Measured with idsp 0.23.1 against `f64::atan2` of the same integer inputs (rad; 4 x 10^6
+//! inputs per domain on the host), and in instructions per call on the emulated Cortex-M4F
+//! (QEMU `-icount shift=0`, TIM2 counting by `firmware::icount` as `cargo fw-icount` does; mean
+//! over 256 chain-domain inputs with the loop's own cost subtracted; the workspace's release
+//! profile, `opt-level = "s"`, fat LTO):
 //!
 //! | | rms error | max error | instructions | idsp at opt 3 | all at opt 3 |
 //! |---|---|---|---|---|---|

@@ -1,4 +1,5 @@
-//! Compensation: compensated phase = measured phase - (a P1 + b P2).
+//! Stage 5, compensation: compensated phase = measured phase - (a P1 + b P2), applied by
+//! [`Compensator::compensate`] to each cycle the lock-in stage closes.
 //!
 //! # Coefficient format
 //! a and b are rad/s of beat phase, stored as signed Q15.16 (`i32`, 16 fractional bits): what
@@ -104,6 +105,7 @@ pub fn rad_to_q32_fringes(phase_rad: f32) -> i64 {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CompensationSettings {
+    /// a and b (Q15.16).
     pub coefficients: Coefficients,
     /// Off: the correction is zero and the output is the raw measured phase.
     pub enabled: bool,
@@ -119,6 +121,7 @@ pub struct Compensator {
 }
 
 impl Compensator {
+    /// `settings` in force, nothing staged, no correction applied yet.
     pub fn new(settings: CompensationSettings) -> Self {
         Self {
             active: settings,

@@ -1,4 +1,5 @@
-//! Extends the hardware x4 encoder register to a 64-bit fringe count, with glitch detection.
+//! Stage 1, the count: extends the hardware x4 encoder register to a 64-bit fringe count, with
+//! glitch detection.
 //!
 //! The encoder timer counts x4 edges (quarter fringes) up and down in a 16- or 32-bit register
 //! that wraps. Between two reads the difference `raw - previous_raw`, taken modulo 2^width and

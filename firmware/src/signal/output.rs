@@ -1,4 +1,5 @@
-//! Output: per-cycle compensated increments, and the rate averaged over a window.
+//! Stage 6, the output: per-cycle compensated increments become the rate averaged over a window,
+//! and the input-rate shift that the turnaround prediction (stage 2) needs.
 //!
 //! Each dither cycle yields a [`CycleOutput`]: the compensated phase increment in Q32 fringes
 //! (`i64`, 2^32 per fringe), the cycle's duration in capture-timer ticks, and [`CycleFlags`].
@@ -16,6 +17,11 @@
 //! The rate is reported in fringes/s and in deg/h (1 fringe/s = SF arcsec/s = SF deg/h). The
 //! division runs once per window in f64 (software floating point on the M4F, IEEE-exact like
 //! the host's, so both report the same bits).
+//!
+//! [`rate_shift_ticks`] turns one cycle's rate and measured dither into the turnaround shift
+//! `Omega_i / |psi_ddot|` (docs/physics.md pitfall 3) for the next edges: the cycle task hands
+//! it to [`super::turnaround::Scheduler::on_edge`] as a plain number, so the schedule imports
+//! nothing from here.
 
 use super::lockin::{CycleFlags, CycleOutput, CycleRecord};
 use super::turnaround::shift_ticks_for_rate;
@@ -25,7 +31,9 @@ use crate::units::Q32_PER_FRINGE;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum AveragingMode {
+    /// Total phase over total time of the window.
     FixedWindow,
+    /// Fringes crossed over the time between the first and last crossing (pitfall 6).
     WholePeriods,
 }
 
@@ -34,6 +42,7 @@ pub enum AveragingMode {
 pub struct AveragerConfig {
     /// Cycles per reading (389 = one second at the paper's dither frequency).
     pub window_cycles: u32,
+    /// How the rate is formed.
     pub mode: AveragingMode,
     /// Capture-timer frequency, Hz.
     pub timer_hz: f64,
@@ -44,7 +53,9 @@ pub struct AveragerConfig {
 /// An averaged rate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RateReading {
+    /// Rate in fringes (pulses) per second.
     pub rate_fringes_per_s: f64,
+    /// Rate in deg/h (scale factor applied).
     pub rate_deg_per_h: f64,
     /// Seconds of data the rate spans.
     pub span_s: f64,
@@ -52,6 +63,7 @@ pub struct RateReading {
     pub whole_periods: bool,
     /// Flags OR-ed over the window.
     pub flags: CycleFlags,
+    /// Cycles in the window.
     pub cycles: u32,
 }
 
@@ -71,6 +83,7 @@ pub struct RateAverager {
 }
 
 impl RateAverager {
+    /// An empty first window.
     pub fn new() -> Self {
         Self::default()
     }

@@ -78,6 +78,7 @@ pub enum Edge {
 pub struct Schedule {
     /// Capture-timer value at which to fire the compare (wrapping ticks).
     pub compare_ticks: u32,
+    /// Which turnaround the compare latches.
     pub kind: TurnaroundKind,
 }
 
@@ -96,8 +97,9 @@ pub struct EdgeOutcome {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SchedulerConfig {
-    /// Plausible interval between consecutive edges, ticks (inclusive).
+    /// Lower end of the plausible interval between consecutive edges, ticks (inclusive).
     pub min_half_ticks: u32,
+    /// Upper end of the plausible interval, ticks (inclusive).
     pub max_half_ticks: u32,
     /// Edge to capture: comparator, input filter, resynchronisation, ticks.
     pub pickoff_delay_ticks: u32,
@@ -147,6 +149,7 @@ pub struct Scheduler {
 }
 
 impl Scheduler {
+    /// No edge seen yet.
     pub const fn new() -> Self {
         Self {
             last: None,

@@ -103,9 +103,13 @@ pub enum FitRejection {
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Ellipse {
+    /// Centre of channel A, codes.
     pub offset_a_code: f32,
+    /// Centre of channel B, codes.
     pub offset_b_code: f32,
+    /// Amplitude of channel A, codes.
     pub radius_a_code: f32,
+    /// Amplitude of channel B, codes.
     pub radius_b_code: f32,
     /// alpha: the channel phase difference is 90 deg - alpha.
     pub quadrature_error_rad: f32,
@@ -252,10 +256,30 @@ impl EllipseShape {
 
 #[cfg(test)]
 mod tests {
-    use super::super::synthetic::{fit, Truth};
+    use super::super::synthetic::{dither_psi, Truth};
     use super::*;
     use crate::test_rng::XorShift;
     use std::f64::consts::{PI, TAU};
+
+    /// Fits `n` samples of `truth` (seeded) in one window.
+    pub fn fit(
+        truth: &Truth,
+        n: u32,
+        seed: u64,
+    ) -> Result<(LissajousCoefficients, Ellipse), FitRejection> {
+        let mut rng = XorShift(seed);
+        let mut acc = LissajousAccumulator::new();
+        for _ in 0..n {
+            let psi = dither_psi(&mut rng);
+            let (a, b) = truth.codes(psi, &mut rng);
+            acc.add(a, b);
+        }
+        let cfg = LissajousConfig {
+            window_samples: n,
+            ..LissajousConfig::DEFAULT
+        };
+        fit_window(&acc, &cfg)
+    }
 
     /// Worst radius error |r - 1| and phase error |atan2 - psi| (rad) of the normalised
     /// noise-free ellipse (unquantised codes, evaluated through the same fixed-point math by

@@ -45,7 +45,9 @@ pub struct LissajousCoefficients {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct NormalisedLevels {
+    /// cos psi_H, Q30 (saturated).
     pub cos_q30: i32,
+    /// sin psi_H, Q30 (saturated).
     pub sin_q30: i32,
 }
 

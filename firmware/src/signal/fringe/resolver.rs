@@ -56,6 +56,7 @@ pub const GLITCH_DISAGREEMENT_Q32: u32 = 3 << 29;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FringePhaseConfig {
+    /// The board's channel and count wiring.
     pub convention: FringeConvention,
     /// `(count + quadrant_offset) mod 4` is psi_H's quadrant (ideal comparators); `None`:
     /// learn it at the first reading with a good signal.
@@ -150,6 +151,7 @@ impl PartialOrd for FringePhase {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FringeReading {
+    /// The total beat phase: count plus fractional fringe.
     pub phase: FringePhase,
     /// The normalised levels in the psi_H orientation (for P1/P2).
     pub levels: NormalisedLevels,

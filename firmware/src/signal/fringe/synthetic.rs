@@ -1,12 +1,10 @@
-//! Synthetic Lissajous figures for the fringe stage's tests: a true ellipse, its noisy 12-bit
-//! codes along a dithered phase, and a fitted window.
+//! Synthetic Lissajous figures for the fringe stage's tests: a true ellipse and its noisy 12-bit
+//! codes along a dithered phase. It imports nothing of the stage, so every file may use it.
 
-use super::ellipse::{fit_window, Ellipse, FitRejection, LissajousConfig};
-use super::levels::LissajousCoefficients;
-use super::moments::LissajousAccumulator;
 use crate::test_rng::XorShift;
 use std::f64::consts::TAU;
 
+/// A true ellipse: offsets, radii, quadrature error (codes, rad) and the noise (codes rms).
 #[derive(Clone, Copy)]
 pub struct Truth {
     pub offset_a: f64,
@@ -39,24 +37,4 @@ impl Truth {
 /// with A = 241 fringes (450 arcsec / 1.8655) and a random instant.
 pub fn dither_psi(rng: &mut XorShift) -> f64 {
     241.0 * TAU * (TAU * rng.uniform()).sin() + 0.37
-}
-
-/// Fits `n` samples of `truth` (seeded) in one window.
-pub fn fit(
-    truth: &Truth,
-    n: u32,
-    seed: u64,
-) -> Result<(LissajousCoefficients, Ellipse), FitRejection> {
-    let mut rng = XorShift(seed);
-    let mut acc = LissajousAccumulator::new();
-    for _ in 0..n {
-        let psi = dither_psi(&mut rng);
-        let (a, b) = truth.codes(psi, &mut rng);
-        acc.add(a, b);
-    }
-    let cfg = LissajousConfig {
-        window_samples: n,
-        ..LissajousConfig::DEFAULT
-    };
-    fit_window(&acc, &cfg)
 }

@@ -44,15 +44,19 @@ impl CycleFlags {
     /// No compensation time constant could be formed (no dither, or an implausible one).
     pub const DITHER_INVALID: Self = Self(1 << 3);
 
+    /// No flag.
     pub const fn empty() -> Self {
         Self(0)
     }
+    /// The flags of both.
     pub const fn union(self, other: Self) -> Self {
         Self(self.0 | other.0)
     }
+    /// Every flag of `other` is set.
     pub const fn contains(self, other: Self) -> bool {
         self.0 & other.0 == other.0
     }
+    /// No flag is set.
     pub const fn is_empty(self) -> bool {
         self.0 == 0
     }
@@ -75,18 +79,21 @@ pub struct CycleOutput {
     pub correction_q32: i64,
     /// Cycle duration in capture-timer ticks.
     pub duration_ticks: u32,
+    /// What went wrong during the cycle (the union of its turnarounds' flags).
     pub flags: CycleFlags,
 }
 
 /// What the turnaround front end hands over for one turnaround.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TurnaroundReading {
+    /// The turnaround's kind (the assembler checks that kinds alternate).
     pub kind: TurnaroundKind,
     /// Total beat phase at the turnaround (count plus fractional fringe): its differences are
     /// the increments.
     pub phase: TotalPhase,
     /// Normalised photodiode levels; `None` when the signal is lost.
     pub levels: Option<LevelPair>,
+    /// Capture-timer value at the latch (wrapping).
     pub timestamp_ticks: u32,
     /// Problems the front end saw (counter glitch, signal lost).
     pub flags: CycleFlags,
@@ -99,6 +106,7 @@ pub struct CycleConfig {
     pub timer_hz: f32,
     /// Accepted half-period range, ticks: outside it a turnaround counts as missed or spurious.
     pub min_half_period_ticks: u32,
+    /// Upper end of the accepted half-period range, ticks.
     pub max_half_period_ticks: u32,
 }
 
@@ -121,11 +129,13 @@ pub struct CycleRecord {
     pub output: CycleOutput,
     /// Measured increment before compensation, Q32 fringes.
     pub raw_increment_q32: i64,
+    /// P1 and P2 of the cycle (latch split: 1/2, 1, 1/2 of its three traversals).
     pub terms: LockinTerms,
     /// Total phase at the cycle's closing "+" turnaround, Q32 fringes (wrapping).
     pub end_phase_q32: i64,
     /// Measured dither amplitude (beat phase, rad) and frequency (Hz) at the closing turnaround.
     pub dither_amplitude_rad: f32,
+    /// Measured dither frequency at the closing turnaround, Hz.
     pub dither_hz: f32,
 }
 
@@ -170,6 +180,7 @@ pub struct CycleAssembler {
 }
 
 impl CycleAssembler {
+    /// No turnaround seen yet.
     pub fn new() -> Self {
         Self::default()
     }
@@ -316,9 +327,73 @@ impl CycleAssembler {
     }
 }
 
+/// Synthetic turnaround readings of an ideal sine dither, for the tests of this stage and of
+/// the stages after it.
+#[cfg(test)]
+pub(crate) mod synthetic {
+    use super::*;
+
+    /// The capture-timer clock, Hz.
+    pub const TIMER_HZ: f32 = 84e6;
+    /// The docs/physics.md dither frequency, Hz.
+    pub const DITHER_HZ: f64 = 389.0;
+    const Q32: f64 = Q32_PER_FRINGE;
+
+    /// Readings of an ideal sine dither (amplitude `amp` rad) on a constant rate. Traversal `i`
+    /// adds `err(i, psi0)`, where psi0 is the actual phase latched at its turnaround (all earlier
+    /// errors plus half of its own: an implicit equation, solved by iteration).
+    pub fn readings(
+        amp: f64,
+        rate: f64,
+        n: usize,
+        err: impl Fn(usize, f64) -> f64,
+    ) -> Vec<TurnaroundReading> {
+        let half = 0.5 / DITHER_HZ;
+        let mut accumulated = 0.0;
+        (0..n)
+            .map(|i| {
+                let t = i as f64 * half;
+                let kind = if i.is_multiple_of(2) {
+                    TurnaroundKind::Plus
+                } else {
+                    TurnaroundKind::Minus
+                };
+                let dither = if i.is_multiple_of(2) { -amp } else { amp };
+                let base = dither + rate * t + accumulated;
+                let mut e = 0.0;
+                for _ in 0..20 {
+                    e = err(i, base + 0.5 * e);
+                }
+                let psi = base + 0.5 * e;
+                accumulated += e;
+                TurnaroundReading {
+                    kind,
+                    phase: TotalPhase::from_q32((psi / core::f64::consts::TAU * Q32).round() as i64),
+                    levels: Some(LevelPair {
+                        cos_psi_h: psi.cos() as f32,
+                        sin_psi_h: psi.sin() as f32,
+                    }),
+                    timestamp_ticks: (t * TIMER_HZ as f64).round() as u32,
+                    flags: CycleFlags::empty(),
+                }
+            })
+            .collect()
+    }
+
+    /// The cycles the assembler closes from `readings` (uncompensated).
+    pub fn assemble(readings: &[TurnaroundReading]) -> Vec<CycleRecord> {
+        let config = CycleConfig::for_dither(TIMER_HZ, DITHER_HZ as f32, 0.2);
+        let mut asm = CycleAssembler::new();
+        readings
+            .iter()
+            .filter_map(|r| asm.on_turnaround(&config, *r))
+            .collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::super::synthetic::{assemble, readings, DITHER_HZ, TIMER_HZ};
+    use super::synthetic::{assemble, readings, DITHER_HZ, TIMER_HZ};
     use super::*;
 
     /// Each cycle's increment is rate x period plus the errors of half, one, half traversals;

@@ -9,9 +9,10 @@
 //! stage 5 (`super::compensation`) subtracts a P1 + b P2.
 
 mod cycle;
-#[cfg(test)]
-pub(crate) mod synthetic;
 mod terms;
+
+#[cfg(test)]
+pub(crate) use cycle::synthetic;
 
 pub use cycle::{
     CycleAssembler, CycleConfig, CycleFlags, CycleOutput, CycleRecord, TurnaroundReading,
