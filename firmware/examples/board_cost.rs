@@ -30,7 +30,7 @@ mod app {
     use firmware::readout::{Readout, ReadoutConfig};
     use firmware::sample::{TurnaroundKind, TurnaroundSample};
     use firmware::signal::compensation::{Coefficients, CompensationSettings};
-    use firmware::signal::cycle::CycleRecord;
+    use firmware::signal::lockin::CycleRecord;
     use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
     use micromath::F32Ext;
 

@@ -4,7 +4,6 @@
 //! numbers follow host time and mean nothing.
 //!
 //! Measures, on a synthetic steady dither (389 Hz, 450 arcsec at SF 1.8655 arcsec/pulse):
-//! - the software x4 decoder per comparator sample (an edge costs what a sample costs);
 //! - one Lissajous sample (`Readout::on_lissajous_sample`, moment accumulation) and one
 //!   Lissajous window solve (the 5x5 fit, once per 4096 samples);
 //! - one turnaround (`Readout::on_turnaround`: count extension, normalisation, CORDIC, fringe
@@ -21,7 +20,6 @@ mod app {
     use firmware::readout::{Readout, ReadoutConfig};
     use firmware::sample::{TurnaroundKind, TurnaroundSample};
     use firmware::signal::compensation::{Coefficients, CompensationSettings};
-    use firmware::signal::quadrature::QuadratureDecoder;
     use micromath::F32Ext;
 
     const TIMER_HZ: f64 = 84e6;
@@ -38,19 +36,6 @@ mod app {
     #[cortex_m_rt::entry]
     fn main() -> ! {
         let counter = InstructionCounter::start(Timer::Tim2);
-
-        // Software decoder: a Gray-code walk, forward then back.
-        const GRAY: [u8; 4] = [0b11, 0b01, 0b00, 0b10];
-        let mut samples = [0u8; 4096];
-        for (i, s) in samples.iter_mut().enumerate() {
-            let k = if i < 2048 { i } else { 4095 - i };
-            *s = GRAY[k % 4];
-        }
-        let mut decoder = QuadratureDecoder::new(samples[0]);
-        let n = counter.count(|| {
-            core::hint::black_box(decoder.decode(core::hint::black_box(&samples)));
-        });
-        let per_sample_x100 = n * 100 / samples.len() as u32;
 
         // The readout: Lissajous samples until the first window is solved.
         let config = ReadoutConfig::for_board(
@@ -116,15 +101,6 @@ mod app {
         let per_minus = minus_total / minus_n.max(1);
         let per_plus = plus_total / plus_n.max(1);
 
-        defmt::info!(
-            "software x4 decoder: {=u32}.{=u32:02} instructions per sample (= per edge)",
-            per_sample_x100 / 100,
-            per_sample_x100 % 100
-        );
-        defmt::info!(
-            "  sustains {=u32} k samples/s at 168 MHz if one instruction were one cycle",
-            168_000 * 100 / per_sample_x100.max(1)
-        );
         defmt::info!(
             "Lissajous sample: {=u32} instructions; window solve (every {=u32} samples): {=u32}",
             lissajous_per_sample,

@@ -15,10 +15,9 @@ mod app {
     use firmware::icount::{InstructionCounter, Timer};
     use firmware::sample::TurnaroundKind;
     use firmware::signal::compensation::{Coefficients, CompensationSettings, Compensator};
-    use firmware::signal::lockin_terms::{
-        traversal_terms, traversal_time_s, LevelPair, LockinTerms,
-    };
-    use firmware::signal::output::{AveragerConfig, AveragingMode, CycleOutput, RateAverager};
+    use firmware::signal::lockin::CycleOutput;
+    use firmware::signal::lockin::{traversal_terms, traversal_time_s, LevelPair, LockinTerms};
+    use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 
     const CALLS: u32 = 64;
 
@@ -74,7 +73,7 @@ mod app {
                 k.unwrap_or(0.0),
             ));
         });
-        defmt::info!("insns/call  lockin_terms: k + traversal_terms  {=u32}", n);
+        defmt::info!("insns/call  lockin: k + traversal_terms        {=u32}", n);
 
         let coefficients = Coefficients::from_rad_per_s(387.0, 383.0).unwrap();
         let mut comp = Compensator::new(CompensationSettings {

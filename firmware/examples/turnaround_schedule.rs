@@ -1,7 +1,7 @@
 //! Self-check of the turnaround prediction on the MCU in QEMU:
 //! `cargo fw-run --example turnaround_schedule` (exit status 0 = all checks pass).
 //!
-//! The scheduler is plain logic (`signal::turnaround_schedule`, unit-tested on the host); this
+//! The scheduler is plain logic (`signal::turnaround`, unit-tested on the host); this
 //! checks the same code compiled for the M4F with the board's settings
 //! (`profile::BoardProfile::scheduler_config`: its delays and pick-off polarity) and its counters,
 //! on synthetic pick-off edges in 84 MHz ticks:
@@ -22,12 +22,10 @@ mod app {
     use firmware::board::turnaround::{self, IMPLAUSIBLE};
     use firmware::profile::BoardProfile;
     use firmware::sample::TurnaroundKind;
-    use firmware::signal::compensation::Q32_PER_FRINGE;
-    use firmware::signal::cycle::CycleRecord;
-    use firmware::signal::output::CycleOutput;
-    use firmware::signal::turnaround_schedule::{
-        opposite, rate_shift_ticks, Edge, Scheduler, SchedulerConfig,
-    };
+    use firmware::signal::lockin::{CycleOutput, CycleRecord};
+    use firmware::signal::output::rate_shift_ticks;
+    use firmware::signal::turnaround::{opposite, Edge, Scheduler, SchedulerConfig};
+    use firmware::units::Q32_PER_FRINGE;
 
     const TIMER_HZ: u32 = 84_000_000;
     const CONFIG: SchedulerConfig = BoardProfile::F405.scheduler_config();

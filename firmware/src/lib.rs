@@ -5,17 +5,21 @@
 //! glue) is ordinary `no_std` logic that also builds and is tested on x86, where `hal-sim`
 //! drives it with a simulated gyro.
 //!
-//! Signal chain, one room each:
-//! fringe counting -> turnaround sampling -> P1/P2 -> compensation -> output.
+//! Signal chain ([`signal`]), one module per stage, imports one way:
+//! count -> turnaround sample -> Lissajous normalisation and fractional fringe -> P1/P2 (cycle
+//! assembly) -> compensation -> output; [`readout`] wires it. Units in one place ([`units`]:
+//! Q32 fringes, the wrapping [`units::Phase`]); generic bit-exact maths in [`math`].
 #![cfg_attr(not(test), no_std)]
 
 pub mod calibration;
+pub mod math;
 pub mod profile;
 pub mod protocol;
 pub mod readout;
 pub mod sample;
 pub mod service;
 pub mod signal;
+pub mod units;
 
 pub mod storage;
 #[cfg(test)]

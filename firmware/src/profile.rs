@@ -12,8 +12,8 @@
 
 use crate::readout::ReadoutConfig;
 use crate::sample::TurnaroundKind;
-use crate::signal::fringe_count::CounterWidth;
-use crate::signal::turnaround_schedule::SchedulerConfig;
+use crate::signal::count::CounterWidth;
+use crate::signal::turnaround::SchedulerConfig;
 
 /// The facts of one readout board (immutable).
 #[derive(Clone, Copy, Debug, PartialEq)]

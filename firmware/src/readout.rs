@@ -4,9 +4,13 @@
 //!   board) goes to [`Readout::on_lissajous_sample`]: the Heydemann fit learns the offsets, gains
 //!   and quadrature error of the channels from the signal itself.
 //! - The turnaround interrupt latches a [`TurnaroundSample`] and calls
-//!   [`Readout::on_turnaround`]: count extension -> normalisation -> fringe phase (count plus
-//!   fractional fringe) -> cycle assembly (P1/P2, latch split) -> compensation. A completed
-//!   dither cycle comes back as a [`CycleRecord`].
+//!   [`Readout::on_turnaround`]: count extension (stage 1, `signal::count`) -> normalisation and
+//!   fringe phase, count plus fractional fringe (stage 3, `signal::fringe`) -> cycle assembly,
+//!   P1/P2 and the latch split (stage 4, `signal::lockin`) -> compensation of the closed cycle
+//!   (stage 5, `signal::compensation`). A completed dither cycle comes back as a
+//!   [`CycleRecord`]. The stages know nothing of each other's state: this is the one place
+//!   that wires them (stage 2, the turnaround schedule, runs in the pick-off interrupt;
+//!   stage 6, the output, in the cycle task).
 //!
 //! Coefficients (immutable, `Copy`) live in [`ReadoutConfig`]; the state in [`Readout`]. New
 //! compensation settings are staged with [`Readout::stage_compensation`] and take effect whole
@@ -15,12 +19,13 @@
 
 use crate::sample::TurnaroundSample;
 use crate::signal::compensation::{CompensationSettings, Compensator};
-use crate::signal::cycle::{CycleAssembler, CycleConfig, CycleRecord, TurnaroundReading};
-use crate::signal::fringe_count::{CountUpdate, CounterWidth, FringeCountConfig, FringeCounter};
-use crate::signal::fringe_phase::{FringePhaseConfig, FringeResolver};
-use crate::signal::lissajous::{LissajousCoefficients, LissajousConfig, LissajousTracker};
-use crate::signal::lockin_terms::LevelPair;
-use crate::signal::output::CycleFlags;
+use crate::signal::count::{CountUpdate, CounterWidth, FringeCountConfig, FringeCounter};
+use crate::signal::fringe::{
+    FringePhaseConfig, FringeResolver, LissajousCoefficients, LissajousConfig, LissajousTracker,
+};
+use crate::signal::lockin::{
+    CycleAssembler, CycleConfig, CycleFlags, CycleRecord, LevelPair, TurnaroundReading,
+};
 
 /// Highest x4 edge rate the count extension accepts between reads, edges/s: above the
 /// 2.4 M edges/s of the docs/physics.md parameter set with margin.
@@ -29,9 +34,13 @@ pub const MAX_EDGE_RATE_HZ: u32 = 4_000_000;
 /// Every setting of the signal chain (immutable).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ReadoutConfig {
+    /// Stage 1: the encoder register's width and the step bound.
     pub counter: FringeCountConfig,
+    /// Stage 3: the Lissajous fit's windows and acceptance limits.
     pub lissajous: LissajousConfig,
+    /// Stage 3: the board's wiring convention and the signal-lost bounds.
     pub fringe_phase: FringePhaseConfig,
+    /// Stage 4: the timer clock and the plausible half-period range.
     pub cycle: CycleConfig,
 }
 
@@ -61,12 +70,19 @@ impl ReadoutConfig {
 /// Counters the status command reports.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ReadoutCounters {
+    /// Turnaround latches taken (wrapping).
     pub turnarounds: u32,
+    /// Dither cycles closed (wrapping).
     pub cycles: u32,
+    /// Encoder reads rejected or resynchronised (saturating).
     pub counter_glitches: u32,
+    /// Readings whose count and fractional fringe disagreed by more than a quadrant.
     pub phase_glitches: u32,
+    /// Readings with the normalised radius out of bounds (fringe contrast gone).
     pub signal_lost: u32,
+    /// Lissajous windows accepted.
     pub lissajous_fits: u32,
+    /// Lissajous windows rejected (the previous coefficients kept).
     pub lissajous_rejections: u32,
 }
 
@@ -82,6 +98,7 @@ pub struct Readout {
 }
 
 impl Readout {
+    /// A chain at rest: nominal Lissajous coefficients, no count yet, `settings` in force.
     pub fn new(_config: &ReadoutConfig, settings: CompensationSettings) -> Self {
         Self {
             counter: FringeCounter::new(),
@@ -142,8 +159,7 @@ impl Readout {
         }
         let turnaround = TurnaroundReading {
             kind: sample.kind,
-            // Wrapping Q32 fringes: cycle increments are exact differences.
-            phase_q32: reading.phase.as_q32_i128() as i64,
+            phase: reading.phase.total(),
             levels: (!reading.signal_lost).then(|| LevelPair {
                 cos_psi_h: reading.levels.cos_f32(),
                 sin_psi_h: reading.levels.sin_f32(),
@@ -151,9 +167,8 @@ impl Readout {
             timestamp_ticks: sample.timestamp_ticks,
             flags,
         };
-        let record = self
-            .cycles
-            .on_turnaround(&config.cycle, &mut self.compensator, turnaround)?;
+        let record = self.cycles.on_turnaround(&config.cycle, turnaround)?;
+        let record = self.compensator.compensate(record);
         self.counters.cycles = self.counters.cycles.wrapping_add(1);
         Some(record)
     }
@@ -183,6 +198,7 @@ impl Readout {
         self.compensator.staged_or_active()
     }
 
+    /// The event counters (for `status`).
     pub fn counters(&self) -> ReadoutCounters {
         self.counters
     }

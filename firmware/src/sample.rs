@@ -21,7 +21,7 @@ pub const ADC_FULL_SCALE_CODE: u16 = 4095;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TurnaroundSample {
-    /// Which turnaround this is (beat phase at a minimum or a maximum).
+    /// Which turnaround the latch was scheduled for (beat phase at a minimum or a maximum).
     pub kind: TurnaroundKind,
     /// Raw x4 up/down encoder register (16- or 32-bit timer; wraps).
     pub encoder_count: u32,

@@ -35,9 +35,9 @@ use firmware::protocol::respond::MAX_RESPONSE;
 use firmware::protocol::stream::{decode_frame, encode_frame, MAX_FRAME};
 use firmware::protocol::ErrorCode;
 use firmware::signal::compensation::CompensationSettings;
-use firmware::signal::cycle::CycleRecord;
-use firmware::signal::lockin_terms::LockinTerms;
-use firmware::signal::output::{CycleFlags, CycleOutput};
+use firmware::signal::lockin::CycleRecord;
+use firmware::signal::lockin::LockinTerms;
+use firmware::signal::lockin::{CycleFlags, CycleOutput};
 use firmware::storage::{CalibrationRecord, DefaultsReason, LoadOutcome, LoadReport, StoreError};
 
 /// Event byte: a minute passes.

@@ -16,7 +16,7 @@
 //!   on the analytic dither pick-off ([`Gyro::dither_pickoff_arcsec`] against the comparator
 //!   threshold: bracketing in steps of T/32, then bisection to 10 ps), delayed by the pick-off
 //!   path and captured by the profile's 84 MHz timer ([`CaptureTimer`], whole ticks), and fed to the
-//!   firmware's own [`Scheduler`] (`firmware::signal::turnaround_schedule`) with the input-rate
+//!   firmware's own [`Scheduler`] (`firmware::signal::turnaround`) with the input-rate
 //!   shift that [`rate_shift_ticks`] computes from the latest [`CycleRecord`] the caller hands
 //!   back ([`SimBoard::on_cycle`]). The latch is taken at the sampling instant: the compare
 //!   instant plus the ADC aperture delay the scheduler subtracted, so a model whose delays match
@@ -43,8 +43,9 @@ use crate::photodiode::{PhotodiodeConfig, Photodiodes};
 use firmware::profile::BoardProfile;
 use firmware::readout::ReadoutConfig;
 use firmware::sample::{TurnaroundKind, TurnaroundSample};
-use firmware::signal::cycle::CycleRecord;
-use firmware::signal::turnaround_schedule::{rate_shift_ticks, Edge, Scheduler, SchedulerConfig};
+use firmware::signal::lockin::CycleRecord;
+use firmware::signal::output::rate_shift_ticks;
+use firmware::signal::turnaround::{Edge, Scheduler, SchedulerConfig};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};

@@ -64,7 +64,7 @@ use crate::clock::CaptureTimer;
 use crate::photodiode::{EdgeGeometry, PhotodiodeConfig, Photodiodes};
 use firmware::profile::BoardProfile;
 use firmware::sample::{TurnaroundKind, TurnaroundSample};
-use firmware::signal::fringe_count::CounterWidth;
+use firmware::signal::count::CounterWidth;
 
 /// A wrapping up/down counter register.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -58,7 +58,7 @@ use crate::params::{GyroParams, ParamError};
 use firmware::readout::{Readout, ReadoutConfig};
 use firmware::sample::TurnaroundSample;
 use firmware::signal::compensation::CompensationSettings;
-use firmware::signal::cycle::CycleRecord;
+use firmware::signal::lockin::CycleRecord;
 
 /// Everything a [`Harness`] is built from.
 #[derive(Clone, Debug)]

@@ -1,6 +1,6 @@
 //! The scheduled turnaround latch ([`LatchTiming::Scheduled`]): pick-off comparator edges from
 //! the simulated dither, captured by the 84 MHz timer, through the firmware's own
-//! `signal::turnaround_schedule` with the input-rate shift from the firmware's cycle records.
+//! `signal::turnaround` with the input-rate shift from the firmware's cycle records.
 //!
 //! Acceptance (all seeded, docs/physics.md parameter set):
 //! - every latch within 0.1 us of the true turnaround (zero of dither + input rate, the gyro's
@@ -15,7 +15,7 @@
 use firmware::calibration::fit::FitAccumulator;
 use firmware::sample::TurnaroundKind;
 use firmware::signal::compensation::{Coefficients, CompensationSettings};
-use firmware::signal::cycle::CycleRecord;
+use firmware::signal::lockin::CycleRecord;
 use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use hal_sim::board::{BoardConfig, LatchRecord, LatchTiming};
 use hal_sim::harness::{Harness, HarnessOptions};

@@ -10,7 +10,7 @@
 //! its duration (capture-timer ticks over the timer frequency) is arcsec/s, which is deg/h.
 
 use firmware::protocol::stream::{decode_frame, GapCounter, StreamRecord};
-use firmware::signal::compensation::Q32_PER_FRINGE;
+use firmware::units::Q32_PER_FRINGE;
 use rlg_sim::plot::{Figure, Panel, Series, Style};
 use std::io::{self, Write};
 

@@ -13,8 +13,8 @@
 use firmware::calibration::fit::{FitAccumulator, FitResult, SolveError};
 use firmware::readout::ReadoutConfig;
 use firmware::signal::compensation::{CoefficientError, Coefficients, CompensationSettings};
-use firmware::signal::cycle::CycleRecord;
-use firmware::signal::output::{AveragerConfig, AveragingMode, CycleOutput, RateAverager};
+use firmware::signal::lockin::{CycleOutput, CycleRecord};
+use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use hal_sim::harness::HarnessOptions;
 use hal_sim::input::InputProfile;
 use hal_sim::params::GyroParams;

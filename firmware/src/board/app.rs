@@ -22,7 +22,7 @@ use crate::profile::BoardProfile;
 use crate::protocol::execute::Identity;
 use crate::readout::Readout;
 use crate::service::{Service, ServiceConfig};
-use crate::signal::cycle::CycleRecord;
+use crate::signal::lockin::CycleRecord;
 use crate::storage::Geometry;
 
 /// Milliseconds between health logs (defmt, only when a counter changed).

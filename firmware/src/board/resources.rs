@@ -53,7 +53,7 @@ use heapless::spsc::{Consumer, Producer, Queue};
 use super::{adc, pac, turnaround, Owned};
 use crate::readout::{Readout, ReadoutConfig};
 use crate::sample::TurnaroundSample;
-use crate::signal::cycle::CycleRecord;
+use crate::signal::lockin::CycleRecord;
 use pac::Interrupt;
 
 /// NVIC priorities (the F405 implements the upper 4 bits).

@@ -16,7 +16,7 @@
 //! ```
 //!
 //! # Prediction
-//! The prediction itself is plain logic in [`crate::signal::turnaround_schedule`] (host-tested,
+//! The prediction itself is plain logic in [`crate::signal::turnaround`] (host-tested,
 //! and the same code drives the simulated board's latch in `hal-sim`): half the previous
 //! same-polarity interval after each edge (which cancels a comparator threshold offset), the
 //! input-rate shift with opposite signs at "+" and "-" (docs/physics.md pitfall 3), minus the fixed
@@ -38,9 +38,9 @@ use core::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, AtomicU8, Ordering};
 use super::pac;
 use crate::profile::BoardProfile;
 use crate::sample::{TurnaroundKind, TurnaroundSample};
-use crate::signal::cycle::CycleRecord;
-use crate::signal::turnaround_schedule::{self as schedule, SchedulerConfig};
-pub use crate::signal::turnaround_schedule::{Edge, Schedule};
+use crate::signal::lockin::CycleRecord;
+use crate::signal::turnaround::{self as schedule, SchedulerConfig};
+pub use crate::signal::turnaround::{Edge, Schedule};
 
 /// Pick-off comparator delay + input filter + resynchronisation, ticks (84 MHz). Nominal: 100 ns
 /// comparator, 95 ns filter, 2 clocks = 18 ticks. Calibrate on the board; the value lives in
@@ -237,7 +237,7 @@ pub fn latch(
 /// Publishes the input-rate shift of the next turnarounds from one cycle (the cycle task, after
 /// each record; docs/physics.md pitfall 3).
 pub fn publish_rate_shift(record: &CycleRecord) {
-    let shift = schedule::rate_shift_ticks(record, super::TIMER_HZ);
+    let shift = crate::signal::output::rate_shift_ticks(record, super::TIMER_HZ);
     RATE_SHIFT_TICKS.store(shift, Ordering::Relaxed);
 }
 

@@ -17,7 +17,7 @@
 //! within-run co-moments add, and the between-run differences in mean output, which are the
 //! input rates, never leak into a and b.
 
-use crate::signal::cycle::CycleRecord;
+use crate::signal::lockin::CycleRecord;
 
 /// Means and centred co-moments of (y, P1, P2) for one or more pooled runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

@@ -19,7 +19,7 @@
 use super::fit::{FitAccumulator, FitResult, SolveError};
 use super::validation::{check, AcceptanceLimits, Refusal, RunSummary};
 use crate::signal::compensation::{CoefficientError, Coefficients, CompensationSettings};
-use crate::signal::cycle::CycleRecord;
+use crate::signal::lockin::CycleRecord;
 
 /// Where the session stands.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -224,8 +224,8 @@ impl CalibrationSession {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::signal::lockin_terms::LockinTerms;
-    use crate::signal::output::{CycleFlags, CycleOutput};
+    use crate::signal::lockin::LockinTerms;
+    use crate::signal::lockin::{CycleFlags, CycleOutput};
 
     const Q32: f64 = 4_294_967_296.0;
     const TAU: f64 = core::f64::consts::TAU;

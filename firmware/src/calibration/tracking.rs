@@ -34,7 +34,7 @@
 
 use super::validation::chow_dead_band_rad_per_s;
 use crate::signal::compensation::Coefficients;
-use crate::signal::cycle::CycleRecord;
+use crate::signal::lockin::CycleRecord;
 
 /// Tracker settings (immutable).
 #[derive(Clone, Copy, Debug, PartialEq)]

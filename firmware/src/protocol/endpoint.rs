@@ -11,7 +11,8 @@ use super::parse::{parse, strip_checksum};
 use super::respond::{Response, MAX_RESPONSE};
 use super::ErrorCode;
 use crate::readout::ReadoutCounters;
-use crate::signal::output::{CycleFlags, RateReading};
+use crate::signal::lockin::CycleFlags;
+use crate::signal::output::RateReading;
 use heapless::String;
 
 /// The answer to one line event: a rejected line (too long, garbage, bad CRC, parse error) is

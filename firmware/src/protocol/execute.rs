@@ -29,7 +29,7 @@ use super::stream::StreamRecord;
 use super::ErrorCode;
 use crate::calibration::validation::AcceptanceLimits;
 use crate::signal::compensation::CompensationSettings;
-use crate::signal::cycle::CycleRecord;
+use crate::signal::lockin::CycleRecord;
 use crate::storage::{FitSummary, LoadReport};
 
 pub use super::commands::provenance::Source;

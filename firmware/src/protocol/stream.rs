@@ -20,7 +20,7 @@
 //! 460800 baud or more (the F405's USART does 10 Mbit/s); slower links use a divider. The host
 //! decodes with the same [`decode_frame`]; the CRC is the same CRC-32 as the flash records.
 
-use crate::signal::cycle::CycleRecord;
+use crate::signal::lockin::CycleRecord;
 use crate::storage::crc::crc32;
 
 /// Payload bytes.

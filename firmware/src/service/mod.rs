@@ -32,7 +32,7 @@ use crate::protocol::line::{LineAssembler, LineEvent, MAX_LINE};
 use crate::protocol::stream::{encode_frame, MAX_FRAME};
 use crate::readout::ReadoutConfig;
 use crate::signal::compensation::CompensationSettings;
-use crate::signal::cycle::CycleRecord;
+use crate::signal::lockin::CycleRecord;
 use crate::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use crate::storage::{
     CalibrationRecord, CalibrationStore, Geometry, GeometryError, LoadReport, StoreError,

@@ -5,8 +5,8 @@
 use super::ports::{Clock, ReadoutAccess, SerialTx};
 use super::*;
 use crate::readout::Readout;
-use crate::signal::lockin_terms::LockinTerms;
-use crate::signal::output::{CycleFlags, CycleOutput};
+use crate::signal::lockin::LockinTerms;
+use crate::signal::lockin::{CycleFlags, CycleOutput};
 use crate::storage::ram_flash::RamFlash;
 use std::string::String as StdString;
 use std::vec::Vec;

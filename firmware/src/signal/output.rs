@@ -1,4 +1,5 @@
-//! Output: per-cycle compensated increments, and the rate averaged over a window.
+//! Stage 6, the output: per-cycle compensated increments become the rate averaged over a window,
+//! and the input-rate shift that the turnaround prediction (stage 2) needs.
 //!
 //! Each dither cycle yields a [`CycleOutput`]: the compensated phase increment in Q32 fringes
 //! (`i64`, 2^32 per fringe), the cycle's duration in capture-timer ticks, and [`CycleFlags`].
@@ -16,54 +17,23 @@
 //! The rate is reported in fringes/s and in deg/h (1 fringe/s = SF arcsec/s = SF deg/h). The
 //! division runs once per window in f64 (software floating point on the M4F, IEEE-exact like
 //! the host's, so both report the same bits).
+//!
+//! [`rate_shift_ticks`] turns one cycle's rate and measured dither into the turnaround shift
+//! `Omega_i / |psi_ddot|` (docs/physics.md pitfall 3) for the next edges: the cycle task hands
+//! it to [`super::turnaround::Scheduler::on_edge`] as a plain number, so the schedule imports
+//! nothing from here.
 
-/// Flags raised during a cycle (bit set; OR-ed over an averaging window).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct CycleFlags(pub u8);
-
-impl CycleFlags {
-    /// Photodiode amplitude too small to normalise (fractional fringe unavailable).
-    pub const SIGNAL_LOST: Self = Self(1 << 0);
-    /// The encoder count jumped by more than physically possible, or disagreed with the levels.
-    pub const COUNTER_GLITCH: Self = Self(1 << 1);
-    /// A turnaround was not seen when expected (the cycle spans more than one dither period).
-    pub const TURNAROUND_MISSED: Self = Self(1 << 2);
-    /// No compensation time constant could be formed (no dither, or an implausible one).
-    pub const DITHER_INVALID: Self = Self(1 << 3);
-
-    pub const fn empty() -> Self {
-        Self(0)
-    }
-    pub const fn union(self, other: Self) -> Self {
-        Self(self.0 | other.0)
-    }
-    pub const fn contains(self, other: Self) -> bool {
-        self.0 & other.0 == other.0
-    }
-    pub const fn is_empty(self) -> bool {
-        self.0 == 0
-    }
-}
-
-/// One dither cycle's output.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct CycleOutput {
-    /// Compensated beat-phase increment over the cycle, Q32 fringes.
-    pub increment_q32: i64,
-    /// The lock-in correction subtracted from it, Q32 fringes (0 with compensation off).
-    pub correction_q32: i64,
-    /// Cycle duration in capture-timer ticks.
-    pub duration_ticks: u32,
-    pub flags: CycleFlags,
-}
+use super::lockin::{CycleFlags, CycleOutput, CycleRecord};
+use super::turnaround::shift_ticks_for_rate;
+use crate::units::Q32_PER_FRINGE;
 
 /// How the averager forms a rate.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum AveragingMode {
+    /// Total phase over total time of the window.
     FixedWindow,
+    /// Fringes crossed over the time between the first and last crossing (pitfall 6).
     WholePeriods,
 }
 
@@ -72,6 +42,7 @@ pub enum AveragingMode {
 pub struct AveragerConfig {
     /// Cycles per reading (389 = one second at the paper's dither frequency).
     pub window_cycles: u32,
+    /// How the rate is formed.
     pub mode: AveragingMode,
     /// Capture-timer frequency, Hz.
     pub timer_hz: f64,
@@ -82,7 +53,9 @@ pub struct AveragerConfig {
 /// An averaged rate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RateReading {
+    /// Rate in fringes (pulses) per second.
     pub rate_fringes_per_s: f64,
+    /// Rate in deg/h (scale factor applied).
     pub rate_deg_per_h: f64,
     /// Seconds of data the rate spans.
     pub span_s: f64,
@@ -90,6 +63,7 @@ pub struct RateReading {
     pub whole_periods: bool,
     /// Flags OR-ed over the window.
     pub flags: CycleFlags,
+    /// Cycles in the window.
     pub cycles: u32,
 }
 
@@ -109,6 +83,7 @@ pub struct RateAverager {
 }
 
 impl RateAverager {
+    /// An empty first window.
     pub fn new() -> Self {
         Self::default()
     }
@@ -178,7 +153,7 @@ impl RateAverager {
             Some((rate, span)) => (rate, span, true),
             None => {
                 let span = (self.time_ticks - self.window_start_ticks) as f64 / ticks_per_s;
-                let phase = (self.phase_q32 - self.window_start_phase_q32) as f64 / 4_294_967_296.0;
+                let phase = (self.phase_q32 - self.window_start_phase_q32) as f64 / Q32_PER_FRINGE;
                 let rate = if span > 0.0 { phase / span } else { 0.0 };
                 (rate, span, false)
             }
@@ -203,11 +178,30 @@ impl RateAverager {
     }
 }
 
+/// The input-rate shift `Omega_i / |psi_ddot|` of the next turnarounds, in ticks of a timer at
+/// `timer_hz`, from one cycle (docs/physics.md pitfall 3): Omega_i = the cycle's increment over its
+/// duration, psi_ddot = measured amplitude x (2 pi f)^2. The increment is the compensated one
+/// (the lock-in error removed: the best estimate of the input rate; with compensation off it is
+/// the raw increment). 0 without a usable dither or duration.
+pub fn rate_shift_ticks(record: &CycleRecord, timer_hz: u32) -> i32 {
+    let duration_s = record.output.duration_ticks as f32 / timer_hz as f32;
+    let fringes = (record.output.increment_q32 as f64 / Q32_PER_FRINGE) as f32;
+    let rate_rad_per_s = fringes * core::f32::consts::TAU / duration_s;
+    shift_ticks_for_rate(
+        rate_rad_per_s,
+        record.dither_amplitude_rad,
+        record.dither_hz,
+        timer_hz,
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    const Q32: f64 = 4_294_967_296.0;
+    const Q32: f64 = Q32_PER_FRINGE;
+    /// The board's capture-timer clock, Hz.
+    const TIMER_HZ: u32 = 84_000_000;
 
     fn config(mode: AveragingMode, window_cycles: u32) -> AveragerConfig {
         AveragerConfig {
@@ -315,5 +309,56 @@ mod tests {
             (r.rate_fringes_per_s / (-0.37 * 84e3) - 1.0).abs() < 1e-6,
             "{r:?}"
         );
+    }
+
+    /// A record of one 389 Hz cycle advancing `fringes`, at the docs/physics.md dither amplitude.
+    fn record(fringes: f64, dither_hz: f32, amplitude_rad: f32) -> CycleRecord {
+        let duration_ticks = (TIMER_HZ as f64 / 389.0).round() as u32;
+        CycleRecord {
+            output: CycleOutput {
+                increment_q32: (fringes * Q32_PER_FRINGE).round() as i64,
+                duration_ticks,
+                ..Default::default()
+            },
+            raw_increment_q32: 0,
+            terms: Default::default(),
+            end_phase_q32: 0,
+            dither_amplitude_rad: amplitude_rad,
+            dither_hz,
+        }
+    }
+
+    #[test]
+    fn rate_shift_of_one_degree_per_second() {
+        // 1 deg/s = 3600 arcsec/s at SF 1.8655 arcsec/pulse; 450 arcsec amplitude, 389 Hz:
+        // Omega_i / (A w^2) = 1.34 us = 112 ticks, with the sign of the rate.
+        let sf = 1.8655;
+        let amplitude = (450.0 / sf * core::f64::consts::TAU) as f32;
+        let per_cycle = 3600.0 / sf / 389.0;
+        let plus = rate_shift_ticks(&record(per_cycle, 389.0, amplitude), TIMER_HZ);
+        let minus = rate_shift_ticks(&record(-per_cycle, 389.0, amplitude), TIMER_HZ);
+        assert!((110..=115).contains(&plus), "{plus} ticks");
+        assert_eq!(minus, -plus);
+        // Earth rate: a few ns.
+        let earth = rate_shift_ticks(&record(15.0 / sf / 389.0, 389.0, amplitude), TIMER_HZ);
+        assert_eq!(earth, 0);
+    }
+
+    #[test]
+    fn no_usable_dither_or_duration_gives_no_shift() {
+        let r = record(5.0, 389.0, 0.0);
+        assert_eq!(rate_shift_ticks(&r, TIMER_HZ), 0);
+        let r = record(5.0, 0.0, 1515.6);
+        assert_eq!(rate_shift_ticks(&r, TIMER_HZ), 0);
+        let mut r = record(5.0, 389.0, 1515.6);
+        r.output.duration_ticks = 0;
+        assert_eq!(rate_shift_ticks(&r, TIMER_HZ), 0);
+    }
+
+    #[test]
+    fn a_huge_rate_is_clamped_to_a_sixteenth_period() {
+        let r = record(1e5, 389.0, 1515.6);
+        let limit = (TIMER_HZ as f32 / 389.0 / 16.0) as i32;
+        assert_eq!(rate_shift_ticks(&r, TIMER_HZ), limit);
     }
 }

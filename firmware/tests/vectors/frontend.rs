@@ -1,16 +1,15 @@
-//! Cases for the turnaround front end of `firmware::signal`: count extension, x4 decoding,
-//! CORDIC atan2, the Lissajous (Heydemann) normalisation and the fringe phase resolver.
+//! Cases for the turnaround front end of `firmware::signal`: count extension, CORDIC atan2, the
+//! Lissajous (Heydemann) normalisation and the fringe phase resolver.
 use super::{Outputs, Rng};
-use firmware::signal::lissajous::NormalisedLevels;
-use firmware::signal::{
-    fractional_fringe, fringe_count, fringe_phase, lissajous, quadrature, turnaround_schedule,
-};
+use firmware::math;
+use firmware::signal::fringe::NormalisedLevels;
+use firmware::signal::{count, fringe, turnaround};
 use micromath::F32Ext as M; // through the trait: the same code on host and target
 
 /// Count extension of 16- and 32-bit encoder registers: wraps, steps near the bound, glitches
 /// and resynchronisation.
 pub fn fringe_count(out: &mut Outputs) {
-    use fringe_count::{CountUpdate, CounterWidth, FringeCountConfig, FringeCounter};
+    use count::{CountUpdate, CounterWidth, FringeCountConfig, FringeCounter};
     let mut rng = Rng::new(0x5eed_0030);
     out.u32(FringeCountConfig::max_step_for(2_400_000, 1285, 1_000_000));
     out.u32(FringeCountConfig::max_step_for(u32::MAX, u32::MAX, 0));
@@ -43,52 +42,20 @@ pub fn fringe_count(out: &mut Outputs) {
     }
 }
 
-/// The x4 software decoder: every transition, single steps, and the table-driven batch path
-/// over Gray-code walks with stills, illegal jumps and junk in the high bits.
-pub fn quadrature(out: &mut Outputs) {
-    use quadrature::{transition, QuadratureDecoder, QUADRANT_OF_STATE};
-    let state_of_quadrant =
-        |q: u8| QUADRANT_OF_STATE.iter().position(|&s| s == q & 3).unwrap() as u8;
-    let mut rng = Rng::new(0x5eed_0031);
-    for previous in 0..4u8 {
-        for current in 0..8u8 {
-            out.i32(transition(previous, current).step() as i32);
-        }
-    }
-    let mut decoder = QuadratureDecoder::new(rng.u32() as u8);
-    let mut stepped = decoder;
-    let mut samples = [0u8; 512];
-    for _ in 0..8 {
-        let mut quadrant = QUADRANT_OF_STATE[decoder.state() as usize];
-        for s in samples.iter_mut() {
-            quadrant = quadrant.wrapping_add([0, 1, 3, 1, 3, 1, 3, 2][(rng.u32() % 8) as usize]);
-            *s = state_of_quadrant(quadrant) | (rng.u32() as u8 & 0xfc);
-        }
-        out.i64(decoder.decode(&samples));
-        out.i64(decoder.count());
-        out.u32(decoder.illegal_transitions());
-        for &s in &samples {
-            out.i32(stepped.step(s).step() as i32);
-        }
-        out.i64(stepped.count());
-        out.u32(stepped.illegal_transitions());
-    }
-}
-
 /// CORDIC atan2 in Q32 turns over random and extreme inputs, and the Q30 radius.
 pub fn fractional_fringe(out: &mut Outputs) {
-    use fractional_fringe::{atan2_q32, radius_sq_q30};
+    use math::{atan2_q32, radius_sq_q30};
     let mut rng = Rng::new(0x5eed_0032);
     let edges = [0, 1, -1, i32::MAX, i32::MIN, 1 << 30, -(1 << 30)];
     for y in edges {
         for x in edges {
-            out.u32(atan2_q32(y, x));
+            out.u32(atan2_q32(y, x).to_bits());
             out.u32(radius_sq_q30(x, y));
         }
     }
     for _ in 0..2000 {
         let (y, x) = (rng.i32() >> (rng.u32() % 24), rng.i32() >> (rng.u32() % 24));
-        out.u32(atan2_q32(y, x));
+        out.u32(atan2_q32(y, x).to_bits());
         out.u32(radius_sq_q30(x, y));
     }
 }
@@ -121,7 +88,7 @@ fn levels(out: &mut Outputs, l: NormalisedLevels) {
 /// The Heydemann fit window by window (good ellipses, and ones it must refuse: a line, a tiny
 /// signal, a partial arc), its coefficients, and the normalisation of random codes.
 pub fn lissajous(out: &mut Outputs) {
-    use lissajous::{LissajousCoefficients, LissajousConfig, LissajousTracker};
+    use fringe::{LissajousCoefficients, LissajousConfig, LissajousTracker};
     let mut rng = Rng::new(0x5eed_0033);
     let config = LissajousConfig {
         window_samples: 600,
@@ -181,7 +148,7 @@ pub fn lissajous(out: &mut Outputs) {
 /// The fringe phase resolver along a dithering phase path: count and levels agree, with
 /// comparator skew, the odd lost count (glitch) and lost signal, under two board conventions.
 pub fn fringe_phase(out: &mut Outputs) {
-    use fringe_phase::{FringeConvention, FringePhase, FringePhaseConfig, FringeResolver};
+    use fringe::{FringeConvention, FringePhase, FringePhaseConfig, FringeResolver};
     let mut rng = Rng::new(0x5eed_0034);
     let q30 = (1u32 << 30) as f32;
     let conventions = [
@@ -225,7 +192,7 @@ pub fn fringe_phase(out: &mut Outputs) {
             });
             let r = resolver.resolve(&config, convention.orient_count(count), board);
             out.i64(r.phase.turns);
-            out.u32(r.phase.fraction_q32);
+            out.u32(r.phase.fraction.to_bits());
             levels(out, r.levels);
             out.i32(r.disagreement_q32);
             out.bool(r.glitch);
@@ -245,12 +212,9 @@ pub fn fringe_phase(out: &mut Outputs) {
 /// offset (unequal high and low times), jitter, the odd missing edge, and input-rate shifts.
 pub fn turnaround_schedule(out: &mut Outputs) {
     use firmware::sample::TurnaroundKind;
-    use firmware::signal::cycle::CycleRecord;
-    use firmware::signal::lockin_terms::LockinTerms;
-    use firmware::signal::output::{CycleFlags, CycleOutput};
-    use turnaround_schedule::{
-        rate_shift_ticks, shift_ticks_for_rate, Edge, Scheduler, SchedulerConfig,
-    };
+    use firmware::signal::lockin::{CycleFlags, CycleOutput, CycleRecord, LockinTerms};
+    use firmware::signal::output::rate_shift_ticks;
+    use turnaround::{shift_ticks_for_rate, Edge, Scheduler, SchedulerConfig};
     let mut rng = Rng::new(0x5eed_0035);
     let timer_hz = 84_000_000;
     let config =

@@ -47,8 +47,6 @@ pub const GOLDEN: &[Golden] = &[
     ] },
     // signal::fringe_count (bit-identical)
     Golden { name: "signal::fringe_count", words: 10004, digest: 0xda78a494cc152b22, f32_bits: &[] },
-    // signal::quadrature (bit-identical)
-    Golden { name: "signal::quadrature", words: 4168, digest: 0x21518a5b9c73181d, f32_bits: &[] },
     // signal::fractional_fringe (bit-identical)
     Golden { name: "signal::fractional_fringe", words: 4098, digest: 0xb312f005d8fdd235, f32_bits: &[] },
     // signal::lissajous (bit-identical)

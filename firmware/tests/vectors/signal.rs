@@ -1,7 +1,8 @@
 //! Cases for `firmware::signal`: one function per module, named after it.
 use super::{frontend::Figure, Outputs, Rng};
 use firmware::sample::TurnaroundKind;
-use firmware::signal::{compensation, cycle, lockin_terms, output};
+use firmware::signal::{compensation, lockin, output};
+use firmware::units::TotalPhase;
 
 /// Edge inputs every float case should see besides the random ones.
 const SPECIAL_F32: [f32; 6] = [0.0, -0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e-40];
@@ -17,7 +18,7 @@ fn kind(rng: &mut Rng) -> TurnaroundKind {
 /// P1/P2 terms: k = sqrt(2 pi / |psi_ddot|) (`libm::sqrtf`), the sine-dither acceleration, and
 /// the per-traversal shares with their sums and weights.
 pub fn lockin_terms(out: &mut Outputs) {
-    use lockin_terms::{
+    use lockin::{
         sine_dither_accel_rad_per_s2, traversal_terms, traversal_time_s, LevelPair, LockinTerms,
     };
     let mut rng = Rng::new(0x5eed_0010);
@@ -50,7 +51,7 @@ pub fn compensation(out: &mut Outputs) {
     use compensation::{
         rad_per_s_to_q16, rad_to_q32_fringes, Coefficients, CompensationSettings, Compensator,
     };
-    use lockin_terms::LockinTerms;
+    use lockin::LockinTerms;
     let q16 = |out: &mut Outputs, v: f32| match rad_per_s_to_q16(v) {
         Ok(code) => out.i32(code),
         Err(e) => out.u32(0xdead_0000 | e as u32),
@@ -100,7 +101,8 @@ fn reading(out: &mut Outputs, r: output::RateReading) {
 /// The rate averager in both modes over cycles near the paper's 389 Hz dither, with a drift
 /// that crosses whole-fringe boundaries, random flags, and the f64 readings it produces.
 pub fn rate_output(out: &mut Outputs) {
-    use output::{AveragerConfig, AveragingMode, CycleFlags, CycleOutput, RateAverager};
+    use lockin::{CycleFlags, CycleOutput};
+    use output::{AveragerConfig, AveragingMode, RateAverager};
     let mut rng = Rng::new(0x5eed_0012);
     for (mode, window_cycles) in [
         (AveragingMode::FixedWindow, 7),
@@ -137,9 +139,7 @@ pub fn rate_output(out: &mut Outputs) {
 /// signals and the odd missed turnaround, compensated by a compensator with fixed a, b.
 pub fn cycle_assembly(out: &mut Outputs) {
     use compensation::{Coefficients, CompensationSettings, Compensator};
-    use cycle::{CycleAssembler, CycleConfig, TurnaroundReading};
-    use lockin_terms::LevelPair;
-    use output::CycleFlags;
+    use lockin::{CycleAssembler, CycleConfig, CycleFlags, LevelPair, TurnaroundReading};
     let mut rng = Rng::new(0x5eed_0013);
     let config = CycleConfig::for_dither(84e6, 389.0, 0.2);
     let coefficients = Coefficients::from_rad_per_s(387.0, 383.0).unwrap_or_default();
@@ -167,12 +167,15 @@ pub fn cycle_assembly(out: &mut Outputs) {
             } else {
                 TurnaroundKind::Minus
             },
-            phase_q32,
+            phase: TotalPhase::from_q32(phase_q32),
             levels: (!rng.one_in(100)).then_some(levels),
             timestamp_ticks: ticks,
             flags: CycleFlags(if rng.one_in(100) { 2 } else { 0 }),
         };
-        let Some(r) = assembler.on_turnaround(&config, &mut comp, reading) else {
+        let Some(r) = assembler
+            .on_turnaround(&config, reading)
+            .map(|r| comp.compensate(r))
+        else {
             continue;
         };
         out.i64(r.output.increment_q32);

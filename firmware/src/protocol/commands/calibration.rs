@@ -18,7 +18,7 @@ use crate::protocol::link::{DeviceLink, Identity};
 use crate::protocol::respond::Response;
 use crate::protocol::ErrorCode;
 use crate::signal::compensation::{Coefficients, CompensationSettings};
-use crate::signal::cycle::CycleRecord;
+use crate::signal::lockin::CycleRecord;
 use crate::storage::FitSummary;
 
 /// The calibration session and the tracking loop (when on) with its configuration.
@@ -171,8 +171,8 @@ mod tests {
     use super::*;
     use crate::protocol::commands::provenance::Source;
     use crate::protocol::commands::testing::{report, text, MemDevice, ID};
-    use crate::signal::lockin_terms::LockinTerms;
-    use crate::signal::output::{CycleFlags, CycleOutput};
+    use crate::signal::lockin::LockinTerms;
+    use crate::signal::lockin::{CycleFlags, CycleOutput};
     use crate::storage::{DefaultsReason, LoadOutcome};
 
     const TAU: f64 = core::f64::consts::TAU;

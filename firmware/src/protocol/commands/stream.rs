@@ -4,7 +4,7 @@
 use super::ok_with;
 use crate::protocol::respond::Response;
 use crate::protocol::stream::{StreamRecord, MAX_FRAME};
-use crate::signal::cycle::CycleRecord;
+use crate::signal::lockin::CycleRecord;
 
 /// The stream settings and position.
 #[derive(Clone, Debug, Default)]

@@ -1,8 +1,9 @@
-//! Fractional fringe: the position inside one fringe from the two normalised photodiode levels.
+//! `atan2` in Q32 turns by an integer CORDIC, bit-exact on every target.
 //!
-//! `psi_H = atan2(sin, cos)` as a phase in **Q32 turns**: a `u32` where a full turn (one fringe,
-//! 2 pi rad of beat phase, four x4 counts) is 2^32, so wrapping arithmetic is turn arithmetic and
-//! one LSB is 2^-32 turn = 1.46e-9 rad.
+//! The angle comes out as a [`Phase`] in **Q32 turns** (`crate::units`): a full turn (2 pi rad)
+//! is 2^32, so wrapping arithmetic is turn arithmetic and one LSB is 2^-32 turn = 1.46e-9 rad.
+//! In the signal chain one turn is one fringe: the fractional fringe is `atan2_q32(sin psi_H,
+//! cos psi_H)` of the normalised photodiode levels (`crate::signal::fringe`).
 //!
 //! # Algorithm: integer CORDIC, bit-exact
 //!
@@ -18,9 +19,10 @@
 //!    (`y == 0`, `x == 0`, `|x| == |y|`) are returned exactly.
 //!
 //! Only integer adds, shifts and compares: the same bits on the Cortex-M4 and on x86 (checked:
-//! a digest of 10^5 random calls is identical in QEMU's Cortex-M4 and on x86-64). About 360
-//! instructions per call at `opt-level = "s"` (QEMU `-icount`; 11 per iteration): once per
-//! turnaround, not per sample. Cycles on a board not measured.
+//! a digest of 10^5 random calls is identical in QEMU's Cortex-M4 and on x86-64). 347
+//! instructions per call at `opt-level = "s"` (QEMU `-icount`, mean over 256 normalised levels;
+//! 11 per iteration): once per turnaround, not per sample. Cycles on a board not measured. The
+//! comparison with `idsp`'s `atan2` is in the [module docs](super).
 //!
 //! Error: the residual angle after the last iteration is below atan(2^-27) (1.2e-9 turn), the
 //! table entries are rounded to 0.5 LSB each, and the shifts truncate at the 2^-29 level of the
@@ -29,6 +31,8 @@
 //!
 //! `(0, 0)` has no angle; [`atan2_q32`] returns 0 for it. Callers that care (a lost signal)
 //! check the radius first, see [`radius_sq_q30`].
+
+use crate::units::Phase;
 
 /// Number of CORDIC vectoring iterations (`i = 1..=CORDIC_ITERATIONS`).
 pub const CORDIC_ITERATIONS: usize = 27;
@@ -70,34 +74,30 @@ const ATAN_TABLE_Q32: [u32; CORDIC_ITERATIONS + 1] = [
 /// 32 LSB = 7.5e-9 turn = 4.7e-8 rad. Measured worst case: 20 LSB = 4.7e-9 turn.
 pub const MAX_ERROR_Q32: u32 = 32;
 
-/// A quarter turn in Q32 turns.
-pub const QUARTER_TURN_Q32: u32 = 1 << 30;
-/// Half a turn in Q32 turns.
-pub const HALF_TURN_Q32: u32 = 1 << 31;
-
-/// `atan2(y, x)` in Q32 turns (`u32`, a full turn = 2^32), in [0, 2^32): 0 along +x, a quarter
+/// `atan2(y, x)` as a [`Phase`] in Q32 turns (a full turn = 2^32): 0 along +x, a quarter
 /// turn (2^30) along +y. Any scale of the inputs; `(0, 0)` gives 0. Panic-free on all inputs.
 #[inline]
-pub fn atan2_q32(y: i32, x: i32) -> u32 {
+pub fn atan2_q32(y: i32, x: i32) -> Phase {
     let ax = x.unsigned_abs();
     let ay = y.unsigned_abs();
     if ax == 0 && ay == 0 {
-        return 0;
+        return Phase::ZERO;
     }
     // First-quadrant angle t in [0, 1/4 turn]: reduce to the first octant (big >= small).
     let swapped = ay > ax;
     let (big, small) = if swapped { (ay, ax) } else { (ax, ay) };
-    let octant_angle = cordic_first_octant(big, small);
+    let octant_angle = Phase::from_bits(cordic_first_octant(big, small));
     let t = if swapped {
-        QUARTER_TURN_Q32.wrapping_sub(octant_angle)
+        Phase::QUARTER_TURN - octant_angle
     } else {
         octant_angle
     };
+    // The quadrant unfolded with exact wrapping operations.
     match (x < 0, y < 0) {
         (false, false) => t,
-        (true, false) => HALF_TURN_Q32.wrapping_sub(t),
-        (true, true) => HALF_TURN_Q32.wrapping_add(t),
-        (false, true) => 0u32.wrapping_sub(t),
+        (true, false) => Phase::HALF_TURN - t,
+        (true, true) => Phase::HALF_TURN + t,
+        (false, true) => -t,
     }
 }
 
@@ -146,8 +146,8 @@ fn cordic_first_octant(big: u32, small: u32) -> u32 {
 
 /// `c^2 + s^2` of a normalised pair in Q30 (1.0 = 2^30), saturating at `u32::MAX`.
 ///
-/// For the Q30 levels of [`crate::signal::lissajous`] a healthy signal gives about 2^30; a
-/// much smaller value means the fringe contrast is gone and the phase is noise.
+/// For the normalised photodiode levels (Q30) a healthy signal gives about 2^30; a much smaller
+/// value means the fringe contrast is gone and the phase is noise.
 #[inline]
 pub fn radius_sq_q30(cos_q30: i32, sin_q30: i32) -> u32 {
     let c = cos_q30 as i64;
@@ -167,11 +167,12 @@ mod tests {
     use super::*;
     use std::f64::consts::PI;
 
+    /// A turn in LSB (2^32).
     const TURN: f64 = 4_294_967_296.0;
 
     /// Signed difference in LSB between the CORDIC and the f64 reference, modulo a turn.
     fn error_lsb(y: i32, x: i32) -> i64 {
-        let got = atan2_q32(y, x);
+        let got = atan2_q32(y, x).to_bits();
         let exact = (y as f64).atan2(x as f64) / (2.0 * PI);
         let exact_q32 = (exact.rem_euclid(1.0) * TURN).round() as i64;
         let diff = (got as i64 - exact_q32).rem_euclid(1i64 << 32);
@@ -195,13 +196,14 @@ mod tests {
 
     #[test]
     fn cardinal_directions_and_origin() {
-        assert_eq!(atan2_q32(0, 0), 0);
-        assert_eq!(atan2_q32(0, 1), 0);
-        assert_eq!(atan2_q32(1, 0), QUARTER_TURN_Q32);
-        assert_eq!(atan2_q32(0, -1), HALF_TURN_Q32);
-        assert_eq!(atan2_q32(-1, 0), 3 * QUARTER_TURN_Q32);
-        assert_eq!(atan2_q32(0, i32::MIN), HALF_TURN_Q32);
-        assert_eq!(atan2_q32(i32::MIN, 0), 3 * QUARTER_TURN_Q32);
+        let three_quarters = Phase::from_bits(3 << 30);
+        assert_eq!(atan2_q32(0, 0), Phase::ZERO);
+        assert_eq!(atan2_q32(0, 1), Phase::ZERO);
+        assert_eq!(atan2_q32(1, 0), Phase::QUARTER_TURN);
+        assert_eq!(atan2_q32(0, -1), Phase::HALF_TURN);
+        assert_eq!(atan2_q32(-1, 0), three_quarters);
+        assert_eq!(atan2_q32(0, i32::MIN), Phase::HALF_TURN);
+        assert_eq!(atan2_q32(i32::MIN, 0), three_quarters);
     }
 
     /// The max error over a dense grid of angles at several radii, every octant edge, small
@@ -291,7 +293,7 @@ mod tests {
         for k in 1..100_000u32 {
             let a = k as f64 / 100_000.0 * 2.0 * PI;
             let now = atan2_q32((r * a.sin()) as i32, (r * a.cos()) as i32);
-            let step = now.wrapping_sub(prev) as i32;
+            let step = (now - prev).to_signed();
             assert!(step > -(2 * MAX_ERROR_Q32 as i32), "k={k} step={step}");
             prev = now;
         }

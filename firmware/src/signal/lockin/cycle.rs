@@ -17,25 +17,83 @@
 //! A reading out of sequence (two turnarounds of one kind in a row, or a half period far from
 //! the dither's) means a turnaround was missed or a spurious one seen: the cycle in progress is
 //! dropped, assembly restarts, and the next cycle carries [`CycleFlags::TURNAROUND_MISSED`].
+//!
+//! The assembler does not compensate: a closed [`CycleRecord`] leaves with its output increment
+//! equal to the raw one and a zero correction, and the compensation stage
+//! (`crate::signal::compensation`, called by `crate::readout`) subtracts a P1 + b P2 from cycles
+//! whose flags allow it ([`CycleFlags::compensable`]).
 
-use super::compensation::Compensator;
-use super::lockin_terms::{
+use super::terms::{
     sine_dither_accel_rad_per_s2, traversal_terms, traversal_time_s, LevelPair, LockinTerms,
 };
-use super::output::{CycleFlags, CycleOutput};
 use crate::sample::TurnaroundKind;
+use crate::units::{TotalPhase, Q32_PER_FRINGE};
 
-/// 2^32 as f64: Q32 fringes per fringe.
-const Q32_PER_FRINGE: f64 = 4_294_967_296.0;
+/// Flags raised during a cycle (bit set; OR-ed over an averaging window).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CycleFlags(pub u8);
+
+impl CycleFlags {
+    /// Photodiode amplitude too small to normalise (fractional fringe unavailable).
+    pub const SIGNAL_LOST: Self = Self(1 << 0);
+    /// The encoder count jumped by more than physically possible, or disagreed with the levels.
+    pub const COUNTER_GLITCH: Self = Self(1 << 1);
+    /// A turnaround was not seen when expected (the cycle spans more than one dither period).
+    pub const TURNAROUND_MISSED: Self = Self(1 << 2);
+    /// No compensation time constant could be formed (no dither, or an implausible one).
+    pub const DITHER_INVALID: Self = Self(1 << 3);
+
+    /// No flag.
+    pub const fn empty() -> Self {
+        Self(0)
+    }
+    /// The flags of both.
+    pub const fn union(self, other: Self) -> Self {
+        Self(self.0 | other.0)
+    }
+    /// Every flag of `other` is set.
+    pub const fn contains(self, other: Self) -> bool {
+        self.0 & other.0 == other.0
+    }
+    /// No flag is set.
+    pub const fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+    /// The cycle's P1/P2 can be trusted for compensation: the levels were seen at every
+    /// turnaround and k was measured (neither [`Self::SIGNAL_LOST`] nor
+    /// [`Self::DITHER_INVALID`]). A counter glitch or a missed turnaround leaves P1/P2 valid.
+    pub const fn compensable(self) -> bool {
+        !self.contains(Self::SIGNAL_LOST) && !self.contains(Self::DITHER_INVALID)
+    }
+}
+
+/// One dither cycle's output.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CycleOutput {
+    /// Beat-phase increment over the cycle, Q32 fringes: compensated by the compensation stage
+    /// (the raw increment as the assembler hands it over).
+    pub increment_q32: i64,
+    /// The lock-in correction subtracted from it, Q32 fringes (0 with compensation off).
+    pub correction_q32: i64,
+    /// Cycle duration in capture-timer ticks.
+    pub duration_ticks: u32,
+    /// What went wrong during the cycle (the union of its turnarounds' flags).
+    pub flags: CycleFlags,
+}
 
 /// What the turnaround front end hands over for one turnaround.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TurnaroundReading {
+    /// The turnaround's kind (the assembler checks that kinds alternate).
     pub kind: TurnaroundKind,
-    /// Total beat phase at the turnaround, Q32 fringes, wrapping (differences are exact).
-    pub phase_q32: i64,
+    /// Total beat phase at the turnaround (count plus fractional fringe): its differences are
+    /// the increments.
+    pub phase: TotalPhase,
     /// Normalised photodiode levels; `None` when the signal is lost.
     pub levels: Option<LevelPair>,
+    /// Capture-timer value at the latch (wrapping).
     pub timestamp_ticks: u32,
     /// Problems the front end saw (counter glitch, signal lost).
     pub flags: CycleFlags,
@@ -48,6 +106,7 @@ pub struct CycleConfig {
     pub timer_hz: f32,
     /// Accepted half-period range, ticks: outside it a turnaround counts as missed or spurious.
     pub min_half_period_ticks: u32,
+    /// Upper end of the accepted half-period range, ticks.
     pub max_half_period_ticks: u32,
 }
 
@@ -66,14 +125,17 @@ impl CycleConfig {
 /// One dither cycle, everything the output, the calibration and the stream need.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CycleRecord {
+    /// The increment, its correction (none until the compensation stage), duration and flags.
     pub output: CycleOutput,
     /// Measured increment before compensation, Q32 fringes.
     pub raw_increment_q32: i64,
+    /// P1 and P2 of the cycle (latch split: 1/2, 1, 1/2 of its three traversals).
     pub terms: LockinTerms,
     /// Total phase at the cycle's closing "+" turnaround, Q32 fringes (wrapping).
     pub end_phase_q32: i64,
     /// Measured dither amplitude (beat phase, rad) and frequency (Hz) at the closing turnaround.
     pub dither_amplitude_rad: f32,
+    /// Measured dither frequency at the closing turnaround, Hz.
     pub dither_hz: f32,
 }
 
@@ -92,14 +154,14 @@ impl CycleRecord {
 #[derive(Clone, Copy, Debug)]
 struct Seen {
     kind: TurnaroundKind,
-    phase_q32: i64,
+    phase: TotalPhase,
     timestamp_ticks: u32,
 }
 
 /// The open cycle: its starting "+" turnaround and the shares gathered so far.
 #[derive(Clone, Copy, Debug)]
 struct OpenCycle {
-    start_phase_q32: i64,
+    start_phase: TotalPhase,
     start_ticks: u32,
     terms: LockinTerms,
     have_minus: bool,
@@ -118,6 +180,7 @@ pub struct CycleAssembler {
 }
 
 impl CycleAssembler {
+    /// No turnaround seen yet.
     pub fn new() -> Self {
         Self::default()
     }
@@ -136,7 +199,6 @@ impl CycleAssembler {
     pub fn on_turnaround(
         &mut self,
         config: &CycleConfig,
-        compensator: &mut Compensator,
         reading: TurnaroundReading,
     ) -> Option<CycleRecord> {
         if !self.in_sequence(config, &reading) {
@@ -147,7 +209,7 @@ impl CycleAssembler {
         self.before_previous = self.previous;
         self.previous = Some(Seen {
             kind: reading.kind,
-            phase_q32: reading.phase_q32,
+            phase: reading.phase,
             timestamp_ticks: reading.timestamp_ticks,
         });
         let mut flags = reading.flags;
@@ -175,9 +237,9 @@ impl CycleAssembler {
                 let closed = self
                     .open
                     .take()
-                    .and_then(|open| self.close(compensator, open, share, flags, &reading));
+                    .and_then(|open| self.close(open, share, flags, &reading));
                 self.open = Some(OpenCycle {
-                    start_phase_q32: reading.phase_q32,
+                    start_phase: reading.phase,
                     start_ticks: reading.timestamp_ticks,
                     terms: share.scaled(0.5),
                     have_minus: false,
@@ -191,7 +253,6 @@ impl CycleAssembler {
 
     fn close(
         &mut self,
-        compensator: &mut Compensator,
         open: OpenCycle,
         share: LockinTerms,
         flags: CycleFlags,
@@ -202,24 +263,18 @@ impl CycleAssembler {
         }
         let terms = open.terms + share.scaled(0.5);
         let flags = open.flags.union(flags);
-        let raw_increment_q32 = reading.phase_q32.wrapping_sub(open.start_phase_q32);
-        let trusted =
-            !flags.contains(CycleFlags::SIGNAL_LOST) && !flags.contains(CycleFlags::DITHER_INVALID);
-        let correction_q32 = if trusted {
-            compensator.cycle_correction(terms)
-        } else {
-            0
-        };
+        let raw_increment_q32 = reading.phase - open.start_phase;
         Some(CycleRecord {
             output: CycleOutput {
-                increment_q32: raw_increment_q32.wrapping_sub(correction_q32),
-                correction_q32,
+                // Uncompensated: the compensation stage subtracts its correction.
+                increment_q32: raw_increment_q32,
+                correction_q32: 0,
                 duration_ticks: reading.timestamp_ticks.wrapping_sub(open.start_ticks),
                 flags,
             },
             raw_increment_q32,
             terms,
-            end_phase_q32: reading.phase_q32,
+            end_phase_q32: reading.phase.to_q32(),
             dither_amplitude_rad: self.dither_amplitude_rad,
             dither_hz: self.dither_hz,
         })
@@ -242,7 +297,7 @@ impl CycleAssembler {
         self.before_previous = None;
         self.previous = Some(Seen {
             kind: reading.kind,
-            phase_q32: reading.phase_q32,
+            phase: reading.phase,
             timestamp_ticks: reading.timestamp_ticks,
         });
         self.open = None;
@@ -256,14 +311,8 @@ impl CycleAssembler {
         reading: &TurnaroundReading,
     ) -> Option<f32> {
         let (previous, before) = (self.previous?, self.before_previous?);
-        let excursion_q32 = reading
-            .phase_q32
-            .wrapping_sub(previous.phase_q32)
-            .unsigned_abs()
-            + previous
-                .phase_q32
-                .wrapping_sub(before.phase_q32)
-                .unsigned_abs();
+        let excursion_q32 = (reading.phase - previous.phase).unsigned_abs()
+            + (previous.phase - before.phase).unsigned_abs();
         // Sum of two half-cycle excursions = 4 x amplitude.
         let amplitude_rad =
             (excursion_q32 as f64 / Q32_PER_FRINGE * core::f64::consts::TAU / 4.0) as f32;
@@ -278,19 +327,22 @@ impl CycleAssembler {
     }
 }
 
+/// Synthetic turnaround readings of an ideal sine dither, for the tests of this stage and of
+/// the stages after it.
 #[cfg(test)]
-mod tests {
+pub(crate) mod synthetic {
     use super::*;
-    use crate::signal::compensation::{Coefficients, CompensationSettings};
 
-    const TIMER_HZ: f32 = 84e6;
-    const DITHER_HZ: f64 = 389.0;
-    const Q32: f64 = 4_294_967_296.0;
+    /// The capture-timer clock, Hz.
+    pub const TIMER_HZ: f32 = 84e6;
+    /// The docs/physics.md dither frequency, Hz.
+    pub const DITHER_HZ: f64 = 389.0;
+    const Q32: f64 = Q32_PER_FRINGE;
 
     /// Readings of an ideal sine dither (amplitude `amp` rad) on a constant rate. Traversal `i`
     /// adds `err(i, psi0)`, where psi0 is the actual phase latched at its turnaround (all earlier
     /// errors plus half of its own: an implicit equation, solved by iteration).
-    fn readings(
+    pub fn readings(
         amp: f64,
         rate: f64,
         n: usize,
@@ -316,7 +368,7 @@ mod tests {
                 accumulated += e;
                 TurnaroundReading {
                     kind,
-                    phase_q32: (psi / core::f64::consts::TAU * Q32).round() as i64,
+                    phase: TotalPhase::from_q32((psi / core::f64::consts::TAU * Q32).round() as i64),
                     levels: Some(LevelPair {
                         cos_psi_h: psi.cos() as f32,
                         sin_psi_h: psi.sin() as f32,
@@ -328,14 +380,21 @@ mod tests {
             .collect()
     }
 
-    fn run(readings: &[TurnaroundReading], comp: &mut Compensator) -> Vec<CycleRecord> {
+    /// The cycles the assembler closes from `readings` (uncompensated).
+    pub fn assemble(readings: &[TurnaroundReading]) -> Vec<CycleRecord> {
         let config = CycleConfig::for_dither(TIMER_HZ, DITHER_HZ as f32, 0.2);
         let mut asm = CycleAssembler::new();
         readings
             .iter()
-            .filter_map(|r| asm.on_turnaround(&config, comp, *r))
+            .filter_map(|r| asm.on_turnaround(&config, *r))
             .collect()
     }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::synthetic::{assemble, readings, DITHER_HZ, TIMER_HZ};
+    use super::*;
 
     /// Each cycle's increment is rate x period plus the errors of half, one, half traversals;
     /// measured amplitude and frequency match the dither. Tolerances: Q32 rounding of the phase
@@ -345,10 +404,7 @@ mod tests {
         let amp = core::f64::consts::TAU * 450.0 / 1.8655;
         let rate = 46.8;
         let err = |i: usize| 0.01 * ((i as f64) * 0.7).sin();
-        let cycles = run(
-            &readings(amp, rate, 41, |i, _| err(i)),
-            &mut Compensator::default(),
-        );
+        let cycles = assemble(&readings(amp, rate, 41, |i, _| err(i)));
         assert_eq!(cycles.len(), 20);
         for (c, record) in cycles.iter().enumerate() {
             let start = 2 * c;
@@ -359,8 +415,9 @@ mod tests {
             );
             assert_eq!(
                 record.output.increment_q32, record.raw_increment_q32,
-                "compensation off"
+                "not compensated here"
             );
+            assert_eq!(record.output.correction_q32, 0);
             if c > 0 {
                 assert!(record.output.flags.is_empty(), "{:?}", record.output.flags);
                 assert!((record.dither_amplitude_rad as f64 / amp - 1.0).abs() < 1e-5);
@@ -371,56 +428,13 @@ mod tests {
         assert!(cycles[0].output.flags.contains(CycleFlags::DITHER_INVALID));
     }
 
-    /// With compensation on and the true coefficients, the correction removes the parabolic
-    /// traversal errors the readings carry: the compensated increment is rate x period to
-    /// 1e-5 of the 0.018 rad correction (f32 products and the measured k).
-    #[test]
-    fn compensation_removes_the_traversal_errors() {
-        let amp = core::f64::consts::TAU * 450.0 / 1.8655;
-        let (omega_l, eps) = (673.6_f64, 0.3_f64);
-        let accel = amp * (core::f64::consts::TAU * DITHER_HZ).powi(2);
-        let k = (core::f64::consts::TAU / accel).sqrt();
-        let rate = 46.8;
-        // The parabolic traversal error at the actual turnaround phase psi0.
-        let err = move |i: usize, psi0: f64| {
-            if i.is_multiple_of(2) {
-                omega_l * k * (psi0 + core::f64::consts::FRAC_PI_4).cos()
-            } else {
-                omega_l * k * (psi0 + core::f64::consts::FRAC_PI_4).sin()
-            }
-        };
-        let a = omega_l * (eps + core::f64::consts::FRAC_PI_4).cos();
-        let b = omega_l * (eps + core::f64::consts::FRAC_PI_4).sin();
-        // The photodiodes see psi_H = psi - eps.
-        let mut rs = readings(amp, rate, 61, err);
-        for r in &mut rs {
-            let psi = r.phase_q32 as f64 / Q32 * core::f64::consts::TAU;
-            r.levels = Some(LevelPair {
-                cos_psi_h: (psi - eps).cos() as f32,
-                sin_psi_h: (psi - eps).sin() as f32,
-            });
-        }
-        let mut comp = Compensator::new(CompensationSettings {
-            coefficients: Coefficients::from_rad_per_s(a as f32, b as f32).unwrap(),
-            enabled: true,
-        });
-        let cycles = run(&rs, &mut comp);
-        for record in cycles.iter().skip(1) {
-            let compensated = record.output.increment_q32 as f64 / Q32 * core::f64::consts::TAU;
-            let resid = compensated - rate / DITHER_HZ;
-            // f32 levels and products, the measured k and Q32 phase: 1e-4 of the correction.
-            assert!(resid.abs() < 1e-4 * omega_l * k, "resid {resid}");
-            assert!(record.output.correction_q32 != 0);
-        }
-    }
-
     /// A missing "-" turnaround: the cycle in progress is dropped and the next one flagged.
     #[test]
     fn a_missed_turnaround_is_flagged_not_misread() {
         let amp = 1500.0;
         let mut rs = readings(amp, 0.0, 30, |_, _| 0.0);
         rs.remove(11); // a "-" turnaround
-        let cycles = run(&rs, &mut Compensator::default());
+        let cycles = assemble(&rs);
         assert!(cycles
             .iter()
             .any(|c| c.output.flags.contains(CycleFlags::TURNAROUND_MISSED)));
@@ -432,20 +446,22 @@ mod tests {
         }
     }
 
+    /// A reading without levels flags its cycle SIGNAL_LOST: not compensable.
     #[test]
-    fn lost_signal_is_flagged_and_not_compensated() {
+    fn lost_signal_is_flagged() {
         let mut rs = readings(1500.0, 10.0, 20, |_, _| 0.0);
         rs[9].levels = None;
-        let mut comp = Compensator::new(CompensationSettings {
-            coefficients: Coefficients::from_rad_per_s(300.0, 400.0).unwrap(),
-            enabled: true,
-        });
-        let cycles = run(&rs, &mut comp);
+        let cycles = assemble(&rs);
         let lost: Vec<_> = cycles
             .iter()
             .filter(|c| c.output.flags.contains(CycleFlags::SIGNAL_LOST))
             .collect();
         assert_eq!(lost.len(), 1);
-        assert_eq!(lost[0].output.correction_q32, 0);
+        assert!(!lost[0].output.flags.compensable());
+        assert!(cycles[1].output.flags.compensable());
+        assert!(
+            !cycles[0].output.flags.compensable(),
+            "no dither measured yet"
+        );
     }
 }

@@ -1,5 +1,7 @@
-//! Turnaround prediction: pick-off comparator edges (capture-timer ticks) in, the instant to
-//! latch the fringe count and sample both photodiodes out.
+//! Stage 2, the turnaround: pick-off comparator edges (capture-timer ticks) in, the instant to
+//! latch the fringe count and sample both photodiodes out. What the latch takes is a
+//! [`crate::sample::TurnaroundSample`] (the hardware/logic boundary), which the readout hands
+//! to stages 1, 3 and 4.
 //!
 //! Plain logic, shared by the board (`board::turnaround`: TIM2 captures the edges, the compare
 //! fires the latch; registers, fixed delays and the atomic counters stay there) and the
@@ -27,8 +29,9 @@
 //! The input rate moves the turnaround (pitfall 3): the lock-in-free rate Omega_i + psi_ddot (t -
 //! t_p) is zero at `t_p - Omega_i/psi_ddot` for a "+" turnaround and `t_p + Omega_i/|psi_ddot|`
 //! for a "-" one. The cycle task computes `Omega_i/|psi_ddot|` in timer ticks from each cycle's
-//! rate and measured dither ([`rate_shift_ticks`]) and hands it to the next edges; at 1 deg/s of
-//! input it is 1.3 us, at Earth rate 6 ns.
+//! rate and measured dither ([`rate_shift_ticks`](crate::signal::output::rate_shift_ticks), in
+//! stage 6) and hands it to the next edges; at 1 deg/s of input it is 1.3 us, at Earth rate
+//! 6 ns. The feedback arrives as a plain `i32`, so this stage imports nothing of the later ones.
 //!
 //! Fixed delays subtracted ([`SchedulerConfig`], calibrated on a board with a scope on the
 //! compare's test point): the pick-off path (comparator, input filter, resynchronisation) and the
@@ -54,11 +57,9 @@
 //!
 //! # Cost
 //! `on_edge` is integer-only, no division (about 55 instructions on the M4 with the board's
-//! register code, `examples/board_cost.rs`); [`rate_shift_ticks`] runs once per cycle in the
+//! register code, `examples/board_cost.rs`); `output::rate_shift_ticks` runs once per cycle in the
 //! cycle task (single-precision floating point, one f64 conversion).
 
-use super::compensation::Q32_PER_FRINGE;
-use super::cycle::CycleRecord;
 use crate::sample::TurnaroundKind;
 
 /// A pick-off comparator edge.
@@ -77,6 +78,7 @@ pub enum Edge {
 pub struct Schedule {
     /// Capture-timer value at which to fire the compare (wrapping ticks).
     pub compare_ticks: u32,
+    /// Which turnaround the compare latches.
     pub kind: TurnaroundKind,
 }
 
@@ -95,8 +97,9 @@ pub struct EdgeOutcome {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SchedulerConfig {
-    /// Plausible interval between consecutive edges, ticks (inclusive).
+    /// Lower end of the plausible interval between consecutive edges, ticks (inclusive).
     pub min_half_ticks: u32,
+    /// Upper end of the plausible interval, ticks (inclusive).
     pub max_half_ticks: u32,
     /// Edge to capture: comparator, input filter, resynchronisation, ticks.
     pub pickoff_delay_ticks: u32,
@@ -146,6 +149,7 @@ pub struct Scheduler {
 }
 
 impl Scheduler {
+    /// No edge seen yet.
     pub const fn new() -> Self {
         Self {
             last: None,
@@ -160,7 +164,7 @@ impl Scheduler {
     }
 
     /// One edge captured at `t_ticks` (wrapping); `rate_shift_ticks` = Omega_i/|psi_ddot| in
-    /// ticks (signed, [`rate_shift_ticks`]). Integer only, no division.
+    /// ticks (signed, [`rate_shift_ticks`](crate::signal::output::rate_shift_ticks)). Integer only, no division.
     pub fn on_edge(
         &mut self,
         config: &SchedulerConfig,
@@ -223,23 +227,6 @@ pub fn opposite(kind: TurnaroundKind) -> TurnaroundKind {
     }
 }
 
-/// The input-rate shift `Omega_i / |psi_ddot|` of the next turnarounds, in ticks of a timer at
-/// `timer_hz`, from one cycle (docs/physics.md pitfall 3): Omega_i = the cycle's increment over its
-/// duration, psi_ddot = measured amplitude x (2 pi f)^2. The increment is the compensated one
-/// (the lock-in error removed: the best estimate of the input rate; with compensation off it is
-/// the raw increment). 0 without a usable dither or duration.
-pub fn rate_shift_ticks(record: &CycleRecord, timer_hz: u32) -> i32 {
-    let duration_s = record.output.duration_ticks as f32 / timer_hz as f32;
-    let fringes = (record.output.increment_q32 as f64 / Q32_PER_FRINGE) as f32;
-    let rate_rad_per_s = fringes * core::f32::consts::TAU / duration_s;
-    shift_ticks_for_rate(
-        rate_rad_per_s,
-        record.dither_amplitude_rad,
-        record.dither_hz,
-        timer_hz,
-    )
-}
-
 /// `Omega_i / |psi_ddot|` in ticks for a rate (rad/s of beat phase) and a sine dither of
 /// `amplitude_rad` (beat phase) at `dither_hz`: `psi_ddot = amplitude * (2 pi f)^2`. Clamped to
 /// +-T/16: beyond that the parabolic turnaround model no longer holds anyway. 0 for a
@@ -263,7 +250,6 @@ pub fn shift_ticks_for_rate(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::signal::output::CycleOutput;
 
     const TIMER_HZ: u32 = 84_000_000;
     /// One dither period at 389 Hz, ticks (rounded to even, so T/4 is exact).
@@ -427,56 +413,5 @@ mod tests {
         run(&mut s, 1_000, 2, 0, 0);
         s.reset();
         assert_eq!(s, Scheduler::new());
-    }
-
-    /// A record of one 389 Hz cycle advancing `fringes`, at the docs/physics.md dither amplitude.
-    fn record(fringes: f64, dither_hz: f32, amplitude_rad: f32) -> CycleRecord {
-        let duration_ticks = (TIMER_HZ as f64 / 389.0).round() as u32;
-        CycleRecord {
-            output: CycleOutput {
-                increment_q32: (fringes * Q32_PER_FRINGE).round() as i64,
-                duration_ticks,
-                ..Default::default()
-            },
-            raw_increment_q32: 0,
-            terms: Default::default(),
-            end_phase_q32: 0,
-            dither_amplitude_rad: amplitude_rad,
-            dither_hz,
-        }
-    }
-
-    #[test]
-    fn rate_shift_of_one_degree_per_second() {
-        // 1 deg/s = 3600 arcsec/s at SF 1.8655 arcsec/pulse; 450 arcsec amplitude, 389 Hz:
-        // Omega_i / (A w^2) = 1.34 us = 112 ticks, with the sign of the rate.
-        let sf = 1.8655;
-        let amplitude = (450.0 / sf * core::f64::consts::TAU) as f32;
-        let per_cycle = 3600.0 / sf / 389.0;
-        let plus = rate_shift_ticks(&record(per_cycle, 389.0, amplitude), TIMER_HZ);
-        let minus = rate_shift_ticks(&record(-per_cycle, 389.0, amplitude), TIMER_HZ);
-        assert!((110..=115).contains(&plus), "{plus} ticks");
-        assert_eq!(minus, -plus);
-        // Earth rate: a few ns.
-        let earth = rate_shift_ticks(&record(15.0 / sf / 389.0, 389.0, amplitude), TIMER_HZ);
-        assert_eq!(earth, 0);
-    }
-
-    #[test]
-    fn no_usable_dither_or_duration_gives_no_shift() {
-        let r = record(5.0, 389.0, 0.0);
-        assert_eq!(rate_shift_ticks(&r, TIMER_HZ), 0);
-        let r = record(5.0, 0.0, 1515.6);
-        assert_eq!(rate_shift_ticks(&r, TIMER_HZ), 0);
-        let mut r = record(5.0, 389.0, 1515.6);
-        r.output.duration_ticks = 0;
-        assert_eq!(rate_shift_ticks(&r, TIMER_HZ), 0);
-    }
-
-    #[test]
-    fn a_huge_rate_is_clamped_to_a_sixteenth_period() {
-        let r = record(1e5, 389.0, 1515.6);
-        let limit = (TIMER_HZ as f32 / 389.0 / 16.0) as i32;
-        assert_eq!(rate_shift_ticks(&r, TIMER_HZ), limit);
     }
 }

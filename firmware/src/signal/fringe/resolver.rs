@@ -3,25 +3,16 @@
 //!
 //! # Representation: [`FringePhase`], a 96-bit fixed point
 //!
-//! `turns: i64` whole fringes plus `fraction_q32: u32` (Q32 turns), i.e. psi_H / 2 pi =
-//! `turns + fraction_q32 / 2^32`. Resolution 2^-32 fringe; range 2^63 fringes (at the
+//! `turns: i64` whole fringes plus `fraction` (a [`Phase`], Q32 turns), i.e. psi_H / 2 pi =
+//! `turns + fraction / 2^32`. Resolution 2^-32 fringe; range 2^63 fringes (at the
 //! 590 kHz peak beat rate of the docs/physics.md set, 5e5 years): nothing is lost over days of
 //! running. The difference of two readings, [`FringePhase::delta_q32`], is an `i64` in Q32
-//! fringes (2^32 per fringe, the unit of [`crate::signal::compensation`]), exact for
+//! fringes (2^32 per fringe, [`crate::units`]), exact for
 //! |delta| < 2^31 fringes (one hour at the peak beat rate; a dither cycle is < 10^3 fringes)
 //! and saturating beyond.
 //!
-//! # Conventions (docs/physics.md pitfall 4)
-//!
-//! psi_H is defined as in the simulator: channel A ~ cos psi_H, channel B ~ sin psi_H, and the
-//! count increases with psi_H. With ideal comparators (A > 0, B > 0, see
-//! [`crate::signal::quadrature`]) `count = floor(psi_H / (pi/2)) + const`. A board that swaps
-//! or inverts channels or counts down declares it in [`FringeConvention`]; the orientation is
-//! an exact integer swap/negation of the normalised levels, so the levels handed to P1/P2
-//! ([`FringeConvention::orient`]) and the phase agree. A wrong convention shows up as
-//! permanent disagreement glitches (count direction) or cannot be seen here at all
-//! (a reflected pair of channels together with a reversed count): validate against the
-//! simulator's truth, as docs/physics.md says.
+//! The board's wiring (swapped or inverted channels, a down-counting register) is undone
+//! first by its [`FringeConvention`] (`convention.rs`, docs/physics.md pitfall 4).
 //!
 //! # Resolving the turn
 //!
@@ -54,72 +45,18 @@
 //! the reading falls back to the centre of the count's quadrant (error <= 1/8 turn) and is
 //! flagged.
 
-use crate::signal::fractional_fringe::{atan2_q32, radius_sq_q30};
-use crate::signal::lissajous::NormalisedLevels;
+use super::convention::FringeConvention;
+use super::levels::NormalisedLevels;
+use crate::units::{Phase, TotalPhase, Q32_PER_FRINGE};
 
-/// Eighth of a turn in Q32 turns: half a quadrant.
-const EIGHTH_TURN_Q32: u32 = 1 << 29;
 /// Disagreement beyond which a reading is a glitch: 3/8 turn (more than a quadrant outside).
 pub const GLITCH_DISAGREEMENT_Q32: u32 = 3 << 29;
-
-/// How the board's channels and counter relate to psi_H (see the module docs).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct FringeConvention {
-    /// Photodiode channels A and B are swapped (A ~ sin psi_H, B ~ cos psi_H). Applied first.
-    pub swap_channels: bool,
-    /// Channel A (after the swap) is inverted: A ~ -cos psi_H.
-    pub invert_a: bool,
-    /// Channel B (after the swap) is inverted: B ~ -sin psi_H.
-    pub invert_b: bool,
-    /// The counter counts down when psi_H increases.
-    pub count_down: bool,
-}
-
-impl FringeConvention {
-    /// The simulator's convention: nothing swapped or inverted, counting up.
-    pub const STANDARD: Self = Self {
-        swap_channels: false,
-        invert_a: false,
-        invert_b: false,
-        count_down: false,
-    };
-
-    /// Board levels -> (cos psi_H, sin psi_H): exact integer swap and negation.
-    #[inline]
-    pub const fn orient(&self, levels: NormalisedLevels) -> NormalisedLevels {
-        let (mut c, mut s) = if self.swap_channels {
-            (levels.sin_q30, levels.cos_q30)
-        } else {
-            (levels.cos_q30, levels.sin_q30)
-        };
-        if self.invert_a {
-            c = c.saturating_neg();
-        }
-        if self.invert_b {
-            s = s.saturating_neg();
-        }
-        NormalisedLevels {
-            cos_q30: c,
-            sin_q30: s,
-        }
-    }
-
-    /// Board count -> count increasing with psi_H (wrapping negation).
-    #[inline]
-    pub const fn orient_count(&self, count: i64) -> i64 {
-        if self.count_down {
-            count.wrapping_neg()
-        } else {
-            count
-        }
-    }
-}
 
 /// Settings of the resolver (immutable, `Copy`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FringePhaseConfig {
+    /// The board's channel and count wiring.
     pub convention: FringeConvention,
     /// `(count + quadrant_offset) mod 4` is psi_H's quadrant (ideal comparators); `None`:
     /// learn it at the first reading with a good signal.
@@ -146,14 +83,14 @@ impl Default for FringePhaseConfig {
     }
 }
 
-/// psi_H / 2 pi = `turns + fraction_q32 / 2^32` fringes (96-bit fixed point).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord)]
+/// psi_H / 2 pi = `turns + fraction / 2^32` fringes (96-bit fixed point), ordered by value.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FringePhase {
     /// Whole fringes.
     pub turns: i64,
     /// Position inside the fringe, Q32 turns.
-    pub fraction_q32: u32,
+    pub fraction: Phase,
 }
 
 impl FringePhase {
@@ -165,7 +102,7 @@ impl FringePhase {
         let within = ((m & 3) << 30) + offset_q32; // in (-2^32, 2^33)
         Self {
             turns: k.wrapping_add(within >> 32),
-            fraction_q32: within as u32,
+            fraction: Phase::from_bits(within as u32),
         }
     }
 
@@ -181,13 +118,32 @@ impl FringePhase {
     #[inline]
     pub fn delta_fringes_f64(&self, earlier: &FringePhase) -> f64 {
         let d = self.as_q32_i128() - earlier.as_q32_i128();
-        d as f64 * (1.0 / 4_294_967_296.0)
+        d as f64 * (1.0 / Q32_PER_FRINGE)
     }
 
     /// The whole value in Q32 fringes (96 significant bits in an `i128`).
     #[inline]
     pub fn as_q32_i128(&self) -> i128 {
-        ((self.turns as i128) << 32) + self.fraction_q32 as i128
+        ((self.turns as i128) << 32) + self.fraction.to_bits() as i128
+    }
+
+    /// The value as a [`TotalPhase`] (Q32 fringes wrapped to 64 bits): what the cycle
+    /// assembler takes differences of.
+    #[inline]
+    pub fn total(&self) -> TotalPhase {
+        TotalPhase::from_q32(self.as_q32_i128() as i64)
+    }
+}
+
+impl Ord for FringePhase {
+    fn cmp(&self, other: &Self) -> core::cmp::Ordering {
+        self.as_q32_i128().cmp(&other.as_q32_i128())
+    }
+}
+
+impl PartialOrd for FringePhase {
+    fn partial_cmp(&self, other: &Self) -> Option<core::cmp::Ordering> {
+        Some(self.cmp(other))
     }
 }
 
@@ -195,6 +151,7 @@ impl FringePhase {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FringeReading {
+    /// The total beat phase: count plus fractional fringe.
     pub phase: FringePhase,
     /// The normalised levels in the psi_H orientation (for P1/P2).
     pub levels: NormalisedLevels,
@@ -283,7 +240,7 @@ impl FringeResolver {
         // |d| < 2^31, |old| < 2^(31 + MEAN_SHIFT): no overflow.
         let mean = old + ((((d as i64) << MEAN_SHIFT) - old) >> shift);
         self.mean_disagreement_scaled = mean;
-        let limit = (EIGHTH_TURN_Q32 as i64) << MEAN_SHIFT;
+        let limit = (Phase::EIGHTH_TURN.to_bits() as i64) << MEAN_SHIFT;
         let quadrant = 1i64 << (30 + MEAN_SHIFT);
         if let (None, Some(o)) = (config.quadrant_offset, self.learned_offset) {
             if mean > limit {
@@ -305,31 +262,34 @@ impl FringeResolver {
     ) -> FringeReading {
         let levels = config.convention.orient(board_levels);
         let n = config.convention.orient_count(count);
-        let r2 = radius_sq_q30(levels.cos_q30, levels.sin_q30);
+        let r2 = levels.radius_sq_q30();
         if r2 < config.min_radius_sq_q30 || r2 > config.max_radius_sq_q30 {
             self.signal_lost = self.signal_lost.saturating_add(1);
             let offset = self.quadrant_offset(config).unwrap_or(0);
             return FringeReading {
-                phase: FringePhase::from_quarters(n.wrapping_add(offset), EIGHTH_TURN_Q32 as i64),
+                phase: FringePhase::from_quarters(
+                    n.wrapping_add(offset),
+                    Phase::EIGHTH_TURN.to_bits() as i64,
+                ),
                 levels,
                 disagreement_q32: 0,
                 glitch: false,
                 signal_lost: true,
             };
         }
-        let phi = atan2_q32(levels.sin_q30, levels.cos_q30);
+        let phi = levels.fractional_fringe();
         let offset = match self.quadrant_offset(config) {
             Some(o) => o,
             None => {
                 // The quadrant containing phi; `& 3` is the Euclidean remainder mod 4.
-                let o = ((phi >> 30) as i64).wrapping_sub(n) & 3;
+                let o = (phi.quadrant() as i64).wrapping_sub(n) & 3;
                 self.learned_offset = Some(o);
                 o
             }
         };
         let m = n.wrapping_add(offset);
-        let centre_q32 = (((m & 3) as u32) << 30) + EIGHTH_TURN_Q32;
-        let d = phi.wrapping_sub(centre_q32) as i32;
+        let centre = Phase::from_bits(((m & 3) as u32) << 30) + Phase::EIGHTH_TURN;
+        let d = (phi - centre).to_signed();
         let glitch = d.unsigned_abs() > GLITCH_DISAGREEMENT_Q32;
         if glitch {
             self.glitches = self.glitches.saturating_add(1);
@@ -337,7 +297,7 @@ impl FringeResolver {
             self.track_mean(config, d);
         }
         FringeReading {
-            phase: FringePhase::from_quarters(m, EIGHTH_TURN_Q32 as i64 + d as i64),
+            phase: FringePhase::from_quarters(m, Phase::EIGHTH_TURN.to_bits() as i64 + d as i64),
             levels,
             disagreement_q32: d,
             glitch,
@@ -348,9 +308,9 @@ impl FringeResolver {
 
 #[cfg(test)]
 mod tests {
+    use super::super::levels::LissajousCoefficients;
     use super::*;
-    use crate::signal::lissajous::LissajousCoefficients;
-    use crate::signal::quadrature::QuadratureDecoder;
+    use crate::math::atan2_q32;
     use std::f64::consts::TAU;
 
     use crate::test_rng::XorShift;
@@ -371,7 +331,7 @@ mod tests {
 
     /// Error of a reading against the truth psi/2pi (mod the learned constant `base`), turns.
     fn error_turns(reading: &FringeReading, psi: f64, base: f64) -> f64 {
-        let got = reading.phase.as_q32_i128() as f64 / 4_294_967_296.0;
+        let got = reading.phase.as_q32_i128() as f64 / Q32_PER_FRINGE;
         got - psi / TAU - base
     }
 
@@ -387,7 +347,7 @@ mod tests {
             let mut rng = XorShift(11 + i as u64);
             let mut psi = 0.3;
             let first = r.resolve(&cfg, count(psi, delta, 12_345), levels(psi));
-            let base = first.phase.as_q32_i128() as f64 / 4_294_967_296.0 - psi / TAU;
+            let base = first.phase.as_q32_i128() as f64 / Q32_PER_FRINGE - psi / TAU;
             // The base is a whole number of turns when the count edges are ideal.
             for step in 0..100_000 {
                 psi += (rng.uniform() - 0.5) * 2e4;
@@ -403,13 +363,13 @@ mod tests {
                 );
                 if step > 5000 {
                     // After the learned offset has settled.
-                    let bound = (0.125 + delta.abs() / TAU) * 4_294_967_296.0 + 64.0;
+                    let bound = (0.125 + delta.abs() / TAU) * Q32_PER_FRINGE + 64.0;
                     assert!(reading.disagreement_q32.unsigned_abs() as f64 <= bound);
                 }
             }
             assert_eq!(r.glitches(), 0);
             // The mean disagreement estimates the comparator offset (uniform phi; EMA noise ~1 deg rms: 8 deg).
-            let mean = r.mean_disagreement_q32() as f64 / 4_294_967_296.0 * TAU;
+            let mean = r.mean_disagreement_q32() as f64 / Q32_PER_FRINGE * TAU;
             println!(
                 "delta {delta_deg} deg: mean disagreement {:.1} deg",
                 mean.to_degrees()
@@ -528,7 +488,7 @@ mod tests {
         assert!(reading.signal_lost);
         // m = 31 quarters -> 7 turns + 3/4 + 1/8.
         assert_eq!(reading.phase.turns, 7);
-        assert_eq!(reading.phase.fraction_q32, (3 << 30) + (1 << 29));
+        assert_eq!(reading.phase.fraction.to_bits(), (3 << 30) + (1 << 29));
         assert_eq!(r.signal_lost(), 1);
     }
 
@@ -550,11 +510,11 @@ mod tests {
         assert!((b.phase.delta_fringes_f64(&a.phase) - 0.25).abs() < 1e-8);
         let far = FringePhase {
             turns: i64::MAX,
-            fraction_q32: 0,
+            fraction: Phase::ZERO,
         };
         let near = FringePhase {
             turns: i64::MIN,
-            fraction_q32: 0,
+            fraction: Phase::ZERO,
         };
         assert_eq!(far.delta_q32(&near), i64::MAX);
         assert_eq!(near.delta_q32(&far), i64::MIN);
@@ -594,21 +554,20 @@ mod tests {
             let reading = r.resolve(&cfg, count, lv);
             if !reading.signal_lost {
                 let o = cfg.convention.orient(lv);
-                assert_eq!(reading.phase.fraction_q32, atan2_q32(o.sin_q30, o.cos_q30));
+                assert_eq!(reading.phase.fraction, atan2_q32(o.sin_q30, o.cos_q30));
             }
         }
     }
 
-    /// The chain from raw samples: comparator states through the software decoder, 12-bit
-    /// codes through nominal coefficients, into the resolver. Tolerance 2e-3 rad: the 12-bit
-    /// quantisation of the codes (0.5 code on a 2047-code radius = 2.4e-4 rad) with margin.
+    /// The chain from raw samples: the count of ideal comparators (what the encoder timer
+    /// counts), 12-bit codes through nominal coefficients, into the resolver. Tolerance 2e-3
+    /// rad: the 12-bit quantisation of the codes (0.5 code on a 2047-code radius = 2.4e-4 rad)
+    /// with margin.
     #[test]
     fn chain_from_samples() {
         let mut rng = XorShift(5);
-        let state = |psi: f64| ((psi.sin() > 0.0) as u8) << 1 | (psi.cos() > 0.0) as u8;
         let code = |x: f64| (2048.0 + 2047.0 * x).round() as u16;
         let mut psi: f64 = 1.0;
-        let mut decoder = QuadratureDecoder::new(state(psi));
         let coeffs = LissajousCoefficients::NOMINAL;
         let cfg = FringePhaseConfig {
             quadrant_offset: Some(0),
@@ -617,23 +576,20 @@ mod tests {
         let mut resolver = FringeResolver::new();
         let first = resolver.resolve(
             &cfg,
-            decoder.count(),
+            count(psi, 0.0, 0),
             coeffs.normalise(code(psi.cos()), code(psi.sin())),
         );
         let psi0 = psi;
         for _ in 0..20_000 {
-            // Sub-quadrant steps so the decoder sees every edge.
             psi += (rng.uniform() - 0.45) * 1.5;
-            decoder.step(state(psi));
             let reading = resolver.resolve(
                 &cfg,
-                decoder.count(),
+                count(psi, 0.0, 0),
                 coeffs.normalise(code(psi.cos()), code(psi.sin())),
             );
             assert!(!reading.glitch);
             let got = reading.phase.delta_fringes_f64(&first.phase) * TAU;
             assert!((got - (psi - psi0)).abs() < 2e-3, "{got} vs {}", psi - psi0);
         }
-        assert_eq!(decoder.illegal_transitions(), 0);
     }
 }

@@ -1,4 +1,5 @@
-//! Extends the hardware x4 encoder register to a 64-bit fringe count, with glitch detection.
+//! Stage 1, the count: extends the hardware x4 encoder register to a 64-bit fringe count, with
+//! glitch detection.
 //!
 //! The encoder timer counts x4 edges (quarter fringes) up and down in a 16- or 32-bit register
 //! that wraps. Between two reads the difference `raw - previous_raw`, taken modulo 2^width and
@@ -17,13 +18,13 @@
 //! - after [`FringeCountConfig::resync_after`] consecutive glitches the register is taken to
 //!   have really jumped (e.g. reset): the raw value becomes the new reference with the count
 //!   still held ([`CountUpdate::Resynced`]). The motion during the glitch is lost; the fractional
-//!   fringe of [`crate::signal::fringe_phase`] then flags the quadrant disagreement.
+//!   fringe of [`crate::signal::fringe`] then flags the quadrant disagreement.
 //!
 //! Never panics: all arithmetic is wrapping on `u32`/`i64`.
 //!
 //! Sign: the count goes up when psi_H increases if the encoder inputs are wired A -> TI1,
 //! B -> TI2 in the timer's default polarity; the count sign is a board convention handled in
-//! [`crate::signal::fringe_phase::FringeConvention`].
+//! [`crate::signal::fringe::FringeConvention`].
 
 /// Width of the hardware encoder register.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -1,4 +1,5 @@
-//! P1 and P2: the per-cycle regressors of the dynamic lock-in error (docs/physics.md, Eq. 18).
+//! P1 and P2: the per-cycle regressors of the dynamic lock-in error (docs/physics.md, Eq. 18),
+//! one traversal's share at a time.
 //!
 //! Each crossing of the lock-in zone at a dither turnaround loses a phase that the parabolic
 //! approximation gives as (k = sqrt(2 pi / |psi_ddot|), eps the photodiode phase offset):
@@ -39,7 +40,9 @@ pub struct LevelPair {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LockinTerms {
+    /// P1, seconds (the regressor of a).
     pub p1_s: f32,
+    /// P2, seconds (the regressor of b).
     pub p2_s: f32,
 }
 

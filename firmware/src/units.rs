@@ -1,0 +1,140 @@
+//! The units of the signal chain, defined once.
+//!
+//! Phase is counted in fringes: one fringe is one period of the beat signal, 2 pi rad of beat
+//! phase psi_H, four x4 counts of the encoder, SF arcsec of rotation. Inside the chain phases
+//! are fixed point in **Q32 fringes** (2^32 per fringe): a `u32` for a phase within one fringe
+//! (so wrapping arithmetic is fringe arithmetic), an `i64` for totals and increments (2^31
+//! fringes of range). Radians appear only where the physics needs them (P1/P2, the
+//! compensation); deg/h only at the rate output.
+
+/// One fringe (2 pi rad of beat phase) in Q32 fringes: 2^32, as `f64` for conversions.
+pub const Q32_PER_FRINGE: f64 = 4_294_967_296.0;
+
+/// A phase angle in **Q32 turns**: a full turn (2 pi rad; in the chain one fringe) is 2^32, so
+/// the wrapping arithmetic of the operators is turn arithmetic; one LSB is 2^-32 turn =
+/// 1.46e-9 rad. The fractional fringe (`math::atan2_q32` of the normalised levels) is one.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Phase(u32);
+
+impl Phase {
+    /// 0 (along +x).
+    pub const ZERO: Self = Self(0);
+    /// 1/8 turn: half a quadrant (45 deg).
+    pub const EIGHTH_TURN: Self = Self(1 << 29);
+    /// 1/4 turn (90 deg, one x4 count).
+    pub const QUARTER_TURN: Self = Self(1 << 30);
+    /// 1/2 turn (180 deg).
+    pub const HALF_TURN: Self = Self(1 << 31);
+
+    /// The phase whose Q32 value (turns * 2^32, modulo 2^32) is `bits`.
+    #[inline]
+    pub const fn from_bits(bits: u32) -> Self {
+        Self(bits)
+    }
+
+    /// The Q32 value in [0, 2^32): [0, 1) turn.
+    #[inline]
+    pub const fn to_bits(self) -> u32 {
+        self.0
+    }
+
+    /// The same angle as a signed Q32 value in [-2^31, 2^31): [-1/2, 1/2) turn.
+    #[inline]
+    pub const fn to_signed(self) -> i32 {
+        self.0 as i32
+    }
+
+    /// The quadrant, 0..=3: the angle's two top bits.
+    #[inline]
+    pub const fn quadrant(self) -> u32 {
+        self.0 >> 30
+    }
+}
+
+impl core::ops::Add for Phase {
+    type Output = Self;
+    /// Wrapping: modulo a turn.
+    #[inline]
+    fn add(self, other: Self) -> Self {
+        Self(self.0.wrapping_add(other.0))
+    }
+}
+
+impl core::ops::Sub for Phase {
+    type Output = Self;
+    /// Wrapping: modulo a turn ([`Phase::to_signed`] reads it as the signed difference).
+    #[inline]
+    fn sub(self, other: Self) -> Self {
+        Self(self.0.wrapping_sub(other.0))
+    }
+}
+
+impl core::ops::Neg for Phase {
+    type Output = Self;
+    /// Wrapping: the angle mirrored about +x.
+    #[inline]
+    fn neg(self) -> Self {
+        Self(self.0.wrapping_neg())
+    }
+}
+
+/// A total beat phase in Q32 fringes: an `i64` of 2^32 per fringe that wraps at 2^32 fringes,
+/// as latched at a turnaround (count plus fractional fringe). Only differences mean anything:
+/// `later - earlier` is the increment in Q32 fringes, exact (wrapping) while it is below 2^31
+/// fringes (one hour at the 590 kHz peak beat rate; a dither cycle is < 10^3 fringes).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TotalPhase(i64);
+
+impl TotalPhase {
+    /// The total phase whose Q32 value (fringes * 2^32, modulo 2^64) is `q32`.
+    #[inline]
+    pub const fn from_q32(q32: i64) -> Self {
+        Self(q32)
+    }
+
+    /// The Q32 value (fringes * 2^32), wrapped to `i64`.
+    #[inline]
+    pub const fn to_q32(self) -> i64 {
+        self.0
+    }
+}
+
+impl core::ops::Sub for TotalPhase {
+    type Output = i64;
+    /// The increment `self - earlier` in Q32 fringes (wrapping).
+    #[inline]
+    fn sub(self, earlier: Self) -> i64 {
+        self.0.wrapping_sub(earlier.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn phase_wraps_by_the_turn() {
+        let three_quarters = Phase::HALF_TURN + Phase::QUARTER_TURN;
+        assert_eq!(three_quarters.quadrant(), 3);
+        assert_eq!(three_quarters + Phase::QUARTER_TURN, Phase::ZERO);
+        assert_eq!((Phase::ZERO - Phase::QUARTER_TURN).to_signed(), -(1 << 30));
+        assert_eq!(-Phase::QUARTER_TURN, three_quarters);
+        assert_eq!(Phase::HALF_TURN.to_signed(), i32::MIN);
+        assert_eq!(Phase::from_bits(7).to_bits(), 7);
+        assert_eq!(Q32_PER_FRINGE, (1u64 << 32) as f64);
+    }
+
+    #[test]
+    fn total_phase_differences_wrap() {
+        let a = TotalPhase::from_q32(i64::MAX);
+        let b = TotalPhase::from_q32(i64::MIN);
+        assert_eq!(b - a, 1);
+        assert_eq!(a - b, -1);
+        assert_eq!(
+            TotalPhase::from_q32(5 << 32) - TotalPhase::from_q32(3 << 32),
+            2 << 32
+        );
+    }
+}
