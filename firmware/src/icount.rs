@@ -11,7 +11,9 @@ use crate::rt::pac;
 /// Which 32-bit general-purpose timer counts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Timer {
+    /// TIM2, the default.
     Tim2,
+    /// TIM5, for programs that use TIM2 themselves (`board_cost`).
     Tim5,
 }
 

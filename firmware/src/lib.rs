@@ -10,6 +10,7 @@
 //! assembly) -> compensation -> output; [`readout`] wires it. Units in one place ([`units`]:
 //! Q32 fringes, the wrapping [`units::Phase`]); generic bit-exact maths in [`math`].
 #![cfg_attr(not(test), no_std)]
+#![warn(missing_docs)]
 
 pub mod calibration;
 pub mod math;

@@ -28,15 +28,19 @@ compile_error!(
 /// Where the linker put things, read from the symbols of `memory.x` and cortex-m-rt's `link.x`.
 #[derive(Clone, Copy, Debug, defmt::Format)]
 pub struct MemoryMap {
+    /// Start of flash and of the code, 0x0800_0000.
     pub flash_start: u32,
     /// First byte after code, read-only data and the initial values of `.data`.
     pub flash_end: u32,
     /// Calibration store: the last two 128 KiB sectors (10 and 11), never used for code.
     pub calibration_start: u32,
+    /// First byte after the calibration store.
     pub calibration_end: u32,
+    /// Start of SRAM.
     pub ram_start: u32,
     /// First byte after `.data`, `.bss` and `.uninit`; the stack grows down towards it.
     pub static_ram_end: u32,
+    /// Initial stack pointer: the top of SRAM.
     pub stack_top: u32,
 }
 
@@ -62,6 +66,7 @@ impl MemoryMap {
     /// Flash sector size of sectors 5 to 11.
     pub const SECTOR_BYTES: u32 = 128 * 1024;
 
+    /// The map of this image, from the linker symbols.
     pub fn linked() -> Self {
         Self {
             flash_start: 0x0800_0000,

@@ -99,7 +99,10 @@ impl Default for FlashTiming {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum EraseCut {
     /// The first `erased_bytes` bytes of the sector are erased, the rest unchanged.
-    Prefix { erased_bytes: usize },
+    Prefix {
+        /// Bytes erased from the sector's start (capped at the sector size).
+        erased_bytes: usize,
+    },
     /// A seeded random prefix is erased, the rest unchanged.
     RandomPrefix,
     /// Every programmed (0) bit of the sector is found erased with probability 1/2, seeded.
@@ -112,7 +115,12 @@ pub enum PowerCut {
     /// When this many more bytes have been programmed.
     AfterBytes(usize),
     /// During the sector erase that follows `erases_before` complete sector erases.
-    InErase { erases_before: u32, cut: EraseCut },
+    InErase {
+        /// Sector erases completed first (0: the next erase is cut).
+        erases_before: u32,
+        /// What the cut erase leaves in its sector.
+        cut: EraseCut,
+    },
 }
 
 /// Errors of the simulated flash.
@@ -123,7 +131,10 @@ pub enum FlashError {
     /// Range outside the flash.
     OutOfBounds,
     /// Programming the word at `offset` would need a 0 -> 1 transition.
-    Programming { offset: u32 },
+    Programming {
+        /// Byte offset of the refused word from the flash's start (word-aligned).
+        offset: u32,
+    },
     /// The power is off (cut during this or an earlier operation).
     PowerCut,
 }

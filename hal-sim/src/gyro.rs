@@ -31,6 +31,7 @@ use std::collections::VecDeque;
 pub struct Turnaround {
     /// Exact zero of the lock-in-free rate, s.
     pub time_s: f64,
+    /// Which way the rate crosses zero (`Plus`: beat phase at a minimum).
     pub kind: TurnaroundKind,
     /// Beat phase at the instant, rad (unwrapped).
     pub psi_rad: f64,
@@ -43,12 +44,14 @@ pub struct Turnaround {
 /// One traversal of the lock-in zone (a near region containing exactly one turnaround).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Traversal {
+    /// The turnaround inside the near region.
     pub turnaround: Turnaround,
     /// Change of the slow lock-in phase `chi` across the near region, rad: the lock-in phase
     /// error of this traversal with the far-field oscillation removed at both ends.
     pub lockin_error_rad: f64,
-    /// Where the near region begins and ends, s.
+    /// Start of the near region, s.
     pub near_start_s: f64,
+    /// End of the near region, s: when the traversal is logged.
     pub near_end_s: f64,
 }
 

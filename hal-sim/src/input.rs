@@ -49,17 +49,25 @@ pub enum InputProfile {
     Piecewise(PiecewiseRate),
     /// `offset + amplitude sin(2 pi f t + phase)`.
     Sinusoid {
+        /// Constant part, deg/h.
         offset_deg_per_h: f64,
+        /// Peak of the sinusoidal part, deg/h.
         amplitude_deg_per_h: f64,
+        /// Frequency of the sinusoidal part, Hz (0: a constant `amplitude sin(phase)`).
         freq_hz: f64,
+        /// Phase of the sinusoidal part at t = 0, rad.
         phase_rad: f64,
     },
     /// Earth rate on a horizontal sensitive axis on a table turning about the vertical:
     /// `Omega_E cos(L) cos(alpha0 + rho t)` (see the module docs).
     RotaryTable {
+        /// Earth rate `Omega_E`, deg/h (15 solar, 15.041 sidereal).
         earth_rate_deg_per_h: f64,
+        /// Latitude `L`, rad.
         latitude_rad: f64,
+        /// Azimuth `alpha0` of the sensitive axis at t = 0, rad from north.
         azimuth0_rad: f64,
+        /// Table rate `rho` about the vertical, rad/s (0: a fixed table).
         table_rate_rad_per_s: f64,
     },
 }

@@ -12,6 +12,8 @@
 //! The board's facts (timer clock, counter width, latch delays, dither range) are the
 //! firmware's (`firmware::profile::BoardProfile::F405`), not repeated here.
 
+#![warn(missing_docs)]
+
 pub mod dither;
 pub mod gyro;
 pub mod input;

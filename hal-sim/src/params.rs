@@ -130,6 +130,7 @@ pub struct GyroParams {
     /// Applied per integration segment (at most ~1.3 ms long), so a drift must be slow: well
     /// below 1e-3 relative per segment.
     pub lock_in_drift_per_s: f64,
+    /// End of the lock-in drift, s: Omega_L keeps the value reached then.
     pub lock_in_drift_until_s: f64,
     /// Integrator settings.
     pub solver: SolverParams,

@@ -22,15 +22,21 @@ use hal_sim::params::GyroParams;
 /// A run's timing: warm-up (discarded) and recording, simulated seconds.
 #[derive(Clone, Copy, Debug)]
 pub struct RunLength {
+    /// Simulated time before recording, s; the cycles closed in it are discarded.
     pub warmup_s: f64,
+    /// Simulated time recorded after the warm-up, s.
     pub record_s: f64,
 }
 
 /// Why an experiment failed.
 #[derive(Debug)]
 pub enum ExperimentError {
+    /// The simulated board refused its parameters (the text says why), or a run closed no
+    /// dither cycle.
     Simulator(String),
+    /// The calibration fit has too few cycles, or P1 and P2 cannot be separated.
     Fit(SolveError),
+    /// The fitted a or b is not finite or out of the coefficients' range.
     Coefficients(CoefficientError),
 }
 
@@ -123,8 +129,11 @@ pub fn settings_from_fit(fit: &FitResult) -> Result<CompensationSettings, Experi
 /// Output rates of one input rate, fringes/s (= beat frequency, Hz).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MeasuredRate {
+    /// Output without the lock-in correction (count plus fractional fringe), fringes/s.
     pub uncompensated_hz: f64,
+    /// Output with the lock-in correction subtracted, fringes/s.
     pub compensated_hz: f64,
+    /// Dither cycles averaged: every cycle closed after the warm-up.
     pub cycles: u32,
 }
 

@@ -3,6 +3,8 @@
 //! Used by the `rlg-sim` CLI and by the workspace's system tests (`tests/`), so that the tests
 //! check exactly what the CLI prints.
 
+#![warn(missing_docs)]
+
 pub mod experiment;
 pub mod plot;
 pub mod report;

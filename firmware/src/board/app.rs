@@ -31,17 +31,29 @@ const HEALTH_LOG_MS: u32 = 10_000;
 /// The board-level loss counters the protocol's `status` does not carry, for the defmt log.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, defmt::Format)]
 pub struct Health {
+    /// Turnarounds skipped: the compare could not be armed in time (`turnaround::LATE`).
     pub turnarounds_late: u32,
+    /// Pick-off edges outside the plausible half-period range (`turnaround::IMPLAUSIBLE`).
     pub pickoff_implausible: u32,
+    /// Compare matches nobody armed, discarded (`turnaround::UNARMED`).
     pub latches_unarmed: u32,
+    /// Turnaround latches overwritten before the latch handler read them.
     pub latches_overwritten: u32,
+    /// Turnaround samples lost: the readout task fell 16 behind.
     pub turnarounds_dropped: u32,
+    /// Cycle records the main loop did not take in time.
     pub records_dropped: u32,
+    /// Lissajous DMA halves completed again before the readout task processed them.
     pub lissajous_block_overruns: u32,
+    /// DMA2 stream 0 transfer errors.
     pub dma_errors: u32,
+    /// USART1 receive overruns (bytes lost in hardware).
     pub usart_overruns: u32,
+    /// USART1 framing or noise errors.
     pub usart_line_errors: u32,
+    /// Received bytes dropped on a full RX queue.
     pub usart_rx_dropped: u32,
+    /// Stream frames dropped on a full TX queue (the service's count).
     pub frames_dropped: u32,
 }
 

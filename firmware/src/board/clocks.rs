@@ -93,18 +93,25 @@ pub fn init(rcc: &pac::RCC, flash: &pac::FLASH) -> ClockSource {
 }
 
 // Peripheral clock enables (RCC_AHB1ENR, APB1ENR, APB2ENR bit numbers).
-/// GPIOA, GPIOB, GPIOC, DMA2.
+/// GPIOA clock enable (AHB1ENR).
 pub const AHB1_GPIOA: u32 = 1 << 0;
+/// GPIOB clock enable (AHB1ENR).
 pub const AHB1_GPIOB: u32 = 1 << 1;
+/// GPIOC clock enable (AHB1ENR).
 pub const AHB1_GPIOC: u32 = 1 << 2;
+/// DMA2 clock enable (AHB1ENR).
 pub const AHB1_DMA2: u32 = 1 << 22;
-/// TIM2, TIM3, TIM5.
+/// TIM2 clock enable (APB1ENR).
 pub const APB1_TIM2: u32 = 1 << 0;
+/// TIM3 clock enable (APB1ENR).
 pub const APB1_TIM3: u32 = 1 << 1;
+/// TIM5 clock enable (APB1ENR).
 pub const APB1_TIM5: u32 = 1 << 3;
-/// USART1, ADC1, ADC2.
+/// USART1 clock enable (APB2ENR).
 pub const APB2_USART1: u32 = 1 << 4;
+/// ADC1 clock enable (APB2ENR).
 pub const APB2_ADC1: u32 = 1 << 8;
+/// ADC2 clock enable (APB2ENR).
 pub const APB2_ADC2: u32 = 1 << 9;
 
 /// Turns on peripheral clocks (read back once: RM0090 erratum-style delay of two AHB cycles

@@ -86,6 +86,7 @@ pub struct InternalFlash {
 }
 
 impl InternalFlash {
+    /// Takes the flash interface; it is unlocked only for a write or an erase.
     pub fn new(regs: pac::FLASH) -> Self {
         Self { regs }
     }

@@ -17,7 +17,9 @@ use crate::service::ports::{Clock, ReadoutAccess, SerialTx};
 
 /// What the main loop hands the service.
 pub struct BoardPorts {
+    /// The main loop's side of USART1, the protocol's serial link.
     pub serial: SerialPort,
+    /// The IWDG, refreshed every loop pass and every wait (`None`: no watchdog).
     pub watchdog: Option<Watchdog>,
     /// The turnaround and Lissajous hardware runs (false in the QEMU serial test: an idle
     /// readout, only its task and lock exist).

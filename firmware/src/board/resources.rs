@@ -58,11 +58,17 @@ use pac::Interrupt;
 
 /// NVIC priorities (the F405 implements the upper 4 bits).
 pub mod priority {
+    /// `ADC` (JEOC): the turnaround latch, the highest.
     pub const TURNAROUND_LATCH: u8 = 0x00;
+    /// `TIM2` (CC3/CC4): the pick-off handler.
     pub const PICKOFF: u8 = 0x10;
+    /// `USART1`: the serial link.
     pub const SERIAL: u8 = 0x20;
+    /// `DMA2_STREAM0` (HT/TC): a Lissajous block ready.
     pub const LISSAJOUS_DMA: u8 = 0x30;
+    /// `SysTick`: the millisecond tick.
     pub const TICK: u8 = 0x30;
+    /// `EXTI1` (software-pended): the readout task, the lowest interrupt.
     pub const READOUT_TASK: u8 = 0x40;
 }
 
@@ -72,9 +78,9 @@ pub const READOUT_TASK_IRQ: Interrupt = Interrupt::EXTI1;
 const TURNAROUND_QUEUE: usize = 17; // 16 usable
 const RECORD_QUEUE: usize = 33; // 32 usable
 
-/// Turnarounds lost because the readout task fell 16 behind; cycle records the main loop did not
-/// take in time.
+/// Turnarounds lost because the readout task fell 16 behind.
 pub static TURNAROUNDS_DROPPED: AtomicU32 = AtomicU32::new(0);
+/// Cycle records the main loop did not take in time.
 pub static RECORDS_DROPPED: AtomicU32 = AtomicU32::new(0);
 /// Milliseconds since start (SysTick), wrapping.
 static MILLIS: AtomicU32 = AtomicU32::new(0);
@@ -91,6 +97,7 @@ pub struct PriorityLock<T> {
 unsafe impl<T: Send> Sync for PriorityLock<T> {}
 
 impl<T> PriorityLock<T> {
+    /// An empty lock at `ceiling`, the NVIC priority of its highest-priority user.
     pub const fn new(ceiling: u8) -> Self {
         Self {
             ceiling,
@@ -121,9 +128,13 @@ impl<T> PriorityLock<T> {
 
 /// What the readout task owns.
 pub struct ReadoutTask {
+    /// The signal chain's settings.
     pub config: ReadoutConfig,
+    /// The signal chain's state.
     pub readout: Readout,
+    /// The task's end of the turnaround sample queue (16 entries), filled by the latch.
     pub samples: Consumer<'static, TurnaroundSample>,
+    /// The task's end of the cycle record queue (32 entries), emptied by the main loop.
     pub records: Producer<'static, CycleRecord>,
 }
 

@@ -69,8 +69,10 @@ const NOT_ARMED: u8 = 0xFF;
 pub static UNARMED: AtomicU32 = AtomicU32::new(0);
 /// Count latches overwritten before the handler read them (it ran a half cycle late).
 pub static LATCH_OVERWRITTEN: AtomicU32 = AtomicU32::new(0);
-/// Turnarounds not scheduled: the pick-off handler ran too late, or the interval was implausible.
+/// Turnarounds not scheduled because the pick-off handler ran too late to arm the compare.
 pub static LATE: AtomicU32 = AtomicU32::new(0);
+/// Pick-off edges whose interval lay outside the plausible half-period range (a glitch or a
+/// gap): the edge history was dropped.
 pub static IMPLAUSIBLE: AtomicU32 = AtomicU32::new(0);
 /// Set by [`pause`]: the pick-off handler forgets its edge history at its next run.
 static RESTART: AtomicBool = AtomicBool::new(false);

@@ -57,7 +57,9 @@ fn jrecip(a: &Jet) -> Jet {
 /// A Fourier series in `psi`: `sum_k c[k] cos(k psi) + s[k] sin(k psi)`, `k >= 1`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Oscillation {
+    /// `c[k]`: amplitude of `cos(k psi)`, rad (`c[0]` unused).
     pub c: [f64; H],
+    /// `s[k]`: amplitude of `sin(k psi)`, rad (`s[0]` unused).
     pub s: [f64; H],
 }
 

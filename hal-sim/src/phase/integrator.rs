@@ -22,6 +22,7 @@ use std::collections::VecDeque;
 /// A turnaround as the integration passed it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TurnaroundState {
+    /// Its time, kind and `psi_ddot`, from the plan.
     pub at: TurnaroundTime,
     /// Beat phase at the instant, rad (unwrapped).
     pub psi_rad: f64,
@@ -32,17 +33,22 @@ pub struct TurnaroundState {
 /// A near run that ended in a far segment.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NearRun {
+    /// Start of the run's first near segment, s.
     pub t_in: f64,
+    /// End of its last near segment (start of the next far segment), s.
     pub t_out: f64,
     /// `chi` entering the run (None if the run began at the start of the simulation).
     pub chi_in: Option<f64>,
+    /// `chi` leaving the run (entering the next far segment), rad.
     pub chi_out: f64,
 }
 
 /// What the integration reports while it advances.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Event {
+    /// A turnaround was passed.
     Turnaround(TurnaroundState),
+    /// A near run ended: one traversal's change of `chi`.
     NearRunEnd(NearRun),
 }
 
@@ -180,12 +186,16 @@ enum State {
 /// threshold. With a zero rate the factor is exactly 1, so results do not change.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LockInDrift {
+    /// Lock-in threshold at t = 0, rad/s of beat phase.
     pub omega_l0: f64,
+    /// Relative drift `r`, 1/s (0 = none).
     pub rate_per_s: f64,
+    /// End of the drift, s; the threshold stays constant after it.
     pub until_s: f64,
 }
 
 impl LockInDrift {
+    /// No drift: the threshold stays `omega_l0`, rad/s of beat phase.
     pub fn none(omega_l0: f64) -> Self {
         Self {
             omega_l0,
@@ -194,6 +204,7 @@ impl LockInDrift {
         }
     }
 
+    /// The threshold at `t_s`, rad/s of beat phase.
     pub fn at(&self, t_s: f64) -> f64 {
         self.omega_l0 * (1.0 + self.rate_per_s * t_s.min(self.until_s))
     }

@@ -36,8 +36,9 @@ pub const POLY_TOL_RAD: f64 = 1e-10;
 pub struct NearPoly {
     /// Centre of the expansion, s.
     pub t_c: f64,
-    /// Start and end of the validity interval, s.
+    /// Start of the validity interval, s.
     pub t_a: f64,
+    /// End of the validity interval, s.
     pub t_b: f64,
     /// `theta(t_c)`, rad, exact, and reduced mod 2 pi.
     pub theta_c: f64,
@@ -240,9 +241,11 @@ fn gl3_step(poly: &NearPoly, omega_l: f64, tau: f64, phi: f64, h: f64, f_pred: f
 /// Committed RK state inside one polynomial piece.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NearStepper {
+    /// The polynomial of `theta` stepped on; the stepper ends at its `t_b`.
     pub poly: NearPoly,
-    /// Committed time offset from `t_c` and `phi` there.
+    /// Committed time, as an offset from `poly.t_c`, s.
     pub tau: f64,
+    /// Lock-in phase `phi` at the committed time, rad.
     pub phi: f64,
     at: PolyPoint,
     /// Steps committed (for statistics).

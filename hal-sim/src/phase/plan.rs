@@ -21,17 +21,22 @@ use std::collections::VecDeque;
 /// A stretch of time integrated one way.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Segment {
+    /// Start, s.
     pub t_a: f64,
+    /// End, s.
     pub t_b: f64,
     /// True: far-field expansion; false: RK steps.
     pub far: bool,
+    /// The smooth piece of the free phase it lies in (whose formulas it uses).
     pub piece: PieceId,
 }
 
 /// A zero of the lock-in-free rate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TurnaroundTime {
+    /// The zero, s (Newton to the last bit).
     pub time_s: f64,
+    /// Which way the rate crosses zero (`Plus`: beat phase at a minimum).
     pub kind: TurnaroundKind,
     /// `omega'` at the zero (= psi_ddot up to the lock-in term), rad/s^2.
     pub psi_ddot_rad_per_s2: f64,
