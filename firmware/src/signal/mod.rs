@@ -19,7 +19,7 @@
 //! rate that stage 6 measures and stage 2 needs for its prediction, crosses as a plain `i32`
 //! argument ([`turnaround::Scheduler::on_edge`]'s `rate_shift_ticks`). [`crate::readout`] wires
 //! stages 1, 3, 4 and 5 behind the two interrupts; the board (`board::turnaround`,
-//! `board::service`) and the simulated board (`hal-sim`) run stages 2 and 6.
+//! `board::isr`) and the simulated board (`hal-sim`) run stages 2 and 6.
 //!
 //! # No software x4 decoder
 //!
