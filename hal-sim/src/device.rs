@@ -144,18 +144,8 @@ impl SimDevice {
         let Some(record) = self.harness.step().record else {
             return;
         };
-        let now_ms = self.now_ms();
-        let mut ports = SimPorts {
-            readout: self.harness.readout_mut(),
-            output: &mut self.output,
-            now_ms,
-            paused: false,
-        };
+        let mut ports = SimPorts::new(&mut self.harness, &mut self.output);
         self.service.on_cycle(&record, &mut ports);
-    }
-
-    fn now_ms(&self) -> u32 {
-        (self.harness.time_s() * 1000.0) as u32
     }
 
     /// Serial bytes from the host: every completed line is executed and answered at once, by
@@ -163,13 +153,7 @@ impl SimDevice {
     pub fn receive(&mut self, bytes: &[u8]) {
         for &byte in bytes {
             let busy_before_s = self.service.flash().stats().busy_s;
-            let now_ms = self.now_ms();
-            let mut ports = SimPorts {
-                readout: self.harness.readout_mut(),
-                output: &mut self.output,
-                now_ms,
-                paused: false,
-            };
+            let mut ports = SimPorts::new(&mut self.harness, &mut self.output);
             self.service.on_byte(byte, &mut ports);
             if ports.paused {
                 // The stall: the readout misses what happens meanwhile and re-synchronises
@@ -194,6 +178,18 @@ struct SimPorts<'a> {
     output: &'a mut Vec<u8>,
     now_ms: u32,
     paused: bool,
+}
+
+impl<'a> SimPorts<'a> {
+    /// The ports at the harness's present simulated time.
+    fn new(harness: &'a mut Harness, output: &'a mut Vec<u8>) -> Self {
+        Self {
+            now_ms: (harness.time_s() * 1000.0) as u32,
+            readout: harness.readout_mut(),
+            output,
+            paused: false,
+        }
+    }
 }
 
 impl Clock for SimPorts<'_> {
