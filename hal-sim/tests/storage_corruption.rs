@@ -1,5 +1,6 @@
 //! Damaged and unusual flash contents: bit flips in every bit of a record, stray bits in erased
-//! flash, a fresh board, both sectors garbage, a record of an unknown format version, reset to
+//! flash, a fresh board, both sectors garbage, records of the older format version 1 and of an
+//! unknown newer one, reset to
 //! defaults, refused records and a flash that programs wrongly.
 //!
 //! Every case ends with a store that loads: the store always recovers to a known state.
@@ -190,21 +191,21 @@ fn random_garbage_gives_defaults_then_recovers() {
     );
 }
 
-/// A version-2 frame (128 bytes, valid CRC and marker) between version-1 records: skipped by
-/// its length and reported, the older version-1 record loads, and neither load nor the next
-/// stores touch it; new records are numbered above it.
+/// A frame of a newer format (version 3, 128 bytes, valid CRC and marker) between records of
+/// this firmware's: skipped by its length and reported, the older record loads, and neither
+/// load nor the next stores touch it; new records are numbered above it.
 #[test]
 fn unknown_format_version_is_skipped_not_destroyed() {
     let (mut flash, store) = small_flash(17);
     store_n(&mut flash, &store, 1);
-    let v2_at = RECORD_BYTES;
-    let v2 = version_2_frame(2);
-    flash.write(v2_at as u32, &v2).unwrap();
+    let v3_at = RECORD_BYTES;
+    let v3 = version_3_frame(2);
+    flash.write(v3_at as u32, &v3).unwrap();
 
     let (loaded, report) = store.load(&mut flash);
-    assert_is(&(loaded, report), 1, &record(0), "v1 under v2");
+    assert_is(&(loaded, report), 1, &record(0), "v2 under v3");
     let skipped = Some(SkippedFrame {
-        version: 2,
+        version: 3,
         sequence: 2,
     });
     assert_eq!(report.newer_format, skipped);
@@ -214,23 +215,69 @@ fn unknown_format_version_is_skipped_not_destroyed() {
         let sequence = store
             .store_while_paused(&mut flash, &paused(), &record(10 + i))
             .unwrap();
-        assert_eq!(sequence, 3 + i as u32, "numbered above the v2 frame");
+        assert_eq!(sequence, 3 + i as u32, "numbered above the v3 frame");
         let loaded = store.load(&mut flash);
-        assert_is(&loaded, sequence, &record(10 + i), "after v2");
+        assert_is(&loaded, sequence, &record(10 + i), "after v3");
         assert_eq!(loaded.1.newer_format, skipped);
     }
     assert_eq!(
-        &flash.contents()[v2_at..v2_at + v2.len()],
-        &v2[..],
-        "v2 frame changed"
+        &flash.contents()[v3_at..v3_at + v3.len()],
+        &v3[..],
+        "v3 frame changed"
     );
+}
+
+/// A board updated from the firmware that wrote format version 1 (64 bytes, no dither
+/// setpoints): its newest version-1 record loads (dither setpoints absent: the board's defaults
+/// apply), the next store writes version 2 numbered above it, and the version-1 records stay
+/// untouched until their sector is erased for a wrap.
+#[test]
+fn version_1_records_load_and_the_next_store_writes_version_2() {
+    let (mut flash, store) = small_flash(21);
+    let mut old = record(30);
+    old.dither = None;
+    let v1 = version_1_frame(&old, 5);
+    flash.write(0, &v1).unwrap();
+    flash
+        .write(v1.len() as u32, &version_1_frame(&old, 4))
+        .unwrap();
+    let (loaded, report) = store.load(&mut flash);
+    assert_eq!(loaded, old);
+    assert_eq!(report.outcome, LoadOutcome::Loaded { sequence: 5 });
+    assert_eq!((report.rejected_records, report.newer_format), (0, None));
+
+    let mut new = record(31);
+    new.dither = Some(firmware::storage::DitherSetpoints {
+        enabled: true,
+        amplitude_arcsec: 420.0,
+        noise_percent: 10.0,
+    });
+    let sequence = store
+        .store_while_paused(&mut flash, &paused(), &new)
+        .unwrap();
+    assert_eq!(sequence, 6, "numbered above the version-1 records");
+    assert_is(&store.load(&mut flash), 6, &new, "v2 above v1");
+    assert_eq!(&flash.contents()[..v1.len()], &v1[..], "v1 record changed");
+    assert_eq!(flash.contents()[2 * v1.len() + offset::VERSION], 2);
+}
+
+/// A version-1 frame of `record` (no dither setpoints), as the firmware before format 2 wrote
+/// it: the version-2 bytes up to the fit, then CRC and marker.
+fn version_1_frame(record: &CalibrationRecord, sequence: u32) -> Vec<u8> {
+    let v2 = record::encode(record, sequence);
+    let mut frame = vec![0u8; record::V1_RECORD_BYTES];
+    frame[..offset::V1_CRC].copy_from_slice(&v2[..offset::V1_CRC]);
+    frame[offset::VERSION] = record::V1_FORMAT_VERSION;
+    frame[offset::LENGTH_WORDS] = (record::V1_RECORD_BYTES / 4) as u8;
+    record::seal(&mut frame);
+    frame
 }
 
 /// Only an unknown-version frame: defaults, flagged, with the frame reported.
 #[test]
 fn only_unknown_format_gives_defaults() {
     let (mut flash, store) = small_flash(18);
-    flash.write(0, &version_2_frame(7)).unwrap();
+    flash.write(0, &version_3_frame(7)).unwrap();
     let (loaded, report) = store.load(&mut flash);
     assert_eq!(loaded, CalibrationRecord::DEFAULTS);
     assert_eq!(
@@ -240,11 +287,12 @@ fn only_unknown_format_gives_defaults() {
     assert_eq!(report.newer_format.map(|f| f.sequence), Some(7));
 }
 
-/// A frame of format version 2, 128 bytes: the version-independent frame with some body.
-fn version_2_frame(sequence: u32) -> Vec<u8> {
+/// A frame of format version 3 (unknown to this firmware), 128 bytes: the
+/// version-independent frame with some body.
+fn version_3_frame(sequence: u32) -> Vec<u8> {
     let mut frame = vec![0x42u8; 128];
     frame[offset::MAGIC..offset::MAGIC + 2].copy_from_slice(&record::MAGIC.to_le_bytes());
-    frame[offset::VERSION] = 2;
+    frame[offset::VERSION] = 3;
     frame[offset::LENGTH_WORDS] = 32;
     frame[offset::SEQUENCE..offset::SEQUENCE + 4].copy_from_slice(&sequence.to_le_bytes());
     record::seal(&mut frame);

@@ -1,4 +1,5 @@
-//! The calibration record: fixed 64-byte little-endian layout, CRC-32, commit marker and the
+//! The calibration record: fixed 80-byte little-endian layout (64 bytes in the older version 1,
+//! still read), CRC-32, commit marker and the
 //! plausibility checks applied both before storing and after loading.
 //!
 //! # Frame (every format version, present and future)
@@ -17,20 +18,20 @@
 //! the length, the CRC and the marker all check; a valid frame of an unknown version is skipped
 //! by its length and left alone.
 //!
-//! # Format version 1 ([`RECORD_BYTES`] = 64 bytes, 16 words)
+//! # Format version 2 ([`RECORD_BYTES`] = 80 bytes, 20 words), written by this firmware
 //!
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 2 | magic `0xCA1B` |
-//! | 2 | 1 | format version = 1 |
-//! | 3 | 1 | length = 16 words |
+//! | 2 | 1 | format version = 2 |
+//! | 3 | 1 | length = 20 words |
 //! | 4 | 4 | sequence number (u32) |
 //! | 8 | 4 | gyro serial number (u32) |
 //! | 12 | 4 | boot count at the time of storing (u32, supplied by the caller) |
 //! | 16 | 4 | a, Q15.16 rad/s (i32) |
 //! | 20 | 4 | b, Q15.16 rad/s (i32) |
 //! | 24 | 1 | compensation enabled: 0 or 1 |
-//! | 25 | 1 | flags: bit 0 fit summary present, bit 1 reset-to-defaults record; others 0 |
+//! | 25 | 1 | flags: bit 0 fit summary present, bit 1 reset-to-defaults record, bit 2 dither setpoints present; others 0 |
 //! | 26 | 2 | fit: runs pooled (u16, saturated) |
 //! | 28 | 4 | fit: cycles (u32, saturated) |
 //! | 32 | 4 | fit: standard error of a, rad/s (f32) |
@@ -39,15 +40,29 @@
 //! | 44 | 4 | fit: variance reduction (f32) |
 //! | 48 | 4 | fit: condition number (f32) |
 //! | 52 | 4 | fit: mean input rate, rad/s of beat phase (f32) |
-//! | 56 | 4 | CRC-32 of bytes 0..56 |
-//! | 60 | 4 | commit marker |
+//! | 56 | 4 | dither: amplitude setpoint, arcsec peak of body angle (f32) |
+//! | 60 | 4 | dither: random-noise depth, percent of the setpoint (f32) |
+//! | 64 | 1 | dither: drive enabled at power-up, 0 or 1 |
+//! | 65 | 7 | reserved, 0 |
+//! | 72 | 4 | CRC-32 of bytes 0..72 |
+//! | 76 | 4 | commit marker |
+//!
+//! # Format version 1 (64 bytes, 16 words), still read
+//!
+//! Bytes 0..56 as in version 2 (flag bit 2 unknown, so never set), then the CRC-32 of bytes
+//! 0..56 at 56 and the commit marker at 60. A version-1 record loads with no dither setpoints
+//! (`dither: None`: the board's defaults apply); the next store writes version 2. A firmware
+//! that only knows version 1 skips version-2 frames by their length and keeps loading its own
+//! newest record (the frame rule above), so a downgrade loses the newer records' contents but
+//! never loads garbage.
 //!
 //! The fit's statistics are stored as f32: they are reports for the host, never fed back into
 //! the signal chain, and 24 bits of mantissa are far more than their own uncertainty. The fit's
 //! a and b are not repeated: the record holds them as the applied Q15.16 coefficients, and
 //! Omega_L and eps follow from those ([`CalibrationRecord::lock_in_rad_per_s`],
 //! [`CalibrationRecord::eps_rad`]). Without a fit (coefficients set by hand, or a reset) the fit
-//! bytes are zero and flag bit 0 is clear.
+//! bytes are zero and flag bit 0 is clear; without dither setpoints (never set, or a reset) the
+//! dither bytes are zero and flag bit 2 is clear.
 
 use super::crc::crc32;
 use crate::calibration::fit::FitResult;
@@ -55,10 +70,23 @@ use crate::signal::compensation::{Coefficients, CompensationSettings};
 
 /// First half-word of every frame.
 pub const MAGIC: u16 = 0xCA1B;
-/// The format version this firmware writes and reads.
-pub const FORMAT_VERSION: u8 = 1;
+/// The format version this firmware writes.
+pub const FORMAT_VERSION: u8 = 2;
+/// Length of a record of [`FORMAT_VERSION`].
+pub const RECORD_BYTES: usize = 80;
+/// The older format version this firmware still reads.
+pub const V1_FORMAT_VERSION: u8 = 1;
 /// Length of a version-1 record.
-pub const RECORD_BYTES: usize = 64;
+pub const V1_RECORD_BYTES: usize = 64;
+
+/// The length of a record of `version`, if this firmware can read that version.
+pub const fn readable_length(version: u8) -> Option<usize> {
+    match version {
+        V1_FORMAT_VERSION => Some(V1_RECORD_BYTES),
+        FORMAT_VERSION => Some(RECORD_BYTES),
+        _ => None,
+    }
+}
 /// Frames start on, and are a whole number of, these units.
 pub const ALIGN_BYTES: usize = 16;
 /// Longest frame the length byte can describe in whole [`ALIGN_BYTES`] units: 252 words.
@@ -68,7 +96,7 @@ pub const MAX_FRAME_BYTES: usize = 252 * 4;
 /// never equals this value.
 pub const COMMIT_MARKER: u32 = 0xA5C3_3C5A;
 
-/// Byte offsets of the version-1 fields (see the module table).
+/// Byte offsets of the version-2 fields (see the module table); version 1 shares 0..56.
 pub mod offset {
     /// Magic [`super::MAGIC`], u16.
     pub const MAGIC: usize = 0;
@@ -106,15 +134,31 @@ pub mod offset {
     pub const FIT_CONDITION_NUMBER: usize = 48;
     /// Fit: mean input rate, rad/s of beat phase, f32.
     pub const FIT_MEAN_RATE: usize = 52;
+    /// Dither amplitude setpoint, arcsec peak of body angle, f32.
+    pub const DITHER_AMPLITUDE: usize = 56;
+    /// Random-noise dither depth, percent of the setpoint, f32.
+    pub const DITHER_NOISE: usize = 60;
+    /// Dither drive enabled at power-up, u8: 0 or 1.
+    pub const DITHER_ENABLED: usize = 64;
+    /// Reserved bytes, 0, up to [`CRC`].
+    pub const RESERVED: usize = 65;
     /// CRC of `[0, CRC)`; in any frame of length n bytes it sits at n - 8.
-    pub const CRC: usize = 56;
+    pub const CRC: usize = 72;
     /// Commit marker; in any frame of length n bytes it sits at n - 4.
-    pub const COMMIT: usize = 60;
+    pub const COMMIT: usize = 76;
+    /// Version 1: CRC of `[0, V1_CRC)`.
+    pub const V1_CRC: usize = 56;
 }
 
 const FLAG_FIT_PRESENT: u8 = 1 << 0;
 const FLAG_RESET: u8 = 1 << 1;
-const KNOWN_FLAGS: u8 = FLAG_FIT_PRESENT | FLAG_RESET;
+const FLAG_DITHER_PRESENT: u8 = 1 << 2;
+const V1_KNOWN_FLAGS: u8 = FLAG_FIT_PRESENT | FLAG_RESET;
+const KNOWN_FLAGS: u8 = V1_KNOWN_FLAGS | FLAG_DITHER_PRESENT;
+
+/// Largest dither amplitude setpoint a record may hold, arcsec (far above any dither: a sanity
+/// bound for the record; the drive applies its own, narrower range).
+pub const MAX_DITHER_AMPLITUDE_ARCSEC: f32 = 10_000.0;
 
 /// Why bytes are not a usable record, or a record may not be stored.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -137,6 +181,36 @@ pub enum RecordError {
     ImplausibleFit,
     /// A reset record that carries anything but the default settings.
     ImplausibleReset,
+    /// Dither setpoints that are not finite or outside their ranges, bytes without setpoints,
+    /// or reserved bytes that are not 0.
+    ImplausibleDither,
+}
+
+/// The dither drive's setpoints as stored: what the board starts the drive with at power-up.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DitherSetpoints {
+    /// Drive on at power-up.
+    pub enabled: bool,
+    /// Peak dither amplitude the amplitude loop holds, arcsec of body angle (0 exclusive to
+    /// [`MAX_DITHER_AMPLITUDE_ARCSEC`]).
+    pub amplitude_arcsec: f32,
+    /// Random-noise dither depth, percent of the setpoint (0 = off, at most 100).
+    pub noise_percent: f32,
+}
+
+impl DitherSetpoints {
+    /// Finite, amplitude in (0, [`MAX_DITHER_AMPLITUDE_ARCSEC`]], noise in [0, 100].
+    pub fn check(&self) -> Result<(), RecordError> {
+        let amplitude_ok =
+            self.amplitude_arcsec > 0.0 && self.amplitude_arcsec <= MAX_DITHER_AMPLITUDE_ARCSEC;
+        let noise_ok = (0.0..=100.0).contains(&self.noise_percent);
+        if amplitude_ok && noise_ok {
+            Ok(())
+        } else {
+            Err(RecordError::ImplausibleDither)
+        }
+    }
 }
 
 /// The fit behind the stored coefficients, condensed for the record (see the module table).
@@ -216,6 +290,9 @@ pub struct CalibrationRecord {
     pub fit: Option<FitSummary>,
     /// Written by `reset_to_defaults`: the settings are the defaults, on purpose.
     pub reset_to_defaults: bool,
+    /// The dither drive's setpoints; `None` when never set (or a version-1 record): the board's
+    /// defaults apply.
+    pub dither: Option<DitherSetpoints>,
 }
 
 impl CalibrationRecord {
@@ -229,6 +306,7 @@ impl CalibrationRecord {
         },
         fit: None,
         reset_to_defaults: false,
+        dither: None,
     };
 
     /// The record `reset_to_defaults` writes.
@@ -258,7 +336,11 @@ impl CalibrationRecord {
         if let Some(fit) = &self.fit {
             fit.check()?;
         }
-        let is_default = self.settings == Self::DEFAULTS.settings && self.fit.is_none();
+        if let Some(dither) = &self.dither {
+            dither.check()?;
+        }
+        let is_default =
+            self.settings == Self::DEFAULTS.settings && self.fit.is_none() && self.dither.is_none();
         if self.reset_to_defaults && !is_default {
             return Err(RecordError::ImplausibleReset);
         }
@@ -288,7 +370,7 @@ pub fn parse_header(unit: &[u8; ALIGN_BYTES]) -> Option<FrameHeader> {
     })
 }
 
-/// The version-1 bytes of `record` with sequence number `sequence`, CRC and commit marker.
+/// The version-2 bytes of `record` with sequence number `sequence`, CRC and commit marker.
 /// Does not check the record (the store does, before it writes).
 pub fn encode(record: &CalibrationRecord, sequence: u32) -> [u8; RECORD_BYTES] {
     let mut bytes = [0u8; RECORD_BYTES];
@@ -318,6 +400,20 @@ pub fn encode(record: &CalibrationRecord, sequence: u32) -> [u8; RECORD_BYTES] {
     if record.reset_to_defaults {
         flags |= FLAG_RESET;
     }
+    if let Some(dither) = &record.dither {
+        flags |= FLAG_DITHER_PRESENT;
+        put(
+            &mut bytes,
+            offset::DITHER_AMPLITUDE,
+            &dither.amplitude_arcsec.to_le_bytes(),
+        );
+        put(
+            &mut bytes,
+            offset::DITHER_NOISE,
+            &dither.noise_percent.to_le_bytes(),
+        );
+        bytes[offset::DITHER_ENABLED] = dither.enabled as u8;
+    }
     bytes[offset::FLAGS] = flags;
     seal(&mut bytes);
     bytes
@@ -332,7 +428,7 @@ pub fn seal(frame: &mut [u8]) {
     put(frame, crc_at + 4, &COMMIT_MARKER.to_le_bytes());
 }
 
-fn encode_fit(bytes: &mut [u8; RECORD_BYTES], fit: &FitSummary) {
+fn encode_fit(bytes: &mut [u8], fit: &FitSummary) {
     put(bytes, offset::FIT_RUNS, &fit.runs.to_le_bytes());
     put(bytes, offset::FIT_CYCLES, &fit.cycles.to_le_bytes());
     let floats = [
@@ -348,42 +444,60 @@ fn encode_fit(bytes: &mut [u8; RECORD_BYTES], fit: &FitSummary) {
     }
 }
 
-/// Checks a version-1 frame completely (magic, version, length, CRC, marker, plausibility) and
-/// returns its sequence number and record.
-pub fn decode(bytes: &[u8; RECORD_BYTES]) -> Result<(u32, CalibrationRecord), RecordError> {
-    let header: &[u8; ALIGN_BYTES] = bytes[..ALIGN_BYTES].try_into().unwrap();
+/// Checks a frame of a readable version (1 or 2) completely (magic, version, length, CRC,
+/// marker, plausibility) and returns its sequence number and record. `bytes` is the whole
+/// frame: [`V1_RECORD_BYTES`] or [`RECORD_BYTES`] long.
+pub fn decode(bytes: &[u8]) -> Result<(u32, CalibrationRecord), RecordError> {
+    let header: &[u8; ALIGN_BYTES] = bytes
+        .get(..ALIGN_BYTES)
+        .and_then(|h| h.try_into().ok())
+        .ok_or(RecordError::NotAFrame)?;
     let header = parse_header(header).ok_or(RecordError::NotAFrame)?;
-    if header.length_bytes != RECORD_BYTES {
+    if header.length_bytes != bytes.len() {
         return Err(RecordError::NotAFrame);
     }
-    if get_u32(bytes, offset::COMMIT) != COMMIT_MARKER {
+    let crc_at = bytes.len() - 8;
+    if get_u32(bytes, crc_at + 4) != COMMIT_MARKER {
         return Err(RecordError::NotCommitted);
     }
-    if get_u32(bytes, offset::CRC) != crc32(&bytes[..offset::CRC]) {
+    if get_u32(bytes, crc_at) != crc32(&bytes[..crc_at]) {
         return Err(RecordError::Crc);
     }
-    if header.version != FORMAT_VERSION {
+    if readable_length(header.version) != Some(bytes.len()) {
         return Err(RecordError::UnknownVersion {
             version: header.version,
         });
     }
-    let record = decode_body(bytes)?;
+    let record = decode_body(bytes, header.version)?;
     record.check()?;
     Ok((header.sequence, record))
 }
 
-fn decode_body(bytes: &[u8; RECORD_BYTES]) -> Result<CalibrationRecord, RecordError> {
+fn decode_body(bytes: &[u8], version: u8) -> Result<CalibrationRecord, RecordError> {
     let flags = bytes[offset::FLAGS];
     let enabled = bytes[offset::ENABLED];
-    if flags & !KNOWN_FLAGS != 0 || enabled > 1 {
+    let known = if version == V1_FORMAT_VERSION {
+        V1_KNOWN_FLAGS
+    } else {
+        KNOWN_FLAGS
+    };
+    if flags & !known != 0 || enabled > 1 {
         return Err(RecordError::BadFlags);
     }
     let fit = if flags & FLAG_FIT_PRESENT != 0 {
         Some(decode_fit(bytes))
-    } else if bytes[offset::FIT_RUNS..offset::CRC].iter().any(|&b| b != 0) {
+    } else if bytes[offset::FIT_RUNS..offset::V1_CRC]
+        .iter()
+        .any(|&b| b != 0)
+    {
         return Err(RecordError::ImplausibleFit);
     } else {
         None
+    };
+    let dither = if version == V1_FORMAT_VERSION {
+        None
+    } else {
+        decode_dither(bytes, flags & FLAG_DITHER_PRESENT != 0)?
     };
     Ok(CalibrationRecord {
         serial_number: get_u32(bytes, offset::SERIAL_NUMBER),
@@ -397,10 +511,36 @@ fn decode_body(bytes: &[u8; RECORD_BYTES]) -> Result<CalibrationRecord, RecordEr
         },
         fit,
         reset_to_defaults: flags & FLAG_RESET != 0,
+        dither,
     })
 }
 
-fn decode_fit(bytes: &[u8; RECORD_BYTES]) -> FitSummary {
+/// The version-2 dither bytes: setpoints when `present`, else all zero; reserved bytes zero.
+fn decode_dither(bytes: &[u8], present: bool) -> Result<Option<DitherSetpoints>, RecordError> {
+    let reserved_clear = bytes[offset::RESERVED..offset::CRC].iter().all(|&b| b == 0);
+    let enabled = bytes[offset::DITHER_ENABLED];
+    if !reserved_clear || enabled > 1 {
+        return Err(RecordError::ImplausibleDither);
+    }
+    if !present {
+        let clear = bytes[offset::DITHER_AMPLITUDE..offset::RESERVED]
+            .iter()
+            .all(|&b| b == 0);
+        return if clear {
+            Ok(None)
+        } else {
+            Err(RecordError::ImplausibleDither)
+        };
+    }
+    let float = |at| f32::from_bits(get_u32(bytes, at));
+    Ok(Some(DitherSetpoints {
+        enabled: enabled == 1,
+        amplitude_arcsec: float(offset::DITHER_AMPLITUDE),
+        noise_percent: float(offset::DITHER_NOISE),
+    }))
+}
+
+fn decode_fit(bytes: &[u8]) -> FitSummary {
     let float = |at| f32::from_bits(get_u32(bytes, at));
     FitSummary {
         cycles: get_u32(bytes, offset::FIT_CYCLES),
@@ -453,7 +593,24 @@ mod tests {
                 mean_rate_rad_per_s: -12.5,
             }),
             reset_to_defaults: false,
+            dither: Some(DitherSetpoints {
+                enabled: true,
+                amplitude_arcsec: 450.0,
+                noise_percent: 12.5,
+            }),
         }
+    }
+
+    /// The version-1 bytes of a record without dither setpoints (what older firmware wrote).
+    fn encode_v1(record: &CalibrationRecord, sequence: u32) -> [u8; V1_RECORD_BYTES] {
+        assert!(record.dither.is_none());
+        let v2 = encode(record, sequence);
+        let mut bytes = [0u8; V1_RECORD_BYTES];
+        bytes[..offset::V1_CRC].copy_from_slice(&v2[..offset::V1_CRC]);
+        bytes[offset::VERSION] = V1_FORMAT_VERSION;
+        bytes[offset::LENGTH_WORDS] = (V1_RECORD_BYTES / 4) as u8;
+        seal(&mut bytes);
+        bytes
     }
 
     #[test]
@@ -471,11 +628,75 @@ mod tests {
     #[test]
     fn layout_is_little_endian_at_documented_offsets() {
         let bytes = encode(&sample(), 0x0102_0304);
-        assert_eq!(&bytes[..4], &[0x1B, 0xCA, 1, 16]);
+        assert_eq!(&bytes[..4], &[0x1B, 0xCA, 2, 20]);
         assert_eq!(&bytes[4..8], &[4, 3, 2, 1]);
         assert_eq!(&bytes[8..12], &[0x78, 0x56, 0x34, 0x12]);
-        assert_eq!(get_u32(&bytes, offset::CRC), crc32(&bytes[..56]));
+        assert_eq!(&bytes[56..60], &450.0f32.to_le_bytes());
+        assert_eq!(&bytes[60..64], &12.5f32.to_le_bytes());
+        assert_eq!(bytes[25], 0b101, "fit and dither present");
+        assert_eq!(&bytes[64..72], &[1, 0, 0, 0, 0, 0, 0, 0]);
+        assert_eq!(get_u32(&bytes, offset::CRC), crc32(&bytes[..72]));
         assert_eq!(get_u32(&bytes, offset::COMMIT), COMMIT_MARKER);
+    }
+
+    #[test]
+    fn version_1_records_still_load_without_dither_setpoints() {
+        let mut record = sample();
+        record.dither = None;
+        let v1 = encode_v1(&record, 7);
+        assert_eq!(&v1[..4], &[0x1B, 0xCA, 1, 16]);
+        assert_eq!(decode(&v1), Ok((7, record)));
+        // A version-1 frame cannot claim the version-2 dither flag.
+        let mut bad = v1;
+        bad[offset::FLAGS] |= FLAG_DITHER_PRESENT;
+        seal(&mut bad);
+        assert_eq!(decode(&bad), Err(RecordError::BadFlags));
+        // A frame whose length does not match its version is not read as that version.
+        let mut short = encode(&record, 7);
+        short[offset::VERSION] = V1_FORMAT_VERSION;
+        seal(&mut short);
+        assert_eq!(
+            decode(&short),
+            Err(RecordError::UnknownVersion { version: 1 })
+        );
+    }
+
+    #[test]
+    fn dither_setpoints_are_range_checked_and_absent_means_zero_bytes() {
+        let mut record = sample();
+        for (amplitude, noise) in [
+            (0.0, 0.0),
+            (-1.0, 0.0),
+            (f32::NAN, 0.0),
+            (MAX_DITHER_AMPLITUDE_ARCSEC * 1.01, 0.0),
+            (450.0, -0.1),
+            (450.0, 100.5),
+            (450.0, f32::INFINITY),
+        ] {
+            record.dither = Some(DitherSetpoints {
+                enabled: true,
+                amplitude_arcsec: amplitude,
+                noise_percent: noise,
+            });
+            assert_eq!(record.check(), Err(RecordError::ImplausibleDither));
+            // Bytes holding them are refused at load as well.
+            assert_eq!(
+                decode(&encode(&record, 1)),
+                Err(RecordError::ImplausibleDither)
+            );
+        }
+        record.dither = None;
+        let mut bytes = encode(&record, 1);
+        bytes[offset::DITHER_AMPLITUDE] = 1; // bytes without the flag
+        seal(&mut bytes);
+        assert_eq!(decode(&bytes), Err(RecordError::ImplausibleDither));
+        let mut bytes = encode(&sample(), 1);
+        bytes[offset::RESERVED + 3] = 1;
+        seal(&mut bytes);
+        assert_eq!(decode(&bytes), Err(RecordError::ImplausibleDither));
+        let mut reset = CalibrationRecord::reset(1, 1);
+        reset.dither = sample().dither;
+        assert_eq!(reset.check(), Err(RecordError::ImplausibleReset));
     }
 
     #[test]
@@ -485,6 +706,14 @@ mod tests {
             let mut flipped = bytes;
             flipped[bit / 8] ^= 1 << (bit % 8);
             assert!(decode(&flipped).is_err(), "bit {bit}");
+        }
+        let mut record = sample();
+        record.dither = None;
+        let v1 = encode_v1(&record, 5);
+        for bit in 0..V1_RECORD_BYTES * 8 {
+            let mut flipped = v1;
+            flipped[bit / 8] ^= 1 << (bit % 8);
+            assert!(decode(&flipped).is_err(), "v1 bit {bit}");
         }
     }
 

@@ -5,8 +5,8 @@ use embedded_storage::nor_flash::{NorFlash, ReadNorFlash};
 
 use super::crc::Crc32;
 use super::record::{
-    self, get_u32, CalibrationRecord, FrameHeader, RecordError, ALIGN_BYTES, COMMIT_MARKER,
-    FORMAT_VERSION, RECORD_BYTES,
+    self, get_u32, readable_length, CalibrationRecord, FrameHeader, RecordError, ALIGN_BYTES,
+    COMMIT_MARKER, RECORD_BYTES,
 };
 use super::ReadoutPaused;
 
@@ -90,7 +90,7 @@ pub enum StoreError<E> {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SkippedFrame {
-    /// Its format version (not [`FORMAT_VERSION`]).
+    /// Its format version (one this firmware cannot read: see `record::readable_length`).
     pub version: u8,
     /// Its sequence number: new records are numbered above it.
     pub sequence: u32,
@@ -268,7 +268,7 @@ impl CalibrationStore {
 
     /// Appends `record` and returns its sequence number, after reading it back.
     ///
-    /// Stalls the CPU: programming takes 16 words x up to 100 us, and when the written sector
+    /// Stalls the CPU: programming takes 20 words x up to 100 us, and when the written sector
     /// is full the other one is erased first, up to [`super::SECTOR_ERASE_MAX_MS`] on the
     /// single-bank F405, during which no instruction is fetched from flash and no interrupt
     /// served. Hence the [`ReadoutPaused`] token: the readout must be stopped first and
@@ -386,7 +386,8 @@ impl CalibrationStore {
     }
 }
 
-/// Files a valid frame: a record of this version (checked), or an unknown version (noted).
+/// Files a valid frame: a record of a readable version (checked), or an unknown version
+/// (noted).
 fn take_frame<F: ReadNorFlash>(
     flash: &mut F,
     address: u32,
@@ -394,7 +395,7 @@ fn take_frame<F: ReadNorFlash>(
     scan: &mut SectorScan,
 ) -> Result<(), F::Error> {
     scan.max_sequence = scan.max_sequence.max(Some(header.sequence));
-    if header.version != FORMAT_VERSION {
+    let Some(length) = readable_length(header.version) else {
         let skipped = SkippedFrame {
             version: header.version,
             sequence: header.sequence,
@@ -406,14 +407,15 @@ fn take_frame<F: ReadNorFlash>(
             scan.newer_format = Some(skipped);
         }
         return Ok(());
-    }
-    if header.length_bytes != RECORD_BYTES {
+    };
+    if header.length_bytes != length {
         scan.rejected_records += 1;
         return Ok(());
     }
     let mut bytes = [0u8; RECORD_BYTES];
-    flash.read(address, &mut bytes)?;
-    match record::decode(&bytes) {
+    let bytes = &mut bytes[..length];
+    flash.read(address, bytes)?;
+    match record::decode(bytes) {
         Ok((sequence, record)) if scan.newest.is_none_or(|(seq, _)| seq < sequence) => {
             scan.newest = Some((sequence, record));
         }

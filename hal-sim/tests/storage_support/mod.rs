@@ -4,16 +4,16 @@
 
 use firmware::signal::compensation::{Coefficients, CompensationSettings};
 use firmware::storage::{
-    CalibrationRecord, CalibrationStore, FitSummary, Geometry, LoadOutcome, LoadReport,
-    ReadoutPaused,
+    CalibrationRecord, CalibrationStore, DitherSetpoints, FitSummary, Geometry, LoadOutcome,
+    LoadReport, ReadoutPaused,
 };
 use hal_sim::flash::{CalibrationFlash, SimFlash};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-/// A small sector so that sector switches come every 8 records (512 / 64) and exhaustive loops
-/// over many switches stay fast. The scheme does not depend on the sector size.
-pub const SMALL_SECTOR: usize = 512;
+/// A small sector so that sector switches come every 8 records and exhaustive loops over many
+/// switches stay fast. The scheme does not depend on the sector size.
+pub const SMALL_SECTOR: usize = 8 * firmware::storage::record::RECORD_BYTES;
 pub type SmallFlash = SimFlash<SMALL_SECTOR, false>;
 
 pub fn small_flash(seed: u64) -> (SmallFlash, CalibrationStore) {
@@ -50,18 +50,25 @@ pub fn record(i: u64) -> CalibrationRecord {
         condition_number: rng.random_range(1.0..100.0),
         mean_rate_rad_per_s: rng.random_range(-1e3..1e3),
     });
+    let settings = CompensationSettings {
+        coefficients: Coefficients {
+            a_q16: rng.random_range(-(1 << 26)..(1 << 26)),
+            b_q16: rng.random_range(-(1 << 26)..(1 << 26)),
+        },
+        enabled: rng.random_bool(0.8),
+    };
+    let dither = rng.random_bool(0.6).then(|| DitherSetpoints {
+        enabled: rng.random_bool(0.9),
+        amplitude_arcsec: rng.random_range(50.0..1000.0),
+        noise_percent: rng.random_range(0.0..30.0),
+    });
     CalibrationRecord {
         serial_number: 1000 + (i as u32 % 3),
         boot_count: i as u32,
-        settings: CompensationSettings {
-            coefficients: Coefficients {
-                a_q16: rng.random_range(-(1 << 26)..(1 << 26)),
-                b_q16: rng.random_range(-(1 << 26)..(1 << 26)),
-            },
-            enabled: rng.random_bool(0.8),
-        },
+        settings,
         fit,
         reset_to_defaults: false,
+        dither,
     }
 }
 

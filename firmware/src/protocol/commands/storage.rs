@@ -18,6 +18,7 @@ pub fn store<D: DeviceLink>(device: &mut D, provenance: &mut Provenance, id: &Id
         settings: device.active_settings(),
         fit: provenance.fit,
         reset_to_defaults: false,
+        dither: None,
     };
     let sequence = device.store(&record).map_err(|_| ErrorCode::FlashError)?;
     provenance.source = Source::Flash { sequence };
