@@ -91,6 +91,13 @@ pub struct DitherStatus {
     pub noise_depth_percent: f32,
 }
 
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Request {
+    Enable,
+    Disable,
+    Restart,
+}
+
 #[derive(Clone, Copy, Debug)]
 enum Mode {
     Off,
@@ -128,7 +135,7 @@ pub struct DitherController {
     next_phase: Phase,
     window: Window,
     mode: Mode,
-    request: Option<bool>,
+    request: Option<Request>,
     setpoint_arcsec: f32,
     setpoint_changed: bool,
     amplitude: AmplitudeLoop,
@@ -179,12 +186,18 @@ impl DitherController {
 
     /// Starts the dither (from `Off`; the start-up begins at the next tick).
     pub fn enable(&mut self) {
-        self.request = Some(true);
+        self.request = Some(Request::Enable);
     }
 
     /// Stops the dither: drive off at the next tick, state `Off`.
     pub fn disable(&mut self) {
-        self.request = Some(false);
+        self.request = Some(Request::Disable);
+    }
+
+    /// Starts again from listening (drive off at the next tick; not a fault): after the ticks
+    /// were interrupted (a flash store stalls the CPU). Does nothing while `Off` or in a fault.
+    pub fn restart(&mut self) {
+        self.request = Some(Request::Restart);
     }
 
     /// Sets the amplitude setpoint, arcsec (within `config.setpoint_range_arcsec`; an error
@@ -293,8 +306,8 @@ impl DitherController {
         let k = self.tick;
         self.tick = k.wrapping_add(1);
         let mut changed = false;
-        if let Some(on) = self.request.take() {
-            changed = self.apply_request(config, on, k);
+        if let Some(request) = self.request.take() {
+            changed = self.apply_request(config, request, k);
         }
         match self.mode {
             Mode::Off => return self.idle(changed),
@@ -359,18 +372,22 @@ impl DitherController {
         }
     }
 
-    fn apply_request(&mut self, config: &DitherConfig, on: bool, k: u32) -> bool {
-        match (on, self.mode) {
-            (false, Mode::Off) | (true, Mode::Fault { .. }) => false,
-            (false, _) => {
+    fn apply_request(&mut self, config: &DitherConfig, request: Request, k: u32) -> bool {
+        match (request, self.mode) {
+            (Request::Disable, Mode::Off) => false,
+            (Request::Disable, _) => {
                 self.mode = Mode::Off;
                 self.set_drive(0, Phase::ZERO)
             }
-            (true, Mode::Off) => {
+            (Request::Enable, Mode::Off) => {
                 self.listen(config, k, None);
                 true
             }
-            (true, _) => false,
+            (Request::Restart, Mode::Off | Mode::Fault { .. }) | (Request::Enable, _) => false,
+            (Request::Restart, _) => {
+                self.listen(config, k, None);
+                true
+            }
         }
     }
 

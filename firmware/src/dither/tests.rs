@@ -502,11 +502,21 @@ fn commands_are_range_checked_and_take_effect() {
     assert_eq!(b.ctrl.state(), DitherState::Starting);
     assert!(b.run_until(DitherState::Locked, 2.0).is_some());
     assert!((b.gyro.amplitude() / 500.0 - 1.0).abs() < 0.01);
+    // A restart (after a flash store): drive off at once, then the ring is caught and locked.
+    b.ctrl.restart();
+    let t = b.tick();
+    assert!(t.drive_changed);
+    assert_eq!(t.dac_code, 2048);
+    assert_eq!(b.ctrl.status(&c).start_phase, Some(StartPhase::Listen));
+    assert!(b.run_until(DitherState::Locked, 1.0).is_some());
     b.ctrl.disable();
     let t = b.tick();
     assert!(t.drive_changed);
     assert_eq!(t.dac_code, 2048);
     assert_eq!(b.ctrl.state(), DitherState::Off);
+    for _ in 0..1000 {
+        assert_eq!(b.tick().dac_code, 2048);
+    }
 }
 
 /// Random-noise dither, closed loop: depth 30 %, the drive's amplitude changes at every half
