@@ -21,9 +21,9 @@ pub struct DitherConfig {
     pub dac_mid_code: u16,
     /// The DAC's full scale.
     pub dac_full_scale: u16,
-    /// The pick-off's sampling instant after its tick, ticks: the ADC's aperture less any
-    /// pick-off lag (a board calibration; enters the phase detector and the estimates).
-    pub sample_delay_ticks: f32,
+    /// The pick-off's sampling instant after its tick, ticks in Q16: the ADC's aperture less
+    /// any pick-off lag (a board calibration; enters the phase detector and the estimates).
+    pub sample_delay_q16: u32,
     /// Settable amplitude setpoints, arcsec (inclusive).
     pub setpoint_range_arcsec: (f32, f32),
     /// The setpoint after reset, arcsec.
@@ -57,8 +57,9 @@ impl DitherConfig {
             pickoff_mid_code: profile.pickoff_mid_code,
             dac_mid_code: (profile.dac_full_scale / 2 + 1),
             dac_full_scale: profile.dac_full_scale,
-            sample_delay_ticks: profile.aperture_delay_ticks as f32
-                / profile.drive_tick_period_timer_ticks() as f32,
+            sample_delay_q16: ((profile.aperture_delay_ticks as u64) << 16)
+                .div_ceil(profile.drive_tick_period_timer_ticks() as u64)
+                as u32,
             setpoint_range_arcsec: (50.0, 650.0),
             default_setpoint_arcsec: 450.0,
             startup,
@@ -77,6 +78,11 @@ impl DitherConfig {
     /// Arcsec of dither per pick-off code.
     pub fn codes_to_arcsec(&self, codes: f32) -> f32 {
         codes * self.pickoff_arcsec_per_code
+    }
+
+    /// The pick-off's sampling delay, ticks.
+    pub fn sample_delay_ticks(&self) -> f32 {
+        self.sample_delay_q16 as f32 / 65_536.0
     }
 
     /// Pick-off codes of `arcsec` of dither.
@@ -99,6 +105,6 @@ mod tests {
         let max_codes = c.arcsec_to_codes(c.setpoint_range_arcsec.1);
         assert!(max_codes * (1.0 + c.faults.band) < c.faults.max_amplitude_codes);
         assert!(c.faults.max_amplitude_codes < 2047.0);
-        assert!((c.sample_delay_ticks - 70.0 / 2100.0).abs() < 1e-6);
+        assert_eq!(c.sample_delay_q16, 2185); // 70 / 2100 ticks
     }
 }

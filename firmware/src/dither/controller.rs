@@ -13,9 +13,9 @@
 
 use super::amplitude::{AmplitudeLoop, PlantGainProbe};
 use super::config::DitherConfig;
-use super::dds::{cos_sin_q31, step_to_hz, Drive};
+use super::dds::{cos_sin_q31, Drive};
 use super::estimate::DitherEstimate;
-use super::frequency::{reference_shift, FrequencyLoop};
+use super::frequency::{phase_in, reference_shift, FrequencyLoop};
 use super::measure::{HalfCycle, Window, MAX_WINDOW};
 use super::noise::{NoiseDither, MAX_DEPTH_PERCENT};
 use super::startup::{Ring, RingListener};
@@ -285,7 +285,7 @@ impl DitherController {
             start_phase,
             amplitude_arcsec: config.codes_to_arcsec(self.amplitude_codes()),
             setpoint_arcsec: self.setpoint_arcsec,
-            frequency_hz: step_to_hz(self.drive.step, config.tick_hz as f64) as f32,
+            frequency_hz: step_hz(self.drive.step, config.tick_hz),
             drive_level: self.drive.amplitude_codes() as f32 / half_range,
             phase_error_rad: turns_to_rad(self.phase_error),
             plant_gain_per_s: self.amplitude.plant_gain_per_s(),
@@ -309,9 +309,9 @@ impl DitherController {
         if let Some(request) = self.request.take() {
             changed = self.apply_request(config, request, k);
         }
-        match self.mode {
+        match &self.mode {
             Mode::Off => return self.idle(changed),
-            Mode::Fault { retry_at, .. } => {
+            &Mode::Fault { retry_at, .. } => {
                 if (k.wrapping_sub(retry_at) as i32) < 0 {
                     return self.idle(changed);
                 }
@@ -434,7 +434,7 @@ impl DitherController {
         };
         let since = listener.elapsed(k) as f32 - ring.last_crossing;
         let advance = crate::math::round_to_i64(step.to_bits() as f64 * since as f64) as u32;
-        let shift = reference_shift(step, config.sample_delay_ticks);
+        let shift = reference_shift(step, config.sample_delay_q16);
         self.next_phase = at_crossing + Phase::from_bits(advance) + shift;
         self.prev_phase = self.next_phase;
         self.window = Window::new();
@@ -472,15 +472,13 @@ impl DitherController {
         let step = self.drive.step;
         if let Some(fit) = h.fit {
             self.offset_codes = fit.offset_codes;
-            let shift = reference_shift(step, config.sample_delay_ticks);
+            let shift = reference_shift(step, config.sample_delay_q16);
             self.phase_error = fit.phase + shift - Phase::HALF_TURN;
-            let delay =
-                crate::math::round_to_i64(step.to_bits() as f64 * config.sample_delay_ticks as f64);
             self.estimate = DitherEstimate {
                 tick: k,
                 amplitude_arcsec: config.codes_to_arcsec(fit.amplitude_codes),
-                frequency_hz: step_to_hz(step, config.tick_hz as f64) as f32,
-                angle_phase: theta + fit.phase - Phase::from_bits(delay as u32),
+                frequency_hz: step_hz(step, config.tick_hz),
+                angle_phase: theta + fit.phase - phase_in(step, config.sample_delay_q16),
                 valid: false,
             };
         }
@@ -673,6 +671,12 @@ fn check_range(value: f32, lo: f32, hi: f32) -> Result<(), CommandError> {
         return Err(CommandError::OutOfRange);
     }
     Ok(())
+}
+
+/// The frequency of DDS step `step` in `f32` (no `f64` in the half-cycle path: the M4F has no
+/// double-precision unit).
+fn step_hz(step: Phase, tick_hz: f32) -> f32 {
+    step.to_bits() as f32 * (tick_hz / 4_294_967_296.0)
 }
 
 fn turns_to_rad(p: Phase) -> f32 {

@@ -100,12 +100,16 @@ impl FrequencyLoop {
 /// The phase from a sample's regressor to the drive's phase at that sample's instant, Q32
 /// turns. Sample k is regressed on the phase of the DAC sample that tick k outputs,
 /// phi(k + 1); the drive in force then, seen through the DAC's zero-order hold, has the phase
-/// phi(k) - step / 2 at tick k, and the ADC samples `sample_delay_ticks` after tick k:
-/// `shift = step * (3/2 - sample_delay_ticks)`.
-pub fn reference_shift(step: Phase, sample_delay_ticks: f32) -> Phase {
-    let ticks = 1.5 - sample_delay_ticks;
-    let bits = crate::math::round_to_i64(step.to_bits() as f64 * ticks as f64);
-    Phase::from_bits(bits as u32)
+/// phi(k) - step / 2 at tick k, and the ADC samples `sample_delay_q16` (ticks, Q16) after
+/// tick k: `shift = step * (3/2 - sample_delay)` (integer arithmetic: once per half cycle).
+pub fn reference_shift(step: Phase, sample_delay_q16: u32) -> Phase {
+    let ticks_q16 = (3u64 << 15).saturating_sub(sample_delay_q16 as u64);
+    Phase::from_bits(((step.to_bits() as u64 * ticks_q16 + (1 << 15)) >> 16) as u32)
+}
+
+/// The phase the drive advances in `delay_q16` ticks (Q16): `step * delay`, rounded.
+pub fn phase_in(step: Phase, delay_q16: u32) -> Phase {
+    Phase::from_bits(((step.to_bits() as u64 * delay_q16 as u64 + (1 << 15)) >> 16) as u32)
 }
 
 #[cfg(test)]
@@ -197,7 +201,8 @@ mod tests {
     #[test]
     fn reference_shift_is_one_and_a_half_steps_less_the_sample_delay() {
         let step = Phase::from_bits(1000);
-        assert_eq!(reference_shift(step, 0.0).to_bits(), 1500);
-        assert_eq!(reference_shift(step, 0.5).to_bits(), 1000);
+        assert_eq!(reference_shift(step, 0).to_bits(), 1500);
+        assert_eq!(reference_shift(step, 1 << 15).to_bits(), 1000);
+        assert_eq!(phase_in(step, 3 << 15).to_bits(), 1500);
     }
 }

@@ -66,7 +66,7 @@ impl Resonator {
         let w0 = TAU * f0;
         let limit = config.amplitude.drive_limit_codes() as f64;
         let tick_s = 1.0 / config.tick_hz as f64;
-        let delay_s = config.sample_delay_ticks as f64 * tick_s;
+        let delay_s = config.sample_delay_ticks() as f64 * tick_s;
         Self {
             f0,
             q,
