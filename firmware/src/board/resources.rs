@@ -9,7 +9,7 @@
 //! | context | vector | prio | work | worst case |
 //! |---|---|---|---|---|
 //! | turnaround latch | `ADC` (JEOC) | 0x00 | copy ADC1/ADC2 JDR1, TIM5 CCR3, TIM2 CCR1 into a `TurnaroundSample`, enqueue, pend the readout task | 61 instr, 0.7 us |
-//! | dither drive tick | `TIM4` (CC1, 40 kHz) | 0x10 | ADC3 JDR1 (pick-off) -> `DitherController::on_tick` -> DAC DHR12R1 | DRIVE_TICK_COMMON instr, DRIVE_TICK_COMMON_US; at a half cycle DRIVE_TICK_UPDATE, DRIVE_TICK_UPDATE_US |
+//! | dither drive tick | `TIM4` (CC1, 40 kHz) | 0x10 | ADC3 JDR1 (pick-off) -> `DitherController::on_tick` -> DAC DHR12R1 | 18 + 232 instr, 2.5 us; at the end of a half dither cycle 18 + 1196, 11.7 us |
 //! | pick-off | `TIM2` (CC3/CC4) | 0x20 | edge time -> predicted turnaround -> `CCR1` | 55 instr, 0.7 us (both edges pending: 1.1 us) |
 //! | serial | `USART1` | 0x30 | RX byte -> RX queue; TX queue -> DR | 35 + 20 per byte, 0.9 us |
 //! | Lissajous block | `DMA2_STREAM0` (HT/TC) | 0x40 | mark a half buffer ready, pend the readout task | 44 instr (static count), 0.6 us |
@@ -26,7 +26,8 @@
 //! 0.7 us latch can delay it. The pick-off handler must arm the compare within a quarter
 //! period minus 2 us (248 us at 1 kHz): the tick takes at most a few us of that. The USART
 //! must read each byte within one character time (21.7 us at 460 800 Bd): it is preempted
-//! only by the three handlers above (one tick at most per character: < 5 us together). The
+//! only by the three handlers above (one tick at most per character; with the tick that
+//! closes a half cycle 0.7 + 11.7 + 1.1 = 13.5 us together). The
 //! readout task has half a dither period per turnaround and 20.7 ms per Lissajous block; the
 //! main loop takes whatever is left.
 //!
@@ -46,9 +47,9 @@
 //!   section.
 //!
 //! # CPU load (docs/board.md has the derivation)
-//! At 389 Hz dither: 3.3 % of 168 MHz (turnaround chain 1.6 %, Lissajous stream 1.7 %); with a
-//! calibration run and the binary stream on every cycle: 6.3 %. At 1 kHz: 5.7 %; with a
-//! calibration run and the stream on every second cycle: 11.4 %.
+//! At 389 Hz dither: 14.1 % of 168 MHz (dither drive 10.8 %, turnaround chain 1.6 %, Lissajous
+//! stream 1.7 %); with a calibration run and the binary stream on every cycle: 17.1 %. At
+//! 1 kHz: 17.6 %; with a calibration run and the stream on every second cycle: 23.3 %.
 
 use core::cell::UnsafeCell;
 use core::sync::atomic::{AtomicU32, Ordering};
