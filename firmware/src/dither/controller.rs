@@ -595,7 +595,7 @@ impl DitherController {
     fn check(&mut self, config: &DitherConfig, h: &HalfCycle, k: u32) -> Option<FaultKind> {
         let limits = &config.faults;
         let amplitude = self.amplitude_codes();
-        if h.samples > 0 && h.rail_samples * 4 >= h.samples {
+        if h.rail_samples >= limits.rail_samples {
             return Some(FaultKind::PickoffSaturated);
         }
         if amplitude > limits.max_amplitude_codes {

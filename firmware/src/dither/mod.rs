@@ -81,9 +81,11 @@
 //!   cold starts at 300 and 600 Hz lock in 0.85 and 1.24 s;
 //! - f0 drifting 0.5 Hz in 60 s: amplitude 0.0037 % rms off the setpoint, drive within
 //!   0.0016 Hz of the resonance;
-//! - faults, from the injection: pick-off lost 0.8, saturated 0.3, no oscillation 0.8,
-//!   amplitude out of range 0.8 periods; drive saturated 2.5 periods after the loop reached
-//!   its limit;
+//! - faults, from the injection (slowest of four injection instants a quarter period apart):
+//!   pick-off lost 0.81, saturated 0.55, no oscillation 0.81, amplitude out of range 1.06
+//!   periods; drive saturated 2.50 periods after the loop reached its limit; the drive off at
+//!   the next tick each time;
+//! - the drive's changes while locked fall within two ticks of the angle's zero crossings;
 //! - estimate while locked: amplitude within 3e-4, the angle's phase within 1.8e-4 rad;
 //! - noise dither at 30 %: the mean amplitude within 0.003 % of the setpoint, 0.09 arcsec of
 //!   change per half cycle (0.3 rad of turnaround phase at 1.8655 arcsec per fringe);

@@ -10,7 +10,7 @@
 //!
 //! | fault | condition (per half-cycle window) | in |
 //! |---|---|---|
-//! | `PickoffSaturated` | at least a quarter of the samples at 0 or full scale | every driven state |
+//! | `PickoffSaturated` | at least [`FaultLimits::rail_samples`] samples at 0 or full scale (pinned, or a clipped sine) | every driven state |
 //! | `PickoffLost` | peak-to-peak range at most [`FaultLimits::flat_codes`] (a constant code: a broken pick-off, a dead ADC) | ring-up, locked |
 //! | `NoOscillation` | fitted amplitude below [`FaultLimits::lost_amplitude_codes`] while the pick-off is alive; no resonance found by the start-up; a plant gain below the plausible | ring-up, locked, start-up |
 //! | `DriveSaturated` | the amplitude loop at the drive limit for more than [`FaultLimits::saturated_half_cycles`] (locked) or [`FaultLimits::ramp_saturated_ticks`] (ring-up) | ring-up, locked |
@@ -30,7 +30,7 @@
 pub enum FaultKind {
     /// The pick-off shows a constant code (broken pick-off or ADC).
     PickoffLost,
-    /// The pick-off sits at an ADC rail (0 or full scale) for a quarter of a half cycle or more.
+    /// The pick-off reaches an ADC rail (0 or full scale): pinned there, or clipped.
     PickoffSaturated,
     /// No oscillation: none found at start-up, or it vanished (pick-off alive, no sine).
     NoOscillation,
@@ -77,6 +77,9 @@ pub struct FaultLimits {
     pub flat_codes: u16,
     /// The ADC code counted as the upper rail (and 0 as the lower).
     pub rail_code: u16,
+    /// A half cycle with this many samples at a rail is saturated (a sine inside the ADC's
+    /// range never touches a rail; 2 ignores a single glitch).
+    pub rail_samples: u32,
     /// Below this fitted amplitude (codes) the oscillation is lost.
     pub lost_amplitude_codes: f32,
     /// Above this amplitude (codes) at once: out of range (mechanical safety).
@@ -108,6 +111,7 @@ impl FaultLimits {
         Self {
             flat_codes: 2,
             rail_code,
+            rail_samples: 2,
             lost_amplitude_codes: 8.0,
             max_amplitude_codes,
             band: 0.1,
