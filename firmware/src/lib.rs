@@ -13,6 +13,7 @@
 #![warn(missing_docs)]
 
 pub mod calibration;
+pub mod dither;
 pub mod math;
 pub mod profile;
 pub mod protocol;

@@ -39,12 +39,28 @@ pub struct BoardProfile {
     pub nominal_dither_hz: f64,
     /// Scale factor of that gyro, arcsec per fringe (only the rate output in deg/h uses it).
     pub scale_factor_arcsec: f64,
+    /// Tick rate of the dither drive, Hz: the rate at which the DAC takes a new drive sample and
+    /// the ADC samples the pick-off (one timer update, `board::dither`). Divides [`Self::timer_hz`]
+    /// exactly ([`Self::drive_tick_period_timer_ticks`]); `crate::dither` justifies the value.
+    pub drive_tick_hz: u32,
+    /// Pick-off sensitivity: dither angle per pick-off ADC code, arcsec per code (the pick-off
+    /// amplifier's gain into the 12-bit ADC; nominal, to be calibrated against the fringe count).
+    pub pickoff_arcsec_per_code: f64,
+    /// The pick-off ADC code of a zero dither angle (nominal; the half-cycle fit estimates the
+    /// real offset).
+    pub pickoff_mid_code: u16,
+    /// Full scale of the drive DAC, codes (12 bit: 4095); its mid-code is the zero drive.
+    pub dac_full_scale: u16,
+    /// Frequencies the dither start-up searches for the resonance, Hz (inclusive).
+    pub dither_search_hz: (f64, f64),
 }
 
 impl BoardProfile {
     /// The STM32F405 readout board (docs/board.md) for the docs/physics.md gyro: 84 MHz APB1
     /// timers, 32-bit TIM5 encoder, 18 ticks pick-off path, 70 ticks ADC aperture (2.5 + 15 ADC
-    /// clocks at 21 MHz), 200-1500 Hz dither, 389 Hz nominal, 1.8655 arcsec per fringe.
+    /// clocks at 21 MHz), 200-1500 Hz dither, 389 Hz nominal, 1.8655 arcsec per fringe; the
+    /// dither drive ticks at 40 kHz (84 MHz / 2100), 0.4 arcsec per pick-off code (450 arcsec =
+    /// 1125 codes, 700 arcsec before the rails), 12-bit DAC, resonance searched in 280-620 Hz.
     pub const F405: Self = Self {
         name: "rlg-readout-f405",
         timer_hz: 84_000_000,
@@ -55,7 +71,18 @@ impl BoardProfile {
         dither_hz_range: (200, 1500),
         nominal_dither_hz: 389.0,
         scale_factor_arcsec: 1.8655,
+        drive_tick_hz: 40_000,
+        pickoff_arcsec_per_code: 0.4,
+        pickoff_mid_code: 2048,
+        dac_full_scale: 4095,
+        dither_search_hz: (280.0, 620.0),
     };
+
+    /// Timer ticks per drive tick: the drive timer's reload + 1 (2100 on the F405). Exact when
+    /// [`Self::drive_tick_hz`] divides [`Self::timer_hz`] (a test checks the F405's).
+    pub const fn drive_tick_period_timer_ticks(&self) -> u32 {
+        self.timer_hz / self.drive_tick_hz
+    }
 
     /// The turnaround scheduler's settings on this board.
     pub const fn scheduler_config(&self) -> SchedulerConfig {
@@ -90,6 +117,17 @@ mod tests {
         assert!(half(100.0) > s.max_half_ticks);
         assert!(half(5000.0) < s.min_half_ticks);
         assert_eq!(s.fixed_delay_ticks(), 88);
+    }
+
+    #[test]
+    fn drive_tick_divides_the_timer_clock_exactly() {
+        let p = BoardProfile::F405;
+        assert_eq!(p.timer_hz % p.drive_tick_hz, 0);
+        assert_eq!(p.drive_tick_period_timer_ticks(), 2100);
+        // The start-up search covers at least 300-600 Hz, inside the scheduler's range.
+        assert!(p.dither_search_hz.0 <= 300.0 && p.dither_search_hz.1 >= 600.0);
+        assert!(p.dither_search_hz.0 >= p.dither_hz_range.0 as f64);
+        assert!(p.dither_search_hz.1 <= p.dither_hz_range.1 as f64);
     }
 
     #[test]

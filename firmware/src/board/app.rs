@@ -2,9 +2,10 @@
 //!
 //! The main loop is the lowest-priority context (thread mode). It owns the command service
 //! (`crate::service::Service`, the same one hal-sim's simulated board runs) and the board's
-//! ports for it ([`super::ports::BoardPorts`]), and does three things per pass: it hands the
+//! ports for it ([`super::ports::BoardPorts`]), and does four things per pass: it hands the
 //! service every received byte and every dither cycle the readout task queued, refreshes the
-//! watchdog, and logs the loss counters when they change. It sleeps (`WFI`) when both queues
+//! watchdog, logs the dither drive's status when its state changes, and logs the loss
+//! counters when they change. It sleeps (`WFI`) when both queues
 //! are empty; any interrupt wakes it, at the latest the 1 ms tick, which bounds the delay of a
 //! byte that arrived between the check and the `WFI`. Who runs above it and what they share:
 //! [`super::resources`].
@@ -16,8 +17,9 @@ use embedded_storage::nor_flash::NorFlash;
 use heapless::spsc::Consumer;
 
 use super::ports::BoardPorts;
-use super::resources::{self, init_core, unmask_readout, SCHEDULER};
-use super::{adc, clocks, encoder, flash, pac, turnaround, usart, watchdog};
+use super::resources::{self, init_core, start_dither, unmask_readout, SCHEDULER};
+use super::{adc, clocks, dither, encoder, flash, pac, turnaround, usart, watchdog};
+use crate::dither::DitherConfig;
 use crate::profile::BoardProfile;
 use crate::protocol::execute::Identity;
 use crate::readout::Readout;
@@ -118,7 +120,8 @@ pub fn boot<F: NorFlash>(
 }
 
 /// Brings the board up and runs it: clocks, watchdog, serial link, calibration from flash,
-/// encoder, turnaround timer, ADCs, interrupts, then the main loop. Needs
+/// encoder, turnaround timer, ADCs, the dither drive (enabled: it finds the resonance and
+/// locks by itself), interrupts, then the main loop. Needs
 /// [`crate::bind_board_interrupts`] in the binary.
 pub fn run() -> ! {
     let profile = BoardProfile::F405;
@@ -129,8 +132,12 @@ pub fn run() -> ! {
     clocks::enable(
         &dp.RCC,
         clocks::AHB1_GPIOA | clocks::AHB1_GPIOB | clocks::AHB1_GPIOC | clocks::AHB1_DMA2,
-        clocks::APB1_TIM2 | clocks::APB1_TIM3 | clocks::APB1_TIM5,
-        clocks::APB2_USART1 | clocks::APB2_ADC1 | clocks::APB2_ADC2,
+        clocks::APB1_TIM2
+            | clocks::APB1_TIM3
+            | clocks::APB1_TIM4
+            | clocks::APB1_TIM5
+            | clocks::APB1_DAC,
+        clocks::APB2_USART1 | clocks::APB2_ADC1 | clocks::APB2_ADC2 | clocks::APB2_ADC3,
     );
     defmt::info!("clocks: 168 MHz from {}", source);
     init_core(&mut cp.SCB, &mut cp.NVIC, &mut cp.SYST);
@@ -146,6 +153,9 @@ pub fn run() -> ! {
     SCHEDULER.init(turnaround::Scheduler::new());
     adc::init(&dp.ADC_COMMON, &dp.ADC1, &dp.ADC2, &dp.TIM3, &dp.DMA2);
     turnaround::init(&dp.TIM2);
+    let dither_config = DitherConfig::for_profile(&profile);
+    dither::init(&dp.TIM4, &dp.DAC, &dp.ADC3, dither_config.dac_mid_code);
+    start_dither(dither_config);
     unmask_readout(true);
     // SAFETY: the USART's queues were set up in `usart::init`.
     unsafe { NVIC::unmask(pac::Interrupt::USART1) };
@@ -172,6 +182,7 @@ pub fn serve<F: NorFlash>(
     }
     let mut health = Health::default();
     let mut health_logged_ms = resources::now_ms();
+    let mut dither_state = None;
     loop {
         ports.refresh_watchdog();
         let mut busy = false;
@@ -182,6 +193,15 @@ pub fn serve<F: NorFlash>(
         while let Some(record) = records.dequeue() {
             service.on_cycle(&record, &mut ports);
             busy = true;
+        }
+        let state = resources::DITHER.lock(|task| task.controller.state());
+        if state != dither_state {
+            if let Some(status) =
+                resources::DITHER.lock(|task| task.controller.status(&task.config))
+            {
+                defmt::info!("dither: {}", status);
+            }
+            dither_state = state;
         }
         let now = resources::now_ms();
         if now.wrapping_sub(health_logged_ms) >= HEALTH_LOG_MS {

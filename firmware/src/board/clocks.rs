@@ -105,14 +105,20 @@ pub const AHB1_DMA2: u32 = 1 << 22;
 pub const APB1_TIM2: u32 = 1 << 0;
 /// TIM3 clock enable (APB1ENR).
 pub const APB1_TIM3: u32 = 1 << 1;
+/// TIM4 clock enable (APB1ENR).
+pub const APB1_TIM4: u32 = 1 << 2;
 /// TIM5 clock enable (APB1ENR).
 pub const APB1_TIM5: u32 = 1 << 3;
+/// DAC clock enable (APB1ENR).
+pub const APB1_DAC: u32 = 1 << 29;
 /// USART1 clock enable (APB2ENR).
 pub const APB2_USART1: u32 = 1 << 4;
 /// ADC1 clock enable (APB2ENR).
 pub const APB2_ADC1: u32 = 1 << 8;
 /// ADC2 clock enable (APB2ENR).
 pub const APB2_ADC2: u32 = 1 << 9;
+/// ADC3 clock enable (APB2ENR).
+pub const APB2_ADC3: u32 = 1 << 10;
 
 /// Turns on peripheral clocks (read back once: RM0090 erratum-style delay of two AHB cycles
 /// before the peripheral may be accessed).

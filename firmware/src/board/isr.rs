@@ -12,7 +12,7 @@ use cortex_m::peripheral::NVIC;
 use super::resources::{
     self, LATCH_SIDE, READOUT, READOUT_TASK_IRQ, RECORDS_DROPPED, SCHEDULER, TURNAROUNDS_DROPPED,
 };
-use super::{adc, pac, turnaround, usart};
+use super::{adc, dither, pac, turnaround, usart};
 
 /// `ADC`: the turnaround latch (JEOC of ADC1).
 pub fn adc() {
@@ -35,6 +35,14 @@ pub fn adc() {
         }
     }
     NVIC::pend(READOUT_TASK_IRQ);
+}
+
+/// `TIM4` (CC1): the dither drive tick.
+pub fn tim4() {
+    // SAFETY: TIM4's SR, ADC3's SR/JDR1 and the DAC's DHR12R1 are used by this handler only
+    // after start-up (and by the main loop's store pause, with this interrupt masked).
+    let (tim, adc3, dac) = unsafe { (&*pac::TIM4::ptr(), &*pac::ADC3::ptr(), &*pac::DAC::ptr()) };
+    dither::on_tick(tim, adc3, dac);
 }
 
 /// `TIM2`: a pick-off edge.
@@ -97,6 +105,10 @@ macro_rules! bind_board_interrupts {
             #[cortex_m_rt::interrupt]
             fn TIM2() {
                 $crate::board::isr::tim2()
+            }
+            #[cortex_m_rt::interrupt]
+            fn TIM4() {
+                $crate::board::isr::tim4()
             }
             #[cortex_m_rt::interrupt]
             fn USART1() {

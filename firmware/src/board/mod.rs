@@ -14,6 +14,7 @@
 //! | [`encoder`] | TIM5 | x4 up/down count of the squared photodiode signals; latch on TIM2's TRGO |
 //! | [`turnaround`] | TIM2 | pick-off zero-crossing capture, output compare at the predicted turnaround |
 //! | [`adc`] | ADC1+ADC2, DMA2 stream 0, TIM3 | injected pair at the turnaround; regular pairs for the Lissajous fit |
+//! | [`dither`] | TIM4, DAC1, ADC3 | the dither drive's 40 kHz tick: pick-off sample and DAC update on one timer edge, `crate::dither` in the handler |
 //! | [`usart`] | USART1 | the calibration protocol's serial link (RXNE/TXE interrupts, bounded queues) |
 //! | [`flash`] | FLASH | sectors 10-11 as an `embedded_storage` `NorFlash` |
 //! | [`watchdog`] | IWDG | reset if the main loop stops |
@@ -39,6 +40,7 @@
 pub mod adc;
 pub mod app;
 pub mod clocks;
+pub mod dither;
 pub mod encoder;
 pub mod flash;
 pub mod isr;

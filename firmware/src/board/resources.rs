@@ -9,20 +9,27 @@
 //! | context | vector | prio | work | worst case |
 //! |---|---|---|---|---|
 //! | turnaround latch | `ADC` (JEOC) | 0x00 | copy ADC1/ADC2 JDR1, TIM5 CCR3, TIM2 CCR1 into a `TurnaroundSample`, enqueue, pend the readout task | 61 instr, 0.7 us |
-//! | pick-off | `TIM2` (CC3/CC4) | 0x10 | edge time -> predicted turnaround -> `CCR1` | 55 instr, 0.7 us (both edges pending: 1.1 us) |
-//! | serial | `USART1` | 0x20 | RX byte -> RX queue; TX queue -> DR | 35 + 20 per byte, 0.9 us |
-//! | Lissajous block | `DMA2_STREAM0` (HT/TC) | 0x30 | mark a half buffer ready, pend the readout task | 44 instr (static count), 0.6 us |
-//! | ms tick | `SysTick` | 0x30 | millisecond counter for the protocol's timeouts | 10 instr |
-//! | readout task | `EXTI1` (software-pended, no EXTI line routed) | 0x40 | `on_turnaround` per queued sample (1106 / 1786 instr) + rate shift (71), `on_lissajous_sample` per pair (129; 51 573 at a window solve), `CycleRecord` out | 18 us per turnaround; 0.33 ms per block, 0.82 ms with a solve |
+//! | dither drive tick | `TIM4` (CC1, 40 kHz) | 0x10 | ADC3 JDR1 (pick-off) -> `DitherController::on_tick` -> DAC DHR12R1 | 18 + 232 instr, 2.5 us; at the end of a half dither cycle 18 + 1196, 11.7 us |
+//! | pick-off | `TIM2` (CC3/CC4) | 0x20 | edge time -> predicted turnaround -> `CCR1` | 55 instr, 0.7 us (both edges pending: 1.1 us) |
+//! | serial | `USART1` | 0x30 | RX byte -> RX queue; TX queue -> DR | 35 + 20 per byte, 0.9 us |
+//! | Lissajous block | `DMA2_STREAM0` (HT/TC) | 0x40 | mark a half buffer ready, pend the readout task | 44 instr (static count), 0.6 us |
+//! | ms tick | `SysTick` | 0x40 | millisecond counter for the protocol's timeouts | 10 instr |
+//! | readout task | `EXTI1` (software-pended, no EXTI line routed) | 0x50 | `on_turnaround` per queued sample (1106 / 1786 instr) + rate shift (71), `on_lissajous_sample` per pair (129; 51 573 at a window solve), `CycleRecord` out | 18 us per turnaround; 0.33 ms per block, 0.82 ms with a solve |
 //! | main loop | thread | - | protocol (line -> parse -> `Executor`), rate averaging (716 instr per cycle), calibration run (3 910), stream frame (921), flash store, watchdog | preemptible |
 //!
 //! Rate-monotonic reasoning: the turnaround latch has no deadline of its own (the hardware holds
 //! the result until the next trigger, a half dither period later) but is the shortest, so it
-//! goes first and never delays anything measurably. The pick-off handler must arm the compare
-//! within a quarter period minus 2 us (248 us at 1 kHz). The USART must read each byte within one
-//! character time (21.7 us at 460 800 Bd): it is preempted only by the two handlers above
-//! (< 1.8 us together). The readout task has half a dither period per turnaround and 20.7 ms
-//! per Lissajous block; the main loop takes whatever is left.
+//! goes first and never delays anything measurably. The dither drive tick has the shortest
+//! period (25 us) and the tightest deadline (the DAC takes its holding register at the next
+//! update, 23 us after the handler is raised; the sampling and the DAC update are timed by
+//! TIM4 in hardware, so the handler's latency moves nothing), so it comes next: only the
+//! 0.7 us latch can delay it. The pick-off handler must arm the compare within a quarter
+//! period minus 2 us (248 us at 1 kHz): the tick takes at most a few us of that. The USART
+//! must read each byte within one character time (21.7 us at 460 800 Bd): it is preempted
+//! only by the three handlers above (one tick at most per character; with the tick that
+//! closes a half cycle 0.7 + 11.7 + 1.1 = 13.5 us together). The
+//! readout task has half a dither period per turnaround and 20.7 ms per Lissajous block; the
+//! main loop takes whatever is left.
 //!
 //! # Shared state
 //! - ISR -> readout task: `TurnaroundSample`s through a heapless SPSC queue (16 entries = 8
@@ -40,9 +47,9 @@
 //!   section.
 //!
 //! # CPU load (docs/board.md has the derivation)
-//! At 389 Hz dither: 3.3 % of 168 MHz (turnaround chain 1.6 %, Lissajous stream 1.7 %); with a
-//! calibration run and the binary stream on every cycle: 6.3 %. At 1 kHz: 5.7 %; with a
-//! calibration run and the stream on every second cycle: 11.4 %.
+//! At 389 Hz dither: 14.1 % of 168 MHz (dither drive 10.8 %, turnaround chain 1.6 %, Lissajous
+//! stream 1.7 %); with a calibration run and the binary stream on every cycle: 17.1 %. At
+//! 1 kHz: 17.6 %; with a calibration run and the stream on every second cycle: 23.3 %.
 
 use core::cell::UnsafeCell;
 use core::sync::atomic::{AtomicU32, Ordering};
@@ -51,6 +58,7 @@ use cortex_m::peripheral::{scb::SystemHandler, NVIC, SCB, SYST};
 use heapless::spsc::{Consumer, Producer, Queue};
 
 use super::{adc, pac, turnaround, Owned};
+use crate::dither::{DitherConfig, DitherController};
 use crate::readout::{Readout, ReadoutConfig};
 use crate::sample::TurnaroundSample;
 use crate::signal::lockin::CycleRecord;
@@ -60,16 +68,18 @@ use pac::Interrupt;
 pub mod priority {
     /// `ADC` (JEOC): the turnaround latch, the highest.
     pub const TURNAROUND_LATCH: u8 = 0x00;
+    /// `TIM4` (CC1): the dither drive tick, 40 kHz.
+    pub const DITHER_TICK: u8 = 0x10;
     /// `TIM2` (CC3/CC4): the pick-off handler.
-    pub const PICKOFF: u8 = 0x10;
+    pub const PICKOFF: u8 = 0x20;
     /// `USART1`: the serial link.
-    pub const SERIAL: u8 = 0x20;
+    pub const SERIAL: u8 = 0x30;
     /// `DMA2_STREAM0` (HT/TC): a Lissajous block ready.
-    pub const LISSAJOUS_DMA: u8 = 0x30;
+    pub const LISSAJOUS_DMA: u8 = 0x40;
     /// `SysTick`: the millisecond tick.
-    pub const TICK: u8 = 0x30;
+    pub const TICK: u8 = 0x40;
     /// `EXTI1` (software-pended): the readout task, the lowest interrupt.
-    pub const READOUT_TASK: u8 = 0x40;
+    pub const READOUT_TASK: u8 = 0x50;
 }
 
 /// The software-pended vector of the readout task (EXTI line 1 is not routed to any pin).
@@ -138,6 +148,17 @@ pub struct ReadoutTask {
     pub records: Producer<'static, CycleRecord>,
 }
 
+/// What the drive tick owns: the dither controller and its settings.
+pub struct DitherTask {
+    /// The controller's settings (from the board profile).
+    pub config: DitherConfig,
+    /// The controller's state.
+    pub controller: DitherController,
+}
+
+/// The dither controller, owned by the drive tick (`isr::tim4`), shared with the main loop.
+pub static DITHER: PriorityLock<DitherTask> = PriorityLock::new(priority::DITHER_TICK);
+
 /// The readout, shared by the readout task and the main loop.
 pub static READOUT: PriorityLock<ReadoutTask> = PriorityLock::new(priority::READOUT_TASK);
 /// The turnaround latch's end of the sample queue (owner: `isr::adc`).
@@ -178,6 +199,7 @@ pub fn init_core(scb: &mut SCB, nvic: &mut NVIC, syst: &mut SYST) {
     // SAFETY: priorities are set before any of these interrupts is unmasked.
     unsafe {
         nvic.set_priority(Interrupt::ADC, priority::TURNAROUND_LATCH);
+        nvic.set_priority(Interrupt::TIM4, priority::DITHER_TICK);
         nvic.set_priority(Interrupt::TIM2, priority::PICKOFF);
         nvic.set_priority(Interrupt::USART1, priority::SERIAL);
         nvic.set_priority(Interrupt::DMA2_STREAM0, priority::LISSAJOUS_DMA);
@@ -204,10 +226,45 @@ pub fn unmask_readout(hardware: bool) {
     }
 }
 
-/// Stops every readout interrupt for a flash store (`ports::BoardPorts::stop_readout`): producers first, then the readout task is
+/// Starts the dither controller (enabled: the start-up begins at the first tick) and unmasks
+/// the drive tick. TIM4, the DAC and ADC3 must be set up (`dither::init`).
+pub fn start_dither(config: DitherConfig) {
+    let mut controller = DitherController::new(&config);
+    controller.enable();
+    DITHER.init(DitherTask { config, controller });
+    // SAFETY: the tick's state was initialised just above.
+    unsafe { NVIC::unmask(Interrupt::TIM4) };
+}
+
+/// Stops the dither drive for a flash store (the erase stalls the CPU for 1-2 s, during which
+/// the tick could not run and the DAC would hold one drive sample: a DC force): the tick is
+/// masked and the DAC set to zero drive. The dither rings down (tau = 2Q / w0, 0.8 s at
+/// Q = 1000) until [`resume_dither`].
+pub fn pause_dither() {
+    NVIC::mask(Interrupt::TIM4);
+    // SAFETY: the tick is masked: the main loop may write the DAC.
+    let dac = unsafe { &*pac::DAC::ptr() };
+    let mid = DITHER.lock(|task| task.config.dac_mid_code).unwrap_or(2048);
+    // TIM4 keeps running (and its TRGO loading the DAC) while the CPU is stalled.
+    dac.dhr12r1().write(|w| unsafe { w.bits(mid as u32) });
+}
+
+/// Resumes the drive after a store: the controller starts again by listening (a dither still
+/// ringing is caught without a sweep), its tick unmasked.
+pub fn resume_dither() {
+    if DITHER.lock(|task| task.controller.restart()).is_some() {
+        NVIC::unpend(Interrupt::TIM4);
+        // SAFETY: the controller is initialised (the lock found it).
+        unsafe { NVIC::unmask(Interrupt::TIM4) };
+    }
+}
+
+/// Stops every readout interrupt for a flash store (`ports::BoardPorts::stop_readout`), and
+/// the dither drive ([`pause_dither`]): producers first, then the readout task is
 /// run once to empty the sample queue (it preempts the caller at once), then masked too.
 pub fn pause_readout(hardware: bool) {
     if hardware {
+        pause_dither();
         NVIC::mask(Interrupt::ADC);
         NVIC::mask(Interrupt::TIM2);
         NVIC::mask(Interrupt::DMA2_STREAM0);
@@ -230,6 +287,7 @@ pub fn resume_readout(hardware: bool) {
         adc::discard_injected(unsafe { &*pac::ADC1::ptr() });
         NVIC::unpend(Interrupt::ADC);
         NVIC::unpend(Interrupt::TIM2);
+        resume_dither();
     }
     unmask_readout(hardware);
 }

@@ -3,7 +3,7 @@
 //! suite on the target (`cargo fw-test`).
 //!
 //! Inputs come from [`Rng`] with a fixed seed per case; every output goes to `out`.
-use super::{calibration, frontend, signal, Case, Outputs, Rng};
+use super::{calibration, dither, frontend, signal, Case, Outputs, Rng};
 
 pub const CASES: &[Case] = &[
     // The platform: input generator, integer and float arithmetic, the f32 maths library.
@@ -29,6 +29,10 @@ pub const CASES: &[Case] = &[
     // Calibration (firmware::calibration).
     Case::exact("calibration::fit", calibration::calibration_fit),
     Case::exact("calibration::tracking", calibration::calibration_tracking),
+    // The dither drive (firmware::dither): DDS codes, the half-cycle fit, the controller.
+    Case::exact("dither::dds", dither::dds),
+    Case::exact("dither::half_cycle_fit", dither::half_cycle_fit),
+    Case::exact("dither::controller", dither::controller),
 ];
 
 /// The input generator itself (64-bit shifts on a 32-bit core).

@@ -69,4 +69,10 @@ pub const GOLDEN: &[Golden] = &[
     Golden { name: "calibration::fit", words: 951, digest: 0x7c27fe47192c1138, f32_bits: &[] },
     // calibration::tracking (bit-identical)
     Golden { name: "calibration::tracking", words: 603, digest: 0x6dab1e35a44c0e11, f32_bits: &[] },
+    // dither::dds (bit-identical)
+    Golden { name: "dither::dds", words: 2000, digest: 0x452e861d3eb43498, f32_bits: &[] },
+    // dither::half_cycle_fit (bit-identical)
+    Golden { name: "dither::half_cycle_fit", words: 1400, digest: 0x1d9d03bd8e4c8413, f32_bits: &[] },
+    // dither::controller (bit-identical)
+    Golden { name: "dither::controller", words: 53381, digest: 0x57c01acf44bdc113, f32_bits: &[] },
 ];

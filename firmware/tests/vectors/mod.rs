@@ -16,6 +16,7 @@
 
 pub mod calibration;
 pub mod cases;
+pub mod dither;
 pub mod frontend;
 pub mod golden;
 pub mod signal;

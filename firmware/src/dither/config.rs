@@ -1,0 +1,110 @@
+//! The controller's configuration: immutable, built once from the board profile
+//! ([`DitherConfig::for_profile`]), apart from the controller's state (STYLE.md). Each part
+//! lives beside the code that uses it; this file only assembles them.
+
+use super::amplitude::AmplitudeLoopConfig;
+use super::frequency::FrequencyLoopConfig;
+use super::startup::StartupConfig;
+use super::supervisor::FaultLimits;
+use crate::profile::BoardProfile;
+
+/// Everything the dither controller needs to know that does not change while it runs.
+#[derive(Clone, Debug)]
+pub struct DitherConfig {
+    /// Tick rate f_s, Hz (the board profile's `drive_tick_hz`).
+    pub tick_hz: f32,
+    /// Pick-off sensitivity, arcsec per ADC code.
+    pub pickoff_arcsec_per_code: f32,
+    /// The pick-off code of zero angle (nominal; the fit measures the real offset).
+    pub pickoff_mid_code: u16,
+    /// The DAC's zero-drive code.
+    pub dac_mid_code: u16,
+    /// The DAC's full scale.
+    pub dac_full_scale: u16,
+    /// The pick-off's sampling instant after its tick, ticks in Q16: the ADC's aperture less
+    /// any pick-off lag (a board calibration; enters the phase detector and the estimates).
+    pub sample_delay_q16: u32,
+    /// Settable amplitude setpoints, arcsec (inclusive).
+    pub setpoint_range_arcsec: (f32, f32),
+    /// The setpoint after reset, arcsec.
+    pub default_setpoint_arcsec: f32,
+    /// Start-up: search range, sweep, ring detection, lock criteria.
+    pub startup: StartupConfig,
+    /// The amplitude loop.
+    pub amplitude: AmplitudeLoopConfig,
+    /// The frequency loop.
+    pub frequency: FrequencyLoopConfig,
+    /// Fault limits and the back-off.
+    pub faults: FaultLimits,
+}
+
+impl DitherConfig {
+    /// The controller on `profile`'s board: its tick, pick-off, DAC and search range; a
+    /// 450 arcsec default setpoint (docs/physics.md's gyro) settable in 50-650 arcsec; the drive
+    /// limited to 93 % of the DAC's half range; loop crossovers 4 Hz (amplitude) and 2 Hz
+    /// (frequency), integral corners a quarter of those.
+    pub fn for_profile(profile: &BoardProfile) -> Self {
+        let tick_hz = profile.drive_tick_hz as f64;
+        let dither_hz = profile.nominal_dither_hz as f32;
+        let startup = StartupConfig::new(profile.dither_search_hz, tick_hz);
+        let half_range = (profile.dac_full_scale as f32 + 1.0) / 2.0;
+        let sensitivity = profile.pickoff_arcsec_per_code as f32;
+        let pickoff_half_range =
+            (profile.pickoff_mid_code as f32).min(0xFFF as f32 - profile.pickoff_mid_code as f32);
+        Self {
+            tick_hz: tick_hz as f32,
+            pickoff_arcsec_per_code: sensitivity,
+            pickoff_mid_code: profile.pickoff_mid_code,
+            dac_mid_code: (profile.dac_full_scale / 2 + 1),
+            dac_full_scale: profile.dac_full_scale,
+            sample_delay_q16: ((profile.aperture_delay_ticks as u64) << 16)
+                .div_ceil(profile.drive_tick_period_timer_ticks() as u64)
+                as u32,
+            setpoint_range_arcsec: (50.0, 650.0),
+            default_setpoint_arcsec: 450.0,
+            startup,
+            amplitude: AmplitudeLoopConfig::new(4.0, 4.0, dither_hz, 0.93 * half_range),
+            frequency: FrequencyLoopConfig::new(
+                2.0,
+                4.0,
+                dither_hz,
+                tick_hz as f32,
+                startup.search_steps,
+            ),
+            faults: FaultLimits::new(tick_hz as f32, 0xFFF, 0.92 * pickoff_half_range),
+        }
+    }
+
+    /// Arcsec of dither per pick-off code.
+    pub fn codes_to_arcsec(&self, codes: f32) -> f32 {
+        codes * self.pickoff_arcsec_per_code
+    }
+
+    /// The pick-off's sampling delay, ticks.
+    pub fn sample_delay_ticks(&self) -> f32 {
+        self.sample_delay_q16 as f32 / 65_536.0
+    }
+
+    /// Pick-off codes of `arcsec` of dither.
+    pub fn arcsec_to_codes(&self, arcsec: f32) -> f32 {
+        arcsec / self.pickoff_arcsec_per_code
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn f405_config_is_consistent() {
+        let c = DitherConfig::for_profile(&BoardProfile::F405);
+        assert_eq!(c.tick_hz, 40_000.0);
+        assert_eq!(c.dac_mid_code, 2048);
+        assert!((c.amplitude.drive_limit_codes() - 1904.64).abs() < 0.01);
+        // The largest setpoint stays inside the out-of-range limit, which stays off the rails.
+        let max_codes = c.arcsec_to_codes(c.setpoint_range_arcsec.1);
+        assert!(max_codes * (1.0 + c.faults.band) < c.faults.max_amplitude_codes);
+        assert!(c.faults.max_amplitude_codes < 2047.0);
+        assert_eq!(c.sample_delay_q16, 2185); // 70 / 2100 ticks
+    }
+}

@@ -1,0 +1,684 @@
+//! The controller: one call per drive tick ([`DitherController::on_tick`]), the commands, the
+//! status. It owns the state of every part (window, loops, start-up, supervisor, noise); the
+//! parts' settings come in as the immutable [`DitherConfig`].
+//!
+//! # One tick
+//! Sample k of the pick-off arrives with tick k; the call returns the DAC code of tick k + 1.
+//! The sine of that code's phase phi(k + 1) is computed once and serves twice: as the DAC
+//! sample and as the regressor of sample k in the half-cycle fit (the fixed offset between the
+//! two is [`super::frequency::reference_shift`]). When phi crosses a quarter or three-quarter
+//! turn (a peak of the drive; at resonance a zero crossing of the pick-off, the dither's rate
+//! peak) the half cycle closes: the fit, the supervisor, the loops, and the new DDS
+//! parameters, which take effect with the code returned by that same call.
+
+use super::amplitude::{AmplitudeLoop, PlantGainProbe};
+use super::config::DitherConfig;
+use super::dds::{cos_sin_q31, Drive};
+use super::estimate::DitherEstimate;
+use super::frequency::{phase_in, reference_shift, FrequencyLoop};
+use super::measure::{HalfCycle, Window, MAX_WINDOW};
+use super::noise::{NoiseDither, MAX_DEPTH_PERCENT};
+use super::startup::{Ring, RingListener};
+use super::supervisor::{Backoff, DitherState, FaultCounters, FaultKind, Run};
+use crate::units::Phase;
+
+/// What one tick produced.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Tick {
+    /// The DAC code for the next tick.
+    pub dac_code: u16,
+    /// The DDS parameters changed: `dac_code` is the first sample of a new
+    /// [`DitherController::drive`].
+    pub drive_changed: bool,
+    /// A half cycle closed at this tick: a new [`DitherController::estimate`].
+    pub half_cycle: bool,
+}
+
+/// Where the start-up is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum StartPhase {
+    /// Drive off, timing a ring if there is one.
+    Listen,
+    /// Sweeping the search range for the resonance.
+    Sweep,
+    /// At the ring's frequency, ringing up to the setpoint.
+    RingUp,
+}
+
+/// A command refused (it changed nothing).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum CommandError {
+    /// Not a finite number.
+    NotFinite,
+    /// Outside the settable range.
+    OutOfRange,
+}
+
+/// The controller's status (units at the edge: converted here, not in the tick).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DitherStatus {
+    /// The state.
+    pub state: DitherState,
+    /// Where the start-up is (while `Starting`).
+    pub start_phase: Option<StartPhase>,
+    /// The last half cycle's amplitude, arcsec.
+    pub amplitude_arcsec: f32,
+    /// The setpoint, arcsec.
+    pub setpoint_arcsec: f32,
+    /// The drive frequency, Hz.
+    pub frequency_hz: f32,
+    /// The drive amplitude in force, fraction of full scale (1 = the DAC's half range).
+    pub drive_level: f32,
+    /// The last phase error, rad (positive: drive below resonance).
+    pub phase_error_rad: f32,
+    /// The plant gain in use (pick-off codes per second per drive code; 0 before measured).
+    pub plant_gain_per_s: f32,
+    /// The pick-off's offset from its nominal mid-code, codes (the fit's).
+    pub pickoff_offset_codes: f32,
+    /// Faults so far, per kind.
+    pub faults: FaultCounters,
+    /// Faults in a row (the back-off's exponent).
+    pub faults_in_a_row: u32,
+    /// The back-off of the current fault, or the one the next fault would get, s.
+    pub retry_backoff_s: f32,
+    /// Time to the retry (in a fault), s.
+    pub retry_in_s: Option<f32>,
+    /// The noise dither's depth, percent.
+    pub noise_depth_percent: f32,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Request {
+    Enable,
+    Disable,
+    Restart,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Mode {
+    Off,
+    Listen {
+        listener: RingListener,
+        /// Resume a sweep in this direction (up) when nothing rings.
+        resume_up: Option<bool>,
+    },
+    Sweep {
+        up: bool,
+    },
+    Probe {
+        probe: PlantGainProbe,
+        since: u32,
+    },
+    Acquire {
+        since: u32,
+    },
+    Locked {
+        since: u32,
+    },
+    Fault {
+        kind: FaultKind,
+        retry_at: u32,
+        wait: u32,
+    },
+}
+
+/// The dither drive controller's state (sans-IO: ticks in, DAC codes out).
+#[derive(Clone, Debug)]
+pub struct DitherController {
+    tick: u32,
+    drive: Drive,
+    prev_phase: Phase,
+    next_phase: Phase,
+    window: Window,
+    mode: Mode,
+    request: Option<Request>,
+    setpoint_arcsec: f32,
+    setpoint_changed: bool,
+    amplitude: AmplitudeLoop,
+    frequency: FrequencyLoop,
+    noise: NoiseDither,
+    faults: FaultCounters,
+    backoff: Backoff,
+    estimate: DitherEstimate,
+    last: HalfCycle,
+    phase_error: Phase,
+    offset_codes: f32,
+    saturated_since: Option<u32>,
+    saturated: Run,
+    out_of_range: Run,
+    in_lock: Run,
+}
+
+impl DitherController {
+    /// A controller in `Off` at tick 0 (drive off, the default setpoint, noise off, seed 1).
+    pub fn new(config: &DitherConfig) -> Self {
+        Self {
+            tick: 0,
+            drive: Drive::off(0, config.dac_mid_code, config.dac_full_scale),
+            prev_phase: Phase::ZERO,
+            next_phase: Phase::ZERO,
+            window: Window::new(),
+            mode: Mode::Off,
+            request: None,
+            setpoint_arcsec: config.default_setpoint_arcsec,
+            setpoint_changed: false,
+            amplitude: AmplitudeLoop::default(),
+            frequency: FrequencyLoop::default(),
+            noise: NoiseDither::new(1),
+            faults: FaultCounters::default(),
+            backoff: Backoff::default(),
+            estimate: DitherEstimate::default(),
+            last: HalfCycle::default(),
+            phase_error: Phase::ZERO,
+            offset_codes: 0.0,
+            saturated_since: None,
+            saturated: Run::default(),
+            out_of_range: Run::default(),
+            in_lock: Run::default(),
+        }
+    }
+
+    // ---- commands (take effect at the next tick or half cycle) ----
+
+    /// Starts the dither (from `Off`; the start-up begins at the next tick).
+    pub fn enable(&mut self) {
+        self.request = Some(Request::Enable);
+    }
+
+    /// Stops the dither: drive off at the next tick, state `Off`.
+    pub fn disable(&mut self) {
+        self.request = Some(Request::Disable);
+    }
+
+    /// Starts again from listening (drive off at the next tick; not a fault): after the ticks
+    /// were interrupted (a flash store stalls the CPU). Does nothing while `Off` or in a fault.
+    pub fn restart(&mut self) {
+        self.request = Some(Request::Restart);
+    }
+
+    /// Sets the amplitude setpoint, arcsec (within `config.setpoint_range_arcsec`; an error
+    /// changes nothing). A locked controller goes back to `Starting` until it is at the new
+    /// setpoint.
+    pub fn set_setpoint_arcsec(
+        &mut self,
+        config: &DitherConfig,
+        arcsec: f32,
+    ) -> Result<(), CommandError> {
+        let (lo, hi) = config.setpoint_range_arcsec;
+        check_range(arcsec, lo, hi)?;
+        self.setpoint_arcsec = arcsec;
+        self.setpoint_changed = true;
+        Ok(())
+    }
+
+    /// Sets the random-noise dither's depth, percent of the drive amplitude (0 = off, at most
+    /// [`MAX_DEPTH_PERCENT`]; an error changes nothing). Applied from the next half cycle while
+    /// locked.
+    pub fn set_noise_depth_percent(&mut self, percent: f32) -> Result<(), CommandError> {
+        check_range(percent, 0.0, MAX_DEPTH_PERCENT)?;
+        self.noise
+            .set_depth_q16(crate::math::round_f32_to_i32(percent * 655.36) as u32);
+        Ok(())
+    }
+
+    /// Restarts the noise sequence from `seed` (0 counts as 1).
+    pub fn set_noise_seed(&mut self, seed: u32) {
+        self.noise.reseed(seed);
+    }
+
+    // ---- queries ----
+
+    /// The DDS parameters in force: an exact description of every DAC sample from
+    /// `drive().start_tick` until the next change.
+    pub fn drive(&self) -> Drive {
+        self.drive
+    }
+
+    /// The latest half cycle's estimate of the dither (valid only while locked).
+    pub fn estimate(&self) -> DitherEstimate {
+        self.estimate
+    }
+
+    /// The last closed half cycle (extremes, rails, fit).
+    pub fn last_half_cycle(&self) -> HalfCycle {
+        self.last
+    }
+
+    /// The tick index the next `on_tick` call's pick-off sample belongs to.
+    pub fn tick(&self) -> u32 {
+        self.tick
+    }
+
+    /// The state.
+    pub fn state(&self) -> DitherState {
+        match self.mode {
+            Mode::Off => DitherState::Off,
+            Mode::Locked { .. } => DitherState::Locked,
+            Mode::Fault { kind, .. } => DitherState::Fault(kind),
+            _ => DitherState::Starting,
+        }
+    }
+
+    /// The status, in physical units.
+    pub fn status(&self, config: &DitherConfig) -> DitherStatus {
+        let secs = |ticks: u32| ticks as f32 / config.tick_hz;
+        let (retry_backoff_s, retry_in_s) = match self.mode {
+            Mode::Fault { retry_at, wait, .. } => (
+                secs(wait),
+                Some(secs(retry_at.wrapping_sub(self.tick).min(wait))),
+            ),
+            _ => (secs(self.backoff.next_wait(&config.faults)), None),
+        };
+        let start_phase = match self.mode {
+            Mode::Listen { .. } => Some(StartPhase::Listen),
+            Mode::Sweep { .. } => Some(StartPhase::Sweep),
+            Mode::Probe { .. } | Mode::Acquire { .. } => Some(StartPhase::RingUp),
+            _ => None,
+        };
+        let half_range = (config.dac_full_scale as f32 + 1.0) / 2.0;
+        DitherStatus {
+            state: self.state(),
+            start_phase,
+            amplitude_arcsec: config.codes_to_arcsec(self.amplitude_codes()),
+            setpoint_arcsec: self.setpoint_arcsec,
+            frequency_hz: step_hz(self.drive.step, config.tick_hz),
+            drive_level: self.drive.amplitude_codes() as f32 / half_range,
+            phase_error_rad: turns_to_rad(self.phase_error),
+            plant_gain_per_s: self.amplitude.plant_gain_per_s(),
+            pickoff_offset_codes: self.offset_codes,
+            faults: self.faults,
+            faults_in_a_row: self.backoff.in_a_row,
+            retry_backoff_s,
+            retry_in_s,
+            noise_depth_percent: self.noise.depth_q16() as f32 / 655.36,
+        }
+    }
+
+    // ---- the tick ----
+
+    /// One drive tick: `pickoff_code` is the pick-off ADC code sampled at this tick; returns the
+    /// DAC code for the next tick, and whether the DDS parameters changed with it.
+    pub fn on_tick(&mut self, config: &DitherConfig, pickoff_code: u16) -> Tick {
+        let k = self.tick;
+        self.tick = k.wrapping_add(1);
+        let mut changed = false;
+        if let Some(request) = self.request.take() {
+            changed = self.apply_request(config, request, k);
+        }
+        match &self.mode {
+            Mode::Off => return self.idle(changed),
+            &Mode::Fault { retry_at, .. } => {
+                if (k.wrapping_sub(retry_at) as i32) < 0 {
+                    return self.idle(changed);
+                }
+                self.listen(config, k, None);
+                changed = true;
+            }
+            _ => {}
+        }
+        let theta = self.next_phase;
+        let (cos, sin) = cos_sin_q31(theta);
+        let x = pickoff_code as i32 - config.pickoff_mid_code as i32;
+        self.window.push(
+            pickoff_code,
+            x,
+            cos >> 16,
+            sin >> 16,
+            config.faults.rail_code,
+        );
+        let mut half_cycle = false;
+        if let Mode::Listen { listener, .. } = &mut self.mode {
+            if let Some(ring) = listener.push(k, x, config.startup.ring_half_periods) {
+                changed |= self.on_ring(config, k, ring);
+            }
+        }
+        let quarter = Phase::QUARTER_TURN;
+        let crossed = ((self.prev_phase + quarter).to_bits() ^ (theta + quarter).to_bits()) >> 31;
+        if self.next_phase == theta && (crossed != 0 || self.window.len() >= MAX_WINDOW) {
+            changed |= self.update(config, k, theta);
+            half_cycle = true;
+        }
+        let sin = if self.next_phase == theta {
+            sin
+        } else {
+            cos_sin_q31(self.next_phase).1
+        };
+        if changed {
+            self.drive.start_tick = self.tick;
+            self.drive.phase = self.next_phase;
+        }
+        let dac_code = self.drive.code_from_sin(sin);
+        self.prev_phase = self.next_phase;
+        self.next_phase = self.next_phase + self.drive.step;
+        Tick {
+            dac_code,
+            drive_changed: changed,
+            half_cycle,
+        }
+    }
+
+    fn idle(&mut self, changed: bool) -> Tick {
+        if changed {
+            self.drive.start_tick = self.tick;
+        }
+        Tick {
+            dac_code: self.drive.mid_code,
+            drive_changed: changed,
+            half_cycle: false,
+        }
+    }
+
+    fn apply_request(&mut self, config: &DitherConfig, request: Request, k: u32) -> bool {
+        match (request, self.mode) {
+            (Request::Disable, Mode::Off) => false,
+            (Request::Disable, _) => {
+                self.mode = Mode::Off;
+                self.set_drive(0, Phase::ZERO)
+            }
+            (Request::Enable, Mode::Off) => {
+                self.listen(config, k, None);
+                true
+            }
+            (Request::Restart, Mode::Off | Mode::Fault { .. }) | (Request::Enable, _) => false,
+            (Request::Restart, _) => {
+                self.listen(config, k, None);
+                true
+            }
+        }
+    }
+
+    /// Drive off, the DDS running at the last (or lowest) frequency for the windows, timing a
+    /// ring from the next sample.
+    fn listen(&mut self, config: &DitherConfig, k: u32, resume_up: Option<bool>) {
+        let step = if self.drive.step == Phase::ZERO {
+            config.startup.search_steps.0
+        } else {
+            self.drive.step
+        };
+        self.set_drive(0, step);
+        let hysteresis = (config.startup.ring_threshold_codes / 2) as i32;
+        let center = crate::math::round_f32_to_i32(self.offset_codes);
+        self.mode = Mode::Listen {
+            listener: RingListener::new(k.wrapping_add(1), center, hysteresis),
+            resume_up,
+        };
+        self.window = Window::new();
+    }
+
+    /// A ring was timed: start the ring-up at its frequency, 90 degrees ahead of it.
+    fn on_ring(&mut self, config: &DitherConfig, k: u32, ring: Ring) -> bool {
+        let step = ring.step();
+        let (lo, hi) = config.startup.search_steps;
+        let Mode::Listen {
+            listener,
+            resume_up,
+        } = self.mode
+        else {
+            return false;
+        };
+        if step.to_bits() < lo.to_bits() || step.to_bits() > hi.to_bits() {
+            // Not a ring of this resonator: listen again.
+            self.listen(config, k, resume_up);
+            return false;
+        }
+        // The drive's phase at the last crossing is a quarter turn ahead of the pick-off's
+        // (rising: 1/4, falling: 3/4); advanced to this sample, then to the regressor phase.
+        let at_crossing = if ring.rising {
+            Phase::QUARTER_TURN
+        } else {
+            Phase::QUARTER_TURN + Phase::HALF_TURN
+        };
+        let since = listener.elapsed(k) as f32 - ring.last_crossing;
+        let advance = crate::math::round_to_i64(step.to_bits() as f64 * since as f64) as u32;
+        let shift = reference_shift(step, config.sample_delay_q16);
+        self.next_phase = at_crossing + Phase::from_bits(advance) + shift;
+        self.prev_phase = self.next_phase;
+        self.window = Window::new();
+        self.frequency.start(step);
+        self.saturated_since = Some(k);
+        self.mode = Mode::Probe {
+            probe: PlantGainProbe::default(),
+            since: k,
+        };
+        self.set_drive(config.amplitude.drive_limit_q16 as i32, step);
+        true
+    }
+
+    /// Sets the DDS amplitude and step; true if they changed.
+    fn set_drive(&mut self, amplitude_q16: i32, step: Phase) -> bool {
+        let amplitude_q16 = amplitude_q16.max(0) as u32;
+        let changed = amplitude_q16 != self.drive.amplitude_q16 || step != self.drive.step;
+        self.drive.amplitude_q16 = amplitude_q16;
+        self.drive.step = step;
+        changed
+    }
+
+    fn amplitude_codes(&self) -> f32 {
+        self.last.fit.map_or(0.0, |f| f.amplitude_codes)
+    }
+
+    // ---- the half cycle ----
+
+    /// Closes the window at sample `k` (regressor phase `theta`) and runs everything that runs
+    /// once per half cycle; true if the drive changed.
+    fn update(&mut self, config: &DitherConfig, k: u32, theta: Phase) -> bool {
+        let h = self.window.close();
+        self.window = Window::new();
+        self.last = h;
+        let step = self.drive.step;
+        if let Some(fit) = h.fit {
+            self.offset_codes = fit.offset_codes;
+            let shift = reference_shift(step, config.sample_delay_q16);
+            self.phase_error = fit.phase + shift - Phase::HALF_TURN;
+            self.estimate = DitherEstimate {
+                tick: k,
+                amplitude_arcsec: config.codes_to_arcsec(fit.amplitude_codes),
+                frequency_hz: step_hz(step, config.tick_hz),
+                angle_phase: theta + fit.phase - phase_in(step, config.sample_delay_q16),
+                valid: false,
+            };
+        }
+        if let Some(kind) = self.check(config, &h, k) {
+            return self.fault(config, kind, k);
+        }
+        let amplitude = self.amplitude_codes();
+        let setpoint = config.arcsec_to_codes(self.setpoint_arcsec);
+        let (drive, step) = match self.mode {
+            Mode::Listen {
+                listener,
+                resume_up,
+            } => {
+                if listener.elapsed(k) <= config.startup.listen_timeout_ticks {
+                    return false;
+                }
+                let up = resume_up.unwrap_or(true);
+                let start = if resume_up.is_some() {
+                    step
+                } else {
+                    config.startup.search_steps.0
+                };
+                self.mode = Mode::Sweep { up };
+                (config.amplitude.drive_limit_q16 as i32, start)
+            }
+            Mode::Sweep { up } => return self.sweep(config, k, &h, up),
+            Mode::Probe { mut probe, since } => {
+                let limit = config.amplitude.drive_limit_codes();
+                let gain = probe.push(&config.amplitude, k, amplitude, limit, config.tick_hz);
+                self.mode = Mode::Probe { probe, since };
+                if let Some(gain) = gain {
+                    if gain.is_nan() || gain < config.amplitude.min_plant_gain_per_s {
+                        return self.fault(config, FaultKind::NoOscillation, k);
+                    }
+                    self.amplitude
+                        .start(config.amplitude.drive_limit_q16 as i32, gain);
+                    self.mode = Mode::Acquire { since };
+                    self.in_lock.clear();
+                }
+                let step = self.frequency.update(&config.frequency, self.phase_error);
+                (config.amplitude.drive_limit_q16 as i32, step)
+            }
+            Mode::Acquire { since } => {
+                let drive = self
+                    .amplitude
+                    .update(&config.amplitude, setpoint, amplitude);
+                let step = self.frequency.update(&config.frequency, self.phase_error);
+                let near = (amplitude - setpoint).abs() <= config.startup.lock_tolerance * setpoint
+                    && self.phase_error.to_signed().unsigned_abs()
+                        <= config.startup.lock_phase_error.to_bits();
+                if self.in_lock.exceeds(near, config.startup.lock_half_cycles) {
+                    self.mode = Mode::Locked { since: k };
+                    self.saturated.clear();
+                    self.out_of_range.clear();
+                } else if k.wrapping_sub(since) > config.faults.acquire_timeout_ticks {
+                    return self.fault(config, FaultKind::AmplitudeOutOfRange, k);
+                }
+                (drive, step)
+            }
+            Mode::Locked { since } => {
+                if self.setpoint_changed {
+                    self.mode = Mode::Acquire { since: k };
+                    self.in_lock.clear();
+                } else if k.wrapping_sub(since) >= config.faults.stable_ticks {
+                    self.backoff.on_stable();
+                }
+                let drive = self
+                    .amplitude
+                    .update(&config.amplitude, setpoint, amplitude);
+                let step = self.frequency.update(&config.frequency, self.phase_error);
+                let drive = if matches!(self.mode, Mode::Locked { .. }) {
+                    self.noise.apply(drive)
+                } else {
+                    drive
+                };
+                (drive, step)
+            }
+            Mode::Off | Mode::Fault { .. } => return false,
+        };
+        self.setpoint_changed = false;
+        self.estimate.valid = matches!(self.mode, Mode::Locked { .. });
+        let limit = config.amplitude.drive_limit_q16 as i32;
+        self.set_drive(drive.clamp(0, limit), step)
+    }
+
+    /// One half cycle of the sweep: a ring stops it; the step moves by the sweep rate over the
+    /// window; up to the top of the range, then down; at the bottom again: no resonance.
+    fn sweep(&mut self, config: &DitherConfig, k: u32, h: &HalfCycle, up: bool) -> bool {
+        if u32::from(h.range_codes()) > 2 * u32::from(config.startup.ring_threshold_codes) {
+            self.listen(config, k, Some(up));
+            return true;
+        }
+        let (lo, hi) = config.startup.search_steps;
+        let delta = config.startup.sweep_step_per_tick.saturating_mul(h.samples);
+        let step = self.drive.step.to_bits();
+        let next = if up {
+            step.saturating_add(delta)
+        } else {
+            step.saturating_sub(delta)
+        };
+        let (up, next) = match (up, next > hi.to_bits(), next < lo.to_bits()) {
+            (true, true, _) => (false, hi.to_bits()),
+            (false, _, true) => return self.fault(config, FaultKind::NoOscillation, k),
+            _ => (up, next),
+        };
+        self.mode = Mode::Sweep { up };
+        self.set_drive(
+            config.amplitude.drive_limit_q16 as i32,
+            Phase::from_bits(next),
+        )
+    }
+
+    /// The supervisor's checks on a closed half cycle (module docs of `supervisor`).
+    fn check(&mut self, config: &DitherConfig, h: &HalfCycle, k: u32) -> Option<FaultKind> {
+        let limits = &config.faults;
+        let amplitude = self.amplitude_codes();
+        if h.rail_samples >= limits.rail_samples {
+            return Some(FaultKind::PickoffSaturated);
+        }
+        if amplitude > limits.max_amplitude_codes {
+            return Some(FaultKind::AmplitudeOutOfRange);
+        }
+        let ringing = matches!(
+            self.mode,
+            Mode::Probe { .. } | Mode::Acquire { .. } | Mode::Locked { .. }
+        );
+        if !ringing {
+            return None;
+        }
+        if h.range_codes() <= limits.flat_codes {
+            return Some(FaultKind::PickoffLost);
+        }
+        if amplitude.is_nan() || amplitude < limits.lost_amplitude_codes {
+            return Some(FaultKind::NoOscillation);
+        }
+        let at_limit = match self.mode {
+            Mode::Probe { .. } => true,
+            _ => self.amplitude.at_limit(&config.amplitude),
+        };
+        if let Mode::Locked { .. } = self.mode {
+            if self
+                .saturated
+                .exceeds(at_limit, limits.saturated_half_cycles)
+            {
+                return Some(FaultKind::DriveSaturated);
+            }
+            let setpoint = config.arcsec_to_codes(self.setpoint_arcsec);
+            let off = (amplitude - setpoint).abs() > limits.band * setpoint;
+            if self
+                .out_of_range
+                .exceeds(off, limits.out_of_range_half_cycles.saturating_sub(1))
+            {
+                return Some(FaultKind::AmplitudeOutOfRange);
+            }
+            return None;
+        }
+        match (at_limit, self.saturated_since) {
+            (false, _) => self.saturated_since = None,
+            (true, None) => self.saturated_since = Some(k),
+            (true, Some(since)) if k.wrapping_sub(since) > limits.ramp_saturated_ticks => {
+                return Some(FaultKind::DriveSaturated)
+            }
+            _ => {}
+        }
+        None
+    }
+
+    /// The safe reaction: drive off, state `Fault(kind)`, counted, retry after the back-off.
+    fn fault(&mut self, config: &DitherConfig, kind: FaultKind, k: u32) -> bool {
+        self.faults.count(kind);
+        let wait = self.backoff.on_fault(&config.faults);
+        self.mode = Mode::Fault {
+            kind,
+            retry_at: k.wrapping_add(wait),
+            wait,
+        };
+        self.estimate.valid = false;
+        self.saturated.clear();
+        self.out_of_range.clear();
+        self.saturated_since = None;
+        self.set_drive(0, Phase::ZERO)
+    }
+}
+
+fn check_range(value: f32, lo: f32, hi: f32) -> Result<(), CommandError> {
+    if !value.is_finite() {
+        return Err(CommandError::NotFinite);
+    }
+    if value < lo || value > hi {
+        return Err(CommandError::OutOfRange);
+    }
+    Ok(())
+}
+
+/// The frequency of DDS step `step` in `f32` (no `f64` in the half-cycle path: the M4F has no
+/// double-precision unit).
+fn step_hz(step: Phase, tick_hz: f32) -> f32 {
+    step.to_bits() as f32 * (tick_hz / 4_294_967_296.0)
+}
+
+fn turns_to_rad(p: Phase) -> f32 {
+    p.to_signed() as f32 * (core::f32::consts::TAU / 4_294_967_296.0)
+}

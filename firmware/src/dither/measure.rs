@@ -1,0 +1,271 @@
+//! The pick-off measured every half cycle: a least-squares fit of `offset + a cos + b sin` of
+//! the drive's own phase over the half cycle's samples (synchronous demodulation made exact for
+//! a window that is not a whole number of samples), plus the window's extremes and rail count
+//! for the supervisor.
+//!
+//! # Why a fit and not a plain lock-in sum
+//! A half-cycle window holds 33-72 samples (40 kHz tick, 280-620 Hz); its ends fall between
+//! samples. A plain demodulation `sum x cos` then leaks the 2f term by up to one sample's worth,
+//! 1/N = 1-3 % of the amplitude, and a pick-off offset d enters the amplitude as 4/pi d with a
+//! sign that alternates every half cycle (the window spans a drive peak to the next, where cos
+//! keeps one sign). Solving the 3x3 normal equations of [1, cos, sin] instead is exact for an
+//! offset plus a sine at the drive frequency whatever the window, and costs 5 more 64-bit
+//! multiply-accumulates per tick (the reference's own sums) and one small solve per half cycle.
+//!
+//! # Formats
+//! Samples are centred on the nominal mid-code (`x = code - mid`, |x| <= 2^12); the regressors
+//! are `idsp::cossin`'s Q31 shifted to Q15; sums are exact integers (`i32` for the plain sums,
+//! `i64` for the products; a window is capped at [`MAX_WINDOW`] = 2^10 samples, so every term
+//! of the centred normal equations, n * sum - sum * sum, stays below 2^51). The 2x2 solve after
+//! centring is `f32` (the centred system's condition number is below 10 for a half-turn
+//! window: 1e-6 relative error, against 1e-4 from the ADC's quantisation).
+
+use crate::units::Phase;
+
+/// Samples after which a window is closed even if no half cycle ended (the controller forces an
+/// update; at 280 Hz a half cycle is 72 samples).
+pub const MAX_WINDOW: u32 = 1 << 10;
+
+/// The running sums of one half-cycle window.
+#[derive(Clone, Copy, Debug)]
+pub struct Window {
+    n: u32,
+    sx: i32,
+    sc: i32,
+    ss: i32,
+    scc: i64,
+    scs: i64,
+    sss: i64,
+    sxc: i64,
+    sxs: i64,
+    min: u16,
+    max: u16,
+    rails: u32,
+}
+
+impl Default for Window {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// The fitted pick-off of one window: `x = offset + a cos(theta) + b sin(theta)` in codes, with
+/// theta the regressor phase (the controller's drive phase of the sample).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SineFit {
+    /// Amplitude, codes: `hypot(a, b)`.
+    pub amplitude_codes: f32,
+    /// Phase of the pick-off relative to the regressor phase: `x = offset + amplitude *
+    /// cos(theta + phase)`, Q32 turns (`idsp::atan2`).
+    pub phase: Phase,
+    /// The offset, codes relative to the nominal mid-code.
+    pub offset_codes: f32,
+}
+
+/// One closed window: its extremes and the fit.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct HalfCycle {
+    /// Samples in the window.
+    pub samples: u32,
+    /// Smallest pick-off code.
+    pub min_code: u16,
+    /// Largest pick-off code.
+    pub max_code: u16,
+    /// Samples at a rail (0 or the ADC's full scale).
+    pub rail_samples: u32,
+    /// The fit (None for fewer than 4 samples or a degenerate window).
+    pub fit: Option<SineFit>,
+}
+
+impl HalfCycle {
+    /// Peak-to-peak range, codes.
+    pub fn range_codes(&self) -> u16 {
+        self.max_code.saturating_sub(self.min_code)
+    }
+}
+
+impl Window {
+    /// An empty window.
+    pub const fn new() -> Self {
+        Self {
+            n: 0,
+            sx: 0,
+            sc: 0,
+            ss: 0,
+            scc: 0,
+            scs: 0,
+            sss: 0,
+            sxc: 0,
+            sxs: 0,
+            min: u16::MAX,
+            max: 0,
+            rails: 0,
+        }
+    }
+
+    /// Samples so far.
+    #[inline]
+    pub fn len(&self) -> u32 {
+        self.n
+    }
+
+    /// No sample yet.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+
+    /// Adds one sample: the pick-off code, centred `x = code - mid`, and the regressors in Q15.
+    #[inline]
+    pub fn push(&mut self, code: u16, x: i32, cos_q15: i32, sin_q15: i32, rail_code: u16) {
+        self.n += 1;
+        self.sx += x;
+        self.sc += cos_q15;
+        self.ss += sin_q15;
+        self.scc += (cos_q15 * cos_q15) as i64;
+        self.scs += (cos_q15 * sin_q15) as i64;
+        self.sss += (sin_q15 * sin_q15) as i64;
+        self.sxc += (x * cos_q15) as i64;
+        self.sxs += (x * sin_q15) as i64;
+        self.min = self.min.min(code);
+        self.max = self.max.max(code);
+        if code == 0 || code >= rail_code {
+            self.rails += 1;
+        }
+    }
+
+    /// Closes the window: its extremes and the least-squares fit.
+    pub fn close(&self) -> HalfCycle {
+        HalfCycle {
+            samples: self.n,
+            min_code: if self.n == 0 { 0 } else { self.min },
+            max_code: self.max,
+            rail_samples: self.rails,
+            fit: self.fit(),
+        }
+    }
+
+    /// The least-squares fit of `[1, cos, sin]`: centred normal equations (exact integers), then
+    /// the 2x2 solve in `f32`.
+    fn fit(&self) -> Option<SineFit> {
+        if self.n < 4 {
+            return None;
+        }
+        let n = self.n as i64;
+        let (sx, sc, ss) = (self.sx as i64, self.sc as i64, self.ss as i64);
+        let dcc = (n * self.scc - sc * sc) as f32;
+        let dcs = (n * self.scs - sc * ss) as f32;
+        let dss = (n * self.sss - ss * ss) as f32;
+        let dxc = (n * self.sxc - sx * sc) as f32;
+        let dxs = (n * self.sxs - sx * ss) as f32;
+        let det = dcc * dss - dcs * dcs;
+        if det.is_nan() || det <= 0.0 {
+            return None;
+        }
+        // Coefficients per Q15 unit of the regressors; * 2^15 gives codes.
+        let a = (dss * dxc - dcs * dxs) / det;
+        let b = (dcc * dxs - dcs * dxc) / det;
+        let offset = (self.sx as f32 - a * self.sc as f32 - b * self.ss as f32) / self.n as f32;
+        let (a, b) = (a * 32_768.0, b * 32_768.0);
+        // x = a cos + b sin = A cos(theta + phase) with A cos(phase) = a, A sin(phase) = -b.
+        let amplitude = libm::sqrtf(a * a + b * b);
+        let to_i32 = |v: f32| crate::math::round_f32_to_i32(v * 65_536.0);
+        let phase = Phase::from_bits(idsp::atan2(to_i32(-b), to_i32(a)) as u32);
+        Some(SineFit {
+            amplitude_codes: amplitude,
+            phase,
+            offset_codes: offset,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dither::dds::cos_sin_q31;
+    use crate::test_rng::XorShift;
+    use std::f64::consts::TAU;
+
+    fn turns(p: Phase) -> f64 {
+        p.to_bits() as f64 / 4_294_967_296.0
+    }
+
+    fn signed_turns(p: Phase) -> f64 {
+        p.to_signed() as f64 / 4_294_967_296.0
+    }
+
+    /// One synthetic half cycle: the regressor phase runs from `start` by `step` for `n`
+    /// samples; the pick-off is `mid + offset + amp cos(theta + phase) + noise`, through the
+    /// 12-bit ADC (rounded, clamped).
+    #[allow(clippy::too_many_arguments)]
+    fn window(
+        start: Phase,
+        step: Phase,
+        n: u32,
+        amp: f64,
+        phase: f64,
+        offset: f64,
+        noise: f64,
+        rng: &mut XorShift,
+    ) -> HalfCycle {
+        let mut w = Window::new();
+        for i in 0..n {
+            let theta = start + Phase::from_bits(i.wrapping_mul(step.to_bits()));
+            let v =
+                2048.0 + offset + amp * (TAU * (turns(theta) + phase)).cos() + noise * rng.gauss();
+            let code = v.round().clamp(0.0, 4095.0) as u16;
+            let (c, s) = cos_sin_q31(theta);
+            w.push(code, code as i32 - 2048, c >> 16, s >> 16, 4095);
+        }
+        w.close()
+    }
+
+    /// The demodulator's accuracy, measured over 2000 random half cycles at 280-620 Hz (40 kHz
+    /// tick, any window alignment), amplitude 1125 codes (450 arcsec), offsets up to +-40
+    /// codes, 12-bit quantisation: amplitude error below 0.05 code rms (4e-5 of the amplitude),
+    /// phase below 5e-5 rad rms; with 1 code rms of noise on top, 0.25 code and 2.5e-4 rad.
+    /// Tolerances asserted: 3x those.
+    #[test]
+    fn fit_recovers_amplitude_phase_and_offset_of_any_half_cycle() {
+        let mut rng = XorShift(11);
+        for (noise, amp_tol, phase_tol) in [(0.0, 0.15, 1.5e-4), (1.0, 0.75, 7.5e-4)] {
+            let (mut se_a, mut se_p, mut count) = (0.0, 0.0, 0.0);
+            for _ in 0..2000 {
+                let hz = 280.0 + 340.0 * rng.uniform();
+                let step = crate::dither::dds::hz_to_step(hz, 40_000.0);
+                let start = Phase::from_bits(rng.next() as u32);
+                let n = (20_000.0 / hz) as u32; // one half cycle
+                let phase = rng.uniform();
+                let offset = 80.0 * (rng.uniform() - 0.5);
+                let h = window(start, step, n, 1125.0, phase, offset, noise, &mut rng);
+                let fit = h.fit.unwrap();
+                let ea = fit.amplitude_codes as f64 - 1125.0;
+                let ep = TAU
+                    * signed_turns(fit.phase - Phase::from_bits((phase * 4_294_967_296.0) as u32));
+                assert!((fit.offset_codes as f64 - offset).abs() < 0.5 + 2.0 * noise);
+                se_a += ea * ea;
+                se_p += ep * ep;
+                count += 1.0;
+            }
+            let (rms_a, rms_p) = ((se_a / count).sqrt(), (se_p / count).sqrt());
+            println!("noise {noise}: amplitude {rms_a:.4} codes rms, phase {rms_p:.2e} rad rms");
+            assert!(rms_a < amp_tol && rms_p < phase_tol, "{rms_a} {rms_p}");
+        }
+    }
+
+    #[test]
+    fn extremes_and_rails() {
+        let mut rng = XorShift(3);
+        let step = crate::dither::dds::hz_to_step(389.0, 40_000.0);
+        let h = window(Phase::ZERO, step, 51, 2500.0, 0.0, 0.0, 0.0, &mut rng);
+        assert_eq!((h.min_code, h.max_code), (0, 4095));
+        assert!(h.rail_samples > 10);
+        let flat = window(Phase::ZERO, step, 51, 0.0, 0.0, 7.0, 0.0, &mut rng);
+        assert_eq!(flat.range_codes(), 0);
+        assert!(flat.fit.unwrap().amplitude_codes < 1e-3);
+        assert_eq!(Window::new().close().fit, None);
+        assert_eq!(Window::new().close().min_code, 0);
+    }
+}
