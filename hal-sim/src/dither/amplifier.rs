@@ -29,15 +29,22 @@
 //!   amplifier, attenuated by the low-pass (`~f_c/f_s`) and by the resonator (`~(f0/f_s)^2`
 //!   against its DC gain, i.e. `(f0/f_s)^2 / Q` against the resonant response). Relative to
 //!   the resonant amplitude: `(f/f_s) (f_c/f_s) (f0/f_s)^2 / Q` = 1.1e-9 at 389 Hz, 20 kHz,
-//!   3 kHz, Q = 1000 (5e-7 arcsec of 450). A change of the DDS parameters at a segment
-//!   boundary also changes the images, which leaves a ringing of relative size
-//!   `(|da| / a) (f/f_s) (f0/f_s) / Q` (3.8e-7 at a full phase reversal, `|da| = 2a`).
-//!   [`super::resonator::ResonatorParams::image_bound_arcsec`] computes the steady bound;
-//!   `tests/dither_resonator.rs` holds the closed form against a brute-force integration of
-//!   the true staircase.
-//! - **Harmonics of the clip** (odd, the third at most 1/3 of the fundamental for a hard
-//!   square wave) fall on the resonator's skirt: `|H(3 w0)| / |H(w0)| = 1/(8 Q)`, so at most
-//!   `1/(24 Q)` of the response (4e-5 at Q = 1000), and only while the limit is hit (start-up).
+//!   3 kHz, Q = 1000 (5e-7 arcsec of 450; computed exactly by
+//!   [`super::resonator::ResonatorParams::image_bound_arcsec`]).
+//! - **The images' ringing.** A change of the DDS changes its images; the change of their
+//!   ripple on the piezo voltage (the images summed through the low-pass, `~K a (f/f_s)
+//!   (f_c/f_s) pi^2/3`, all in phase at the ticks) kicks the resonator by `G (w0/p)` times it,
+//!   and that rings down with `Q/(pi f0)`: `(pi^2/3) (|da|/a) (f/f_s) (f0/f_s) / Q` of the
+//!   resonant amplitude, 1.25e-6 for `|da| = a` (a drive switched on or off, 5.6e-4 arcsec at
+//!   450 arcsec), proportionally less for the small corrections of an amplitude loop
+//!   ([`super::resonator::ResonatorParams::image_ring_bound_arcsec`]).
+//!   `tests/dither_resonator.rs` holds both bounds against a brute-force integration of the
+//!   true staircase.
+//! - **Harmonics of the clip** (odd; for a hard clip, a square wave, the n-th is 1/n of the
+//!   fundamental) fall on the resonator's skirt: `|H(n w0)| / |H(w0)| = 1/((n^2 - 1) Q)`, so
+//!   together at most `sum 1/(n (n^2 - 1)) / Q = 1/(17.6 Q)` of the response at resonance
+//!   (the third alone `1/(24 Q)`; 5.7e-5 at Q = 1000), and only while the limit is hit
+//!   (start-up).
 //! - **DAC quantisation** (the codes are rounded: +-1/2 LSB = +-0.4 mV at the DAC) and the
 //!   images of the clipped waveform: not modelled.
 

@@ -26,8 +26,10 @@
 //! segment boundary).
 //!
 //! What is left out, with bounds ([`amplifier`]): the images (1.1e-9 of the resonant
-//! response at 389 Hz, f_s = 20 kHz, Q = 1000), the clip's harmonics (at most 1/(24 Q) of the
-//! response, only while the limit is hit) and the DAC's rounding. The alternative, an exact
+//! response at 389 Hz, f_s = 20 kHz, Q = 1000), the ringing a change of the DDS leaves through
+//! them (1.25e-6 of the response for a drive switched on, proportionally less for small
+//! changes), the clip's harmonics (at most 1/(17.6 Q), only while the limit is hit) and the
+//! DAC's rounding. The alternative, an exact
 //! zero-order-hold discretisation of the staircase itself (a state transition per tick),
 //! would make every tick a breakpoint: ~50 smooth pieces per half cycle instead of one, and
 //! the far-field expansion of the phase integrator would lose its long steps.

@@ -310,23 +310,55 @@ impl ResonatorParams {
         q / (PI * f0)
     }
 
-    /// Bound on the angle the DAC's images add to the modelled (fundamental) response of a
-    /// steady DDS at `freq_hz` with amplitude `dac_amplitude_v`, arcsec: the sum over the
-    /// images at `k f_s +- f` (k = 1..64) of their amplitude after the zero-order hold
-    /// (`a |sin(pi f/f_s)| / (pi |k +- f/f_s|)`) through the amplifier, low-pass and resonator.
-    pub fn image_bound_arcsec(&self, freq_hz: f64, dac_amplitude_v: f64) -> f64 {
+    /// The images of a DDS at `freq_hz` with amplitude `dac_amplitude_v`: the sums over the
+    /// images at `k f_s +- f` (k = 1..64) of their amplitudes after the zero-order hold
+    /// (`a |sin(pi f/f_s)| / (pi |k +- f/f_s|)`) and the amplifier's gain, in the piezo
+    /// voltage (V), the angle (arcsec) and the rate (arcsec/s): bounds on the steady state the
+    /// model leaves out. (The neglected tail beyond k = 64 is ~1e-6 of the sums.)
+    fn image_sums(&self, freq_hz: f64, dac_amplitude_v: f64) -> [f64; 3] {
         let fs = self.dac.tick_hz;
         let sys = self.system_at(0.0);
         let s = (PI * freq_hz / fs).sin().abs();
-        let mut sum = 0.0;
+        let mut sums = [0.0; 3];
         for k in 1..=64 {
             for sign in [-1.0, 1.0] {
                 let fk = k as f64 * fs + sign * freq_hz;
-                let img = dac_amplitude_v * s / (PI * fk / fs);
-                sum += img * self.amplifier.gain_v_per_v * sys.response(fk).abs();
+                let img = dac_amplitude_v * s / (PI * fk / fs) * self.amplifier.gain_v_per_v;
+                let iw = Complex::new(0.0, TAU * fk);
+                let v = img * sys.lowpass(iw).abs();
+                let angle = img * sys.response(fk).abs();
+                sums[0] += v;
+                sums[1] += angle;
+                sums[2] += angle * TAU * fk;
             }
         }
-        sum
+        sums
+    }
+
+    /// Bound on the angle the DAC's images add to the modelled (fundamental) response of a
+    /// steady DDS at `freq_hz` with amplitude `dac_amplitude_v`, arcsec: the sum of the
+    /// images' steady responses. About `(f/f_s) (f_c/f_s) (f0/f_s)^2 / Q` of the resonant
+    /// response (1.1e-9 at 389 Hz, f_s = 20 kHz, f_c = 3 kHz, Q = 1000).
+    pub fn image_bound_arcsec(&self, freq_hz: f64, dac_amplitude_v: f64) -> f64 {
+        self.image_sums(freq_hz, dac_amplitude_v)[1]
+    }
+
+    /// Bound on the ringing a change of the DDS leaves that the model does not have, arcsec:
+    /// the images change with the drive, and the change of their steady state (in the piezo
+    /// voltage, the angle and the rate) is a kick the resonator rings down from (time constant
+    /// `Q/(pi f0)`). `dac_change_v` is the magnitude of the change of the DAC's complex
+    /// amplitude (`|a1 e^{i phi1} - a0 e^{i phi0}|`; `a` to switch a drive on or off). The
+    /// images align at the ticks, so the bound is reached: about `(pi^2/3) (|da|/a) (f/f_s)
+    /// (f0/f_s) / Q` of the resonant response (1.25e-6 at the set above for `|da| = a`).
+    pub fn image_ring_bound_arcsec(&self, freq_hz: f64, dac_change_v: f64) -> f64 {
+        let [v, angle, rate] = self.image_sums(freq_hz, dac_change_v);
+        let sys = self.system_at(0.0);
+        let p = sys.lowpass_rad_per_s;
+        let (alpha, wd) = (sys.decay_per_s(), sys.damped_rad_per_s());
+        // A piezo voltage offset `dv` decays through the low-pass: `E e^{-p t}` in the angle,
+        // `E = H_res(-p) dv`, and the free mode takes `-E` and `p E` as its start.
+        let e = v * sys.resonator(Complex::new(-p, 0.0)).abs();
+        e * (1.0 + ((p - alpha) / wd).powi(2)).sqrt() + angle + rate / wd
     }
 }
 
