@@ -18,7 +18,7 @@ fn driven_params() -> GyroParams {
 /// that the jets really jump at every segment start.
 fn wobbling(drive: &OpenLoopDrive, k: u64) -> DriveSegment {
     let s = drive.segment(k);
-    let gain = if k % 2 == 0 { 1.0 } else { 1.01 };
+    let gain = if k.is_multiple_of(2) { 1.0 } else { 1.01 };
     DriveSegment {
         amplitude_v: s.amplitude_v * gain,
         ..s
