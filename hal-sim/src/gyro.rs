@@ -276,13 +276,24 @@ impl Gyro {
         self.traversals.drain(..).collect()
     }
 
+    fn check_known(&self, t_s: f64) {
+        let known = self.drive_known_until_s();
+        assert!(
+            t_s <= known,
+            "t = {t_s} s lies beyond the drive known until {known} s"
+        );
+    }
+
     /// The lock-in-free phase `theta(t)` (input + dither + noise angle), rad of beat phase.
+    /// A driven dither answers only within its known drive (panics beyond).
     pub fn theta_rad(&self, t_s: f64) -> f64 {
+        self.check_known(t_s);
         self.integ.free_phase().theta_rad(t_s)
     }
 
-    /// The lock-in-free rate at `t_s`, rad/s of beat phase.
+    /// The lock-in-free rate at `t_s`, rad/s of beat phase (within the known drive).
     pub fn lockin_free_rate_rad_per_s(&self, t_s: f64) -> f64 {
+        self.check_known(t_s);
         let fp = self.integ.free_phase();
         fp.omega_and_slope(t_s, fp.piece_at(t_s)).0
     }

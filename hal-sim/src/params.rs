@@ -126,9 +126,10 @@ impl Default for SolverParams {
 pub struct GyroParams {
     /// Scale factor, arcsec of body angle per fringe (counter pulse).
     pub scale_factor_arcsec: f64,
-    /// Dither frequency, Hz.
+    /// Dither frequency, Hz (the driven dither: its nominal frequency, see [`DitherModel`]).
     pub dither_hz: f64,
-    /// Peak dither amplitude, arcsec of body angle (0 = no dither).
+    /// Peak dither amplitude, arcsec of body angle (0 = no dither; the driven dither: its
+    /// nominal amplitude, what [`GyroParams::open_loop_drive`] aims at).
     pub dither_amplitude_arcsec: f64,
     /// Lock-in threshold Omega_L, deg/h.
     pub lock_in_deg_per_h: f64,
@@ -136,9 +137,10 @@ pub struct GyroParams {
     pub eps_rad: f64,
     /// Angle random walk, deg/sqrt(h) (0 = no noise).
     pub arw_deg_per_rt_h: f64,
-    /// Slow amplitude jitter of the dither resonator.
+    /// Slow amplitude jitter of the dither resonator (the prescribed sine only).
     pub amplitude_jitter: AmplitudeModulation,
-    /// Random-noise dither (a large deliberate amplitude modulation); adds to the jitter.
+    /// Random-noise dither (a large deliberate amplitude modulation); adds to the jitter (the
+    /// prescribed sine only).
     pub random_noise_dither: AmplitudeModulation,
     /// Seed of every random process (noise, jitter tones).
     pub seed: u64,

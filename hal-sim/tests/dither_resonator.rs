@@ -454,3 +454,51 @@ fn restated_segments_equal_one_long_segment() {
     eprintln!("{k} segments vs one: {worst:.2e} arcsec");
     assert!(worst < 1e-12 * 450.0 * 10.0, "{worst}");
 }
+
+/// f0 and Q follow the scripted temperature: a 10 K ramp over the first second (-0.04 Hz/K,
+/// -0.5 %/K: f0 389 -> 388.6 Hz, two half-widths; Q 1000 -> 950), held constant per 10 ms
+/// (`hold_s`) while it drifts. An open-loop drive at 389 Hz keeps running; 15 s after the ramp
+/// (18 ring-down times: the transient is down to 1e-8) the amplitude is the Lorentzian of the
+/// new f0 and Q (to 1e-6: the residual ring and the bisected extremes).
+#[test]
+fn temperature_drift_moves_the_resonance() {
+    use hal_sim::dither::resonator::{TemperatureDrift, TemperatureProfile};
+    let params = ResonatorParams {
+        temperature: TemperatureDrift {
+            profile: TemperatureProfile::ramp(0.0, 25.0, 1.0, 35.0).unwrap(),
+            f0_hz_per_c: -0.04,
+            q_relative_per_c: -0.005,
+            ..TemperatureDrift::NONE
+        },
+        ..Default::default()
+    };
+    params.validate().unwrap();
+    let drive = OpenLoopDrive::tuned(&params, 389.0, 450.0);
+    let mut d = DrivenDither::new(
+        &ResonatorParams {
+            initial: drive.steady_state(&params),
+            ..params
+        },
+        389.0,
+        1.0,
+    );
+    d.push(drive.segment(0)).unwrap();
+    d.extend_until(16.01).unwrap();
+    // Split every 10 ms while the temperature changes (100 in the first second), not after.
+    assert_eq!(d.index_at(0.999), 100);
+    assert_eq!(d.index_at(16.0), 101);
+    let amp = extremes(&d, 16.0, 16.01)
+        .iter()
+        .fold(0.0f64, |m, &(_, x)| m.max(x.abs()));
+    let (f0, q) = params.f0_q_at(2.0);
+    assert!((f0 - 388.6).abs() < 1e-12 && (q - 950.0).abs() < 1e-9);
+    let expect = params.dac_to_angle(drive.freq_hz(), 2.0).abs() * drive.amplitude_v();
+    let r = drive.freq_hz() / f0;
+    let lorentz_ratio = (1.0 / ((1.0 - r * r).powi(2) + (r / q).powi(2)).sqrt()) / 1000.0;
+    eprintln!(
+        "after the drift: {amp:.6} arcsec (Lorentzian {expect:.6}, {:.4} of the start)",
+        lorentz_ratio
+    );
+    assert!((amp / expect - 1.0).abs() < 1e-6, "{amp} vs {expect}");
+    assert!((amp / 450.0 - lorentz_ratio).abs() < 1e-3, "{amp}");
+}

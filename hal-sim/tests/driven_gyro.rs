@@ -233,3 +233,70 @@ fn open_loop_drive_keeps_a_gyro_fed() {
         );
     }
 }
+
+/// A drifting resonance (a 10 K ramp in 0.2 s: f0 -0.4 Hz, Q -5 %, refreshed every 10 ms)
+/// under an open-loop drive: the gyro runs through every split (a breakpoint each), its
+/// turnarounds alternate, one per half cycle, and the dither heads down the Lorentzian (to
+/// 194.5 arcsec at the new resonance, `tests/dither_resonator.rs`; slowly: tau = 0.8 s).
+#[test]
+fn a_drifting_resonance_keeps_the_gyro_running() {
+    use hal_sim::dither::resonator::{TemperatureDrift, TemperatureProfile};
+    let r = ResonatorParams {
+        temperature: TemperatureDrift {
+            profile: TemperatureProfile::ramp(0.0, 25.0, 0.2, 35.0).unwrap(),
+            f0_hz_per_c: -0.04,
+            q_relative_per_c: -0.005,
+            ..TemperatureDrift::NONE
+        },
+        ..Default::default()
+    };
+    let p = GyroParams::default().with_steady_driven_dither(r);
+    let mut drive = p.open_loop_drive().unwrap();
+    let mut g = Gyro::new(p, InputProfile::constant(5.0)).unwrap();
+    let lead = g.drive_lead_s();
+    let mut last: Option<Turnaround> = None;
+    let mut n = 0;
+    while g.t_s() < 0.3 {
+        let until = g.t_s() + lead;
+        drive.keep_ahead(&mut g, until).unwrap();
+        let t = g.next_turnaround();
+        if let Some(l) = last {
+            assert_ne!(l.kind, t.kind);
+            let half = t.time_s - l.time_s;
+            assert!((half * 2.0 * 389.0 - 1.0).abs() < 1e-3, "{half}");
+        }
+        last = Some(t);
+        n += 1;
+    }
+    assert!(n >= 233, "{n}");
+    let state = g.dither_state(g.t_s()).unwrap();
+    let rate_amp = state.rate_arcsec_per_s.abs() / (core::f64::consts::TAU * 389.0);
+    let amp = state.angle_arcsec.hypot(rate_amp);
+    eprintln!("{n} turnarounds; dither {amp:.2} arcsec at 0.3 s");
+    assert!(amp < 445.0 && amp > 194.5, "{amp}");
+}
+
+/// The driven model's own checks: the nominal dither frequency within a factor 4 of f0, and
+/// the resonator's ranges.
+#[test]
+fn driven_parameters_are_validated() {
+    let ok = GyroParams::default().with_steady_driven_dither(ResonatorParams::default());
+    assert!(ok.derive().is_ok());
+    for bad in [
+        GyroParams {
+            dither_hz: 60.0,
+            ..ok
+        },
+        GyroParams {
+            dither_hz: 0.0,
+            ..ok
+        },
+        GyroParams::default().with_steady_driven_dither(ResonatorParams {
+            q: 1.0,
+            ..Default::default()
+        }),
+    ] {
+        assert!(bad.derive().is_err(), "{:?}", bad.dither_model);
+        assert!(Gyro::new(bad, InputProfile::constant(0.0)).is_err());
+    }
+}

@@ -6,8 +6,8 @@
 //! Segment 0 starts at t = 0 from [`ResonatorParams::initial`] with no drive (the amplifier's
 //! output at zero); every pushed [`DriveSegment`] starts a new one at its `start_s`, from the
 //! state the previous one reaches there (continuous: piezo voltage, angle, rate), with f0 and
-//! Q of its start time. While the temperature drift is on, a segment is also split every
-//! `hold_s`. Segments are half open, `[start, next start)`; a segment pushed at the same instant
+//! Q of its start time. While the temperature drifts, a segment is also split at the first
+//! multiple of `hold_s` (from its start) where the temperature has changed. Segments are half open, `[start, next start)`; a segment pushed at the same instant
 //! as the previous one replaces it (the earlier one has zero length).
 //!
 //! The drive is known up to [`DrivenDither::known_until_s`]: the last pushed start, or later if
@@ -55,6 +55,8 @@ pub struct DrivenDither {
     /// Index of `segments[0]` since the start.
     first: u64,
     known_until_s: f64,
+    /// The next split of the last segment is at its start + `split_k` holds.
+    split_k: u64,
 }
 
 impl DrivenDither {
@@ -68,6 +70,7 @@ impl DrivenDither {
             segments: VecDeque::new(),
             first: 0,
             known_until_s: 0.0,
+            split_k: 1,
         };
         d.push_resolved(0.0, Forcing::ZERO, params.initial);
         d
@@ -96,6 +99,7 @@ impl DrivenDither {
             forcing,
             response,
         });
+        self.split_k = 1;
     }
 
     fn last(&self) -> &Resolved {
@@ -104,20 +108,28 @@ impl DrivenDither {
             .expect("segment 0 is never dropped alone")
     }
 
-    /// Splits the last segment every `hold_s` before `t_s` while the temperature drifts.
+    /// Splits the last segment before `t_s` at the first multiple of `hold_s` after its start
+    /// where the temperature differs from the one at its start (and so on from there): f0 and
+    /// Q are refreshed at most every `hold_s`, and not at all while the temperature is flat.
     fn split_until(&mut self, t_s: f64) {
-        if !self.params.temperature.is_on() {
+        let drift = self.params.temperature;
+        if !drift.is_on() {
             return;
         }
-        let hold = self.params.temperature.hold_s;
+        let hold = drift.hold_s;
         loop {
             let last = *self.last();
-            let split = last.start_s + hold;
+            let temp0 = drift.profile.at(last.start_s);
+            let split = last.start_s + self.split_k as f64 * hold;
             if split >= t_s {
                 return;
             }
+            if drift.profile.at(split) == temp0 {
+                self.split_k += 1;
+                continue;
+            }
             let state = last.response.state_at(split);
-            self.push_resolved(split, last.forcing.later_by(hold), state);
+            self.push_resolved(split, last.forcing.later_by(split - last.start_s), state);
         }
     }
 

@@ -20,8 +20,9 @@
 //!
 //! `f0(T) = f0 + f0_hz_per_c (T - T_ref)`, `Q(T) = Q (1 + q_relative_per_c (T - T_ref))`,
 //! with `T(t)` a scripted piecewise-linear profile ([`TemperatureProfile`]). Both are held
-//! constant over each drive segment (evaluated at its start) and a segment is split every
-//! [`TemperatureDrift::hold_s`] while the drift is on. The step this leaves is tiny: a 1 K/min
+//! constant over each drive segment (evaluated at its start), and a segment is split every
+//! [`TemperatureDrift::hold_s`] while the temperature changes (a split is a breakpoint for the
+//! phase integrator: one more piece per hold, 10 ms by default, only during a ramp). The step this leaves is tiny: a 1 K/min
 //! ramp with -0.04 Hz/K (-100 ppm/K, a steel spring) moves f0 by 8.6e-7 Hz per half cycle and
 //! 6.7e-6 Hz per 10 ms hold. The state (piezo voltage, angle, rate) is continuous across a
 //! parameter step; the angle's second derivative steps with w0^2.
@@ -113,8 +114,8 @@ pub struct TemperatureDrift {
     pub f0_hz_per_c: f64,
     /// (dQ/dT)/Q, 1/K. Range [-0.1, 0.1].
     pub q_relative_per_c: f64,
-    /// Longest stretch with constant f0 and Q while the drift is on, s: longer drive segments
-    /// are split. Range [1e-4, 10].
+    /// Longest stretch with constant f0 and Q while the temperature changes, s: longer drive
+    /// segments are split. Range [1e-4, 10].
     pub hold_s: f64,
 }
 
