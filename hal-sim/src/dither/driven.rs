@@ -22,6 +22,18 @@
 //! integrator never expands or steps across it. A temperature step (a split) changes `w0^2`,
 //! so the angle's second derivative steps there.
 //!
+//! # Noise, and the cost of a segment
+//!
+//! The angle random walk keeps its segments on the nominal half-cycle grid
+//! ([`crate::noise`]): with the driven dither they do not follow its phase, so a noise step
+//! can fall anywhere in a dither cycle, inside a near region too (handled exactly, as any
+//! breakpoint). A noise step that lands within `|jump| / psi_ddot` of a turnaround (~0.3 ns
+//! at ARW 3e-4 deg/sqrt(h): a chance of ~2e-7 per noise step) can carry the rate across
+//! zero, and that turnaround is not reported ([`crate::phase::plan`]'s limitation).
+//! With the noise on, a half cycle then holds a drive segment start and a noise step apart:
+//! one more far-field boundary than with the prescribed sine, whose noise steps sit at its
+//! rate peaks (measured: ~20 % slower; without noise ~10 %).
+//!
 //! # History
 //!
 //! Segments that ended more than [`HISTORY_S`] before the gyro's time are dropped (a segment
