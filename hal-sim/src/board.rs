@@ -563,6 +563,12 @@ impl SimBoard {
         self.gyro.drive_known_until_s()
     }
 
+    /// The next turnaround if the known drive reaches it ([`Gyro::try_upcoming_turnaround`]):
+    /// a caller feeding the drive checks it before [`Self::next_half_cycle`].
+    pub fn try_upcoming_turnaround(&mut self) -> Option<TurnaroundTime> {
+        self.gyro.try_upcoming_turnaround()
+    }
+
     /// The photodiodes, for fault injection in tests ([`Photodiodes::set_fault`]).
     pub fn photodiodes_mut(&mut self) -> &mut Photodiodes {
         &mut self.photodiodes

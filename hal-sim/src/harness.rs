@@ -68,6 +68,10 @@ use firmware::sample::TurnaroundSample;
 use firmware::signal::compensation::CompensationSettings;
 use firmware::signal::lockin::CycleRecord;
 
+/// How far ahead of the board's time the harness feeds an open-loop drive at most while it
+/// looks for the next turnaround, s.
+pub const MAX_DRIVE_LOOKAHEAD_S: f64 = 1.0;
+
 /// Everything a [`Harness`] is built from.
 #[derive(Clone, Debug)]
 pub struct HarnessOptions {
@@ -213,12 +217,7 @@ impl Harness {
     /// One half dither cycle, the readout fed as `feed` says; a closed cycle goes back to the
     /// board before it is returned.
     pub fn step_with(&mut self, feed: Feed) -> HalfCycle {
-        if let Some((drive, lead_s)) = &mut self.drive {
-            let until = self.board.time_s() + *lead_s;
-            drive
-                .keep_ahead(&mut self.board, until)
-                .expect("the open-loop drive's segments are valid");
-        }
+        self.feed_drive();
         let sample = self.board.next_half_cycle(&mut self.lissajous);
         let latch = self
             .board
@@ -239,6 +238,28 @@ impl Harness {
             sample,
             latch,
             record,
+        }
+    }
+
+    /// Feeds the open-loop drive (if the harness feeds one) a lead ahead of the board's time,
+    /// and further, a lead at a time, until the next turnaround is known (a dither still
+    /// building up from rest may not turn around within one lead); gives up after
+    /// [`MAX_DRIVE_LOOKAHEAD_S`] (the board then panics: there is no turnaround to latch).
+    fn feed_drive(&mut self) {
+        let Some((drive, lead_s)) = &mut self.drive else {
+            return;
+        };
+        let now = self.board.time_s();
+        let mut until = now + *lead_s;
+        loop {
+            drive
+                .keep_ahead(&mut self.board, until)
+                .expect("the open-loop drive's segments are valid");
+            if self.board.try_upcoming_turnaround().is_some() || until > now + MAX_DRIVE_LOOKAHEAD_S
+            {
+                return;
+            }
+            until += *lead_s;
         }
     }
 
