@@ -13,8 +13,10 @@
 //! - [`LatchTiming::Exact`] (the default): the exact turnaround (the zero of dither plus input
 //!   rate), standing in for a perfect capture/compare scheduling; or
 //! - [`LatchTiming::Scheduled`]: what the board does. The pick-off comparator's edges are found
-//!   on the analytic dither pick-off ([`Gyro::dither_pickoff_arcsec`] against the comparator
-//!   threshold: bracketing in steps of T/32, then bisection to 10 ps), delayed by the pick-off
+//!   on the pick-off's noise-free voltage ([`Pickoff`], which follows the dither angle of
+//!   either model, [`Gyro::dither_pickoff_arcsec`], with its gain error, lag and non-linearity)
+//!   against the comparator threshold: bracketing in steps of T/32, then bisection to 10 ps;
+//!   delayed by the pick-off
 //!   path and captured by the profile's 84 MHz timer ([`CaptureTimer`], whole ticks), and fed to the
 //!   firmware's own [`Scheduler`] (`firmware::signal::turnaround`) with the input-rate
 //!   shift that [`rate_shift_ticks`] computes from the latest [`CycleRecord`] the caller hands
@@ -33,13 +35,22 @@
 //! residual timing error on top (an uncalibrated fixed delay, trigger jitter). The gyro's truth
 //! (turnaround phase, per-traversal lock-in error) stays available through [`SimBoard::gyro`]
 //! for tests, and each latch's true turnaround through [`SimBoard::last_latch`].
+//!
+//! The pick-off is also an ADC channel ([`SimBoard::pickoff_code`]: one conversion at any
+//! instant, the firmware's drive loop samples it at every drive tick), and the board passes
+//! drive segments on to a driven dither ([`SimBoard::push_drive`], [`DriveSink`]). A scheduled
+//! latch searches the pick-off up to one dither period ahead and the exact latch needs the next
+//! turnaround: keep the drive known [`Gyro::drive_lead_s`] ahead of [`SimBoard::time_s`]
+//! before each [`SimBoard::next_half_cycle`] (the harness does, [`crate::harness`]).
 
 use crate::clock::CaptureTimer;
 use crate::counter::{latch_turnaround, CounterConfig, QuadratureCounter};
+use crate::dither::drive::{DriveError, DriveSegment, DriveSink};
 use crate::gyro::Gyro;
 use crate::gyro::TurnaroundTime;
-use crate::params::GyroParams;
+use crate::params::{GyroParams, ParamError};
 use crate::photodiode::{PhotodiodeConfig, Photodiodes};
+use crate::pickoff::{Pickoff, PickoffConfig};
 use firmware::profile::BoardProfile;
 use firmware::readout::ReadoutConfig;
 use firmware::sample::{TurnaroundKind, TurnaroundSample};
@@ -58,8 +69,10 @@ pub enum LatchTiming {
     Exact,
     /// From the pick-off comparator's edges through the firmware's scheduler, as on the board.
     Scheduled {
-        /// Comparator threshold, arcsec of pick-off (dither angle); 0 = an ideal zero-crossing
-        /// detector. The half-interval prediction cancels it.
+        /// Comparator threshold, arcsec of pick-off (dither angle) at the pick-off's nominal
+        /// sensitivity (the threshold is the voltage of that angle,
+        /// [`PickoffConfig::threshold_v`]); 0 = a zero-crossing detector. The half-interval
+        /// prediction cancels it.
         comparator_offset_arcsec: f64,
         /// Pick-off path (comparator, input filter, resynchronisation): edge to capture, ticks.
         /// The scheduler subtracts the same value (a calibrated board).
@@ -91,6 +104,8 @@ impl LatchTiming {
 pub struct BoardConfig {
     /// The photodiode channels, their ADC and comparators.
     pub photodiodes: PhotodiodeConfig,
+    /// The dither pick-off, its ADC channel and (through the latch timing) its comparator.
+    pub pickoff: PickoffConfig,
     /// The encoder timer (register width, start value, direction).
     pub counter: CounterConfig,
     /// Capture-timer frequency, Hz.
@@ -121,6 +136,7 @@ impl BoardConfig {
     pub fn for_gyro(params: &GyroParams) -> Self {
         Self {
             photodiodes: PhotodiodeConfig::default(),
+            pickoff: PickoffConfig::default(),
             counter: CounterConfig::default(),
             timer_hz: f64::from(BoardProfile::F405.timer_hz),
             lissajous_rate_hz: 12_345.0,
@@ -170,6 +186,8 @@ pub enum BoardError {
     Counter(crate::counter::CounterError),
     /// The photodiode configuration is invalid.
     Photodiodes(crate::photodiode::PhotodiodeConfigError),
+    /// The pick-off configuration is invalid.
+    Pickoff(ParamError),
     /// Another setting is invalid; the text says which.
     Config(&'static str),
 }
@@ -200,8 +218,8 @@ pub struct LatchRecord {
 
 /// The pick-off side of a scheduled latch.
 #[derive(Clone, Copy, Debug)]
-struct Pickoff {
-    threshold_arcsec: f64,
+struct EdgeSchedule {
+    threshold_v: f64,
     pickoff_delay_s: f64,
     aperture_delay_s: f64,
     rate_shift: bool,
@@ -217,12 +235,13 @@ pub struct SimBoard {
     config: BoardConfig,
     eps_rad: f64,
     photodiodes: Photodiodes,
+    pickoff: Pickoff,
     counter: QuadratureCounter,
     timer: CaptureTimer,
     rng: ChaCha8Rng,
     next_lissajous_s: f64,
     time_s: f64,
-    pickoff: Option<Pickoff>,
+    schedule: Option<EdgeSchedule>,
     rate_shift_ticks: i32,
     stats: LatchStats,
     last_latch: Option<LatchRecord>,
@@ -243,18 +262,20 @@ impl SimBoard {
         if !(config.latch_offset_s.is_finite() && config.latch_jitter_rms_s >= 0.0) {
             return Err(BoardError::Config("latch timing must be finite"));
         }
-        let pickoff = Self::pickoff(&config)?;
+        config.pickoff.validate().map_err(BoardError::Pickoff)?;
+        let schedule = Self::schedule(&config)?;
         let eps_rad = gyro.params().eps_rad;
         let psi_h0 = gyro.advance_to(0.0) - eps_rad;
         let counter = QuadratureCounter::new(&config.photodiodes, config.counter, psi_h0)
             .map_err(BoardError::Counter)?;
         Ok(Self {
             photodiodes: Photodiodes::new(config.photodiodes, config.seed),
+            pickoff: Pickoff::new(config.pickoff, config.seed ^ 0x5049_434b_4f46_4621),
             rng: ChaCha8Rng::seed_from_u64(config.seed.wrapping_add(1)),
             timer: CaptureTimer::new(config.timer_hz),
             next_lissajous_s: 0.5 / config.lissajous_rate_hz,
             time_s: 0.0,
-            pickoff,
+            schedule,
             rate_shift_ticks: 0,
             stats: LatchStats::default(),
             last_latch: None,
@@ -265,7 +286,7 @@ impl SimBoard {
         })
     }
 
-    fn pickoff(config: &BoardConfig) -> Result<Option<Pickoff>, BoardError> {
+    fn schedule(config: &BoardConfig) -> Result<Option<EdgeSchedule>, BoardError> {
         let LatchTiming::Scheduled {
             comparator_offset_arcsec,
             pickoff_delay_ticks,
@@ -280,8 +301,8 @@ impl SimBoard {
                 "comparator threshold must be finite, the timer below 2^32 Hz",
             ));
         }
-        Ok(Some(Pickoff {
-            threshold_arcsec: comparator_offset_arcsec,
+        Ok(Some(EdgeSchedule {
+            threshold_v: config.pickoff.threshold_v(comparator_offset_arcsec),
             pickoff_delay_s: pickoff_delay_ticks as f64 / config.timer_hz,
             aperture_delay_s: aperture_delay_ticks as f64 / config.timer_hz,
             rate_shift,
@@ -298,7 +319,7 @@ impl SimBoard {
     /// returns the turnaround latch.
     pub fn next_half_cycle(&mut self, lissajous: &mut Vec<(u16, u16)>) -> TurnaroundSample {
         lissajous.clear();
-        let (kind, latch_s, record) = match self.pickoff {
+        let (kind, latch_s, record) = match self.schedule {
             None => {
                 let turnaround = self.gyro.upcoming_turnaround();
                 let latch_s = self.with_latch_error(turnaround.time_s).max(self.time_s);
@@ -309,7 +330,7 @@ impl SimBoard {
                 };
                 (turnaround.kind, latch_s, record)
             }
-            Some(pickoff) => self.scheduled_latch(pickoff, lissajous),
+            Some(schedule) => self.scheduled_latch(schedule, lissajous),
         };
         self.last_latch = Some(record);
         self.sample_lissajous_until(latch_s, lissajous);
@@ -352,42 +373,47 @@ impl SimBoard {
     /// Runs the gyro (and the Lissajous stream) up to the edge.
     fn scheduled_latch(
         &mut self,
-        mut pickoff: Pickoff,
+        mut schedule: EdgeSchedule,
         lissajous: &mut Vec<(u16, u16)>,
     ) -> (TurnaroundKind, f64, LatchRecord) {
         let period_s = 1.0 / self.gyro.params().dither_hz;
-        let mut schedule = None;
-        match self.next_edge(&pickoff, period_s) {
+        let mut planned = None;
+        match self.next_edge(&schedule, period_s) {
             Some((edge, edge_s)) => {
-                pickoff.cursor_s = edge_s;
+                schedule.cursor_s = edge_s;
                 self.stats.edges += 1;
                 self.sample_lissajous_until(edge_s, lissajous);
                 if edge_s > self.gyro.t_s() {
                     self.gyro.advance_to(edge_s);
                 }
-                let capture_s = edge_s + pickoff.pickoff_delay_s;
+                let capture_s = edge_s + schedule.pickoff_delay_s;
                 let capture_ticks = self.timer.ticks_at(capture_s);
-                let shift = if pickoff.rate_shift {
+                let shift = if schedule.rate_shift {
                     self.rate_shift_ticks
                 } else {
                     0
                 };
                 let outcome =
-                    pickoff
+                    schedule
                         .scheduler
-                        .on_edge(&pickoff.config, edge, capture_ticks, shift);
+                        .on_edge(&schedule.config, edge, capture_ticks, shift);
                 self.stats.implausible_edges += outcome.implausible as u64;
-                schedule = outcome.schedule.map(|s| {
+                planned = outcome.schedule.map(|s| {
                     let compare_s = self.timer.time_of_ticks_s(s.compare_ticks, capture_s);
-                    (s.kind, compare_s, compare_s + pickoff.aperture_delay_s)
+                    (s.kind, compare_s, compare_s + schedule.aperture_delay_s)
                 });
             }
-            // No edge for a whole period (no dither, or a threshold beyond the amplitude).
-            None => pickoff.cursor_s += period_s,
+            // No edge for a whole period (no dither, a threshold beyond the amplitude, a lost
+            // pick-off): this half cycle falls back to the turnaround, and the next search
+            // starts there (not a period on: the cursor must not run ahead of the board's time).
+            None => {
+                let next = self.gyro.upcoming_turnaround().time_s;
+                schedule.cursor_s = schedule.cursor_s.max(next);
+            }
         }
-        self.pickoff = Some(pickoff);
+        self.schedule = Some(schedule);
         let turnaround = self.gyro.upcoming_turnaround();
-        let on_time = schedule.filter(|&(kind, compare_s, sample_s)| {
+        let on_time = planned.filter(|&(kind, compare_s, sample_s)| {
             kind == turnaround.kind
                 && compare_s > self.gyro.t_s()
                 && (sample_s - turnaround.time_s).abs() < period_s / 8.0
@@ -414,13 +440,16 @@ impl SimBoard {
     /// The first crossing of the comparator threshold by the pick-off after the search cursor,
     /// within one dither period: bracketed in steps of T/32, then bisected to 10 ps. Returns the
     /// first instant on the far side (so the next search starts past it).
-    fn next_edge(&self, pickoff: &Pickoff, period_s: f64) -> Option<(Edge, f64)> {
+    fn next_edge(&self, schedule: &EdgeSchedule, period_s: f64) -> Option<(Edge, f64)> {
         if !(self.gyro.free_phase().dither().is_on() && period_s.is_finite()) {
             return None;
         }
-        let above = |t: f64| self.gyro.dither_pickoff_arcsec(t) >= pickoff.threshold_arcsec;
+        let above = |t: f64| {
+            self.pickoff
+                .comparator_high(&self.gyro, t, schedule.threshold_v)
+        };
         let step = period_s / 32.0;
-        let mut a = pickoff.cursor_s;
+        let mut a = schedule.cursor_s;
         let side = above(a);
         for _ in 0..32 {
             let mut b = a + step;
@@ -497,8 +526,65 @@ impl SimBoard {
         &mut self.counter
     }
 
+    /// One conversion of the pick-off's ADC channel at `t_s` (one noise draw), the 12-bit
+    /// code: what the firmware's drive loop reads at a drive tick. Needs only the dither (not
+    /// the beat phase), so it may run ahead of [`Self::time_s`], within the known drive.
+    pub fn pickoff_code(&mut self, t_s: f64) -> u16 {
+        self.pickoff.sample_code(&self.gyro, t_s)
+    }
+
+    /// The pick-off's output at `t_s` with one noise draw, V.
+    pub fn pickoff_v(&mut self, t_s: f64) -> f64 {
+        self.pickoff.sample_v(&self.gyro, t_s)
+    }
+
+    /// The pick-off (its configuration, whether it is lost).
+    pub fn pickoff(&self) -> &Pickoff {
+        &self.pickoff
+    }
+
+    /// The pick-off, for fault injection ([`Pickoff::set_lost`]).
+    pub fn pickoff_mut(&mut self) -> &mut Pickoff {
+        &mut self.pickoff
+    }
+
+    /// Passes a drive segment on to the gyro's driven dither ([`Gyro::push_drive`]).
+    pub fn push_drive(&mut self, segment: DriveSegment) -> Result<(), DriveError> {
+        self.gyro.push_drive(segment)
+    }
+
+    /// The last drive segment holds at least until `t_s` ([`Gyro::extend_drive_until`]).
+    pub fn extend_drive_until(&mut self, t_s: f64) -> Result<(), DriveError> {
+        self.gyro.extend_drive_until(t_s)
+    }
+
+    /// The time up to which the dither is known, s ([`Gyro::drive_known_until_s`]).
+    pub fn drive_known_until_s(&self) -> f64 {
+        self.gyro.drive_known_until_s()
+    }
+
+    /// The next turnaround if the known drive reaches it ([`Gyro::try_upcoming_turnaround`]):
+    /// a caller feeding the drive checks it before [`Self::next_half_cycle`].
+    pub fn try_upcoming_turnaround(&mut self) -> Option<TurnaroundTime> {
+        self.gyro.try_upcoming_turnaround()
+    }
+
     /// The photodiodes, for fault injection in tests ([`Photodiodes::set_fault`]).
     pub fn photodiodes_mut(&mut self) -> &mut Photodiodes {
         &mut self.photodiodes
+    }
+}
+
+impl DriveSink for SimBoard {
+    fn push_drive(&mut self, segment: DriveSegment) -> Result<(), DriveError> {
+        SimBoard::push_drive(self, segment)
+    }
+
+    fn extend_drive_until(&mut self, t_s: f64) -> Result<(), DriveError> {
+        SimBoard::extend_drive_until(self, t_s)
+    }
+
+    fn drive_known_until_s(&self) -> f64 {
+        SimBoard::drive_known_until_s(self)
     }
 }

@@ -11,6 +11,15 @@
 //!   the same kind is the exact lock-in error of that dither cycle;
 //! - the free phase `theta(t)`, the true input rate, the dither pick-off and its turnarounds.
 //!
+//! With the driven dither ([`crate::params::DitherModel::Driven`]) the gyro also takes the
+//! drive: [`Gyro::push_drive`] appends the firmware's DDS segments, [`Gyro::extend_drive_until`]
+//! says how long the last one holds, and [`Gyro::drive_known_until_s`] is how far the dither is
+//! known. The gyro never plans beyond that time; [`Gyro::try_advance_to`] refuses to pass it
+//! (and [`Gyro::advance_to`] panics). Keep the drive known [`Gyro::drive_lead_s`] (two nominal
+//! dither periods) ahead of every time you advance to: then every planned piece is complete,
+//! the next turnaround is always found, and the results do not depend on how pushing and
+//! advancing interleave (see [`crate::dither`]).
+//!
 //! Time only moves forward (`advance_to` panics on a step back); clone the gyro to explore
 //! ahead. `psi` is an unwrapped `f64`, so its resolution is one ulp of |psi| (2e-10 rad at
 //! 1e6 rad, i.e. after ~1 s at 100 deg/s of input); time is an `f64` of seconds, whose ulp
@@ -18,6 +27,9 @@
 //! not in the integration, which works relative to each segment. Same parameters (and seed) and same input give the same results bit for bit,
 //! independent of how often or where the caller looks.
 
+use crate::dither::drive::{DriveError, DriveExhausted, DriveSegment, DriveSink};
+use crate::dither::driven::HISTORY_S;
+use crate::dither::linear::ResonatorState;
 use crate::input::InputProfile;
 use crate::params::{Derived, GyroParams, ParamError};
 use crate::phase::free_phase::FreePhase;
@@ -164,10 +176,65 @@ impl Gyro {
     }
 
     /// Advances to `t_s` (>= the current time) and returns the beat phase `psi(t)`, rad.
+    /// Panics beyond the known drive of a driven dither ([`Self::try_advance_to`] refuses).
     pub fn advance_to(&mut self, t_s: f64) -> f64 {
         let psi = self.integ.advance_to(t_s);
         self.absorb_events();
         psi
+    }
+
+    /// As [`Self::advance_to`], but refuses (and stays where it is) if `t_s` lies beyond the
+    /// time up to which the drive is known.
+    pub fn try_advance_to(&mut self, t_s: f64) -> Result<f64, DriveExhausted> {
+        let known_until_s = self.drive_known_until_s();
+        if t_s > known_until_s {
+            return Err(DriveExhausted {
+                asked_s: t_s,
+                known_until_s,
+            });
+        }
+        Ok(self.advance_to(t_s))
+    }
+
+    /// Appends a drive segment to the driven dither: it starts at or after
+    /// [`Self::drive_known_until_s`] (the previous segment holds until its start, which
+    /// becomes the new horizon). [`DriveError::NotDriven`] for the prescribed sine.
+    pub fn push_drive(&mut self, segment: DriveSegment) -> Result<(), DriveError> {
+        let keep_from_s = self.integ.t_now() - HISTORY_S;
+        let dither = self.integ.free_phase_mut().dither_mut();
+        let driven = dither.driven_mut().ok_or(DriveError::NotDriven)?;
+        driven.push(segment)?;
+        driven.forget_before(keep_from_s);
+        Ok(())
+    }
+
+    /// States that the last drive segment holds at least until `t_s` (a DDS between two
+    /// updates: the caller has ticked that far without changing it).
+    pub fn extend_drive_until(&mut self, t_s: f64) -> Result<(), DriveError> {
+        let dither = self.integ.free_phase_mut().dither_mut();
+        dither
+            .driven_mut()
+            .ok_or(DriveError::NotDriven)?
+            .extend_until(t_s)
+    }
+
+    /// The time up to which the dither is known, s: the driven dither's drive horizon (infinite
+    /// for the prescribed sine).
+    pub fn drive_known_until_s(&self) -> f64 {
+        self.integ.free_phase().dither().known_until_s()
+    }
+
+    /// The lead a caller keeps between the drive horizon and the times it advances to: two
+    /// nominal dither periods, s (see the module docs).
+    pub fn drive_lead_s(&self) -> f64 {
+        2.0 / self.params.dither_hz
+    }
+
+    /// The driven dither's state (piezo voltage, angle, rate) at `t_s`, within the known drive;
+    /// `None` for the prescribed sine.
+    pub fn dither_state(&self, t_s: f64) -> Option<ResonatorState> {
+        let d = self.integ.free_phase().dither().driven()?;
+        Some(d.state_at(t_s))
     }
 
     /// What the photodiodes see at `t_s`: `psi_H = psi - eps`, rad (advances to `t_s`).
@@ -175,9 +242,15 @@ impl Gyro {
         self.advance_to(t_s) - self.params.eps_rad
     }
 
-    /// The next turnaround after the current time, without advancing (plans ahead).
+    /// The next turnaround after the current time, without advancing (plans ahead). Panics
+    /// if a driven dither's drive does not reach it ([`Self::try_upcoming_turnaround`]).
     pub fn upcoming_turnaround(&mut self) -> TurnaroundTime {
         self.integ.upcoming_turnaround()
+    }
+
+    /// The next turnaround, or `None` if the known drive does not reach it (yet).
+    pub fn try_upcoming_turnaround(&mut self) -> Option<TurnaroundTime> {
+        self.integ.try_upcoming_turnaround()
     }
 
     /// Advances to the next turnaround and returns it with the beat phase at the instant.
@@ -189,19 +262,38 @@ impl Gyro {
         t
     }
 
+    /// As [`Self::next_turnaround`], or `None` (without advancing) if the known drive does not
+    /// reach it.
+    pub fn try_next_turnaround(&mut self) -> Option<Turnaround> {
+        let next = self.integ.try_upcoming_turnaround()?;
+        self.advance_to(next.time_s);
+        self.last_turn
+    }
+
     /// Drains the traversals completed so far (a traversal completes when its near region
     /// ends, ~55 us after its turnaround with the default solver settings).
     pub fn take_traversals(&mut self) -> Vec<Traversal> {
         self.traversals.drain(..).collect()
     }
 
+    fn check_known(&self, t_s: f64) {
+        let known = self.drive_known_until_s();
+        assert!(
+            t_s <= known,
+            "t = {t_s} s lies beyond the drive known until {known} s"
+        );
+    }
+
     /// The lock-in-free phase `theta(t)` (input + dither + noise angle), rad of beat phase.
+    /// A driven dither answers only within its known drive (panics beyond).
     pub fn theta_rad(&self, t_s: f64) -> f64 {
+        self.check_known(t_s);
         self.integ.free_phase().theta_rad(t_s)
     }
 
-    /// The lock-in-free rate at `t_s`, rad/s of beat phase.
+    /// The lock-in-free rate at `t_s`, rad/s of beat phase (within the known drive).
     pub fn lockin_free_rate_rad_per_s(&self, t_s: f64) -> f64 {
+        self.check_known(t_s);
         let fp = self.integ.free_phase();
         fp.omega_and_slope(t_s, fp.piece_at(t_s)).0
     }
@@ -216,7 +308,9 @@ impl Gyro {
         self.integ.free_phase().input().angle_arcsec(t_s)
     }
 
-    /// The dither pick-off (spring deflection) at `t_s`, arcsec of body angle.
+    /// The dither pick-off (spring deflection) at `t_s`, arcsec of body angle: the true dither
+    /// angle (the board's pick-off, `crate::pickoff`, adds its errors). A driven dither answers
+    /// only within its known drive (panics beyond).
     pub fn dither_pickoff_arcsec(&self, t_s: f64) -> f64 {
         self.integ.free_phase().dither().pickoff_angle_arcsec(t_s)
     }
@@ -233,6 +327,20 @@ impl Gyro {
     /// The free phase model (input, dither, noise).
     pub fn free_phase(&self) -> &FreePhase {
         self.integ.free_phase()
+    }
+}
+
+impl DriveSink for Gyro {
+    fn push_drive(&mut self, segment: DriveSegment) -> Result<(), DriveError> {
+        Gyro::push_drive(self, segment)
+    }
+
+    fn extend_drive_until(&mut self, t_s: f64) -> Result<(), DriveError> {
+        Gyro::extend_drive_until(self, t_s)
+    }
+
+    fn drive_known_until_s(&self) -> f64 {
+        Gyro::drive_known_until_s(self)
     }
 }
 
@@ -257,15 +365,35 @@ fn thread_cpu_s() -> Option<f64> {
 /// Measures [`Speed`] by simulating `gyro_seconds` of a gyro with `params` driven by `input`
 /// on the calling thread (the benchmark uses the docs/physics.md set on the paper's rotary table at
 /// 22.2 deg latitude, azimuth 0: +13.888 deg/h).
+///
+/// A driven dither gets [`GyroParams::open_loop_drive`] (a new segment every half cycle),
+/// pushed [`Gyro::drive_lead_s`] ahead while the gyro advances half a nominal cycle at a time;
+/// start it in the drive's steady state with [`GyroParams::with_steady_driven_dither`].
 pub fn measure_speed(
     params: GyroParams,
     input: InputProfile,
     gyro_seconds: f64,
 ) -> Result<Speed, ParamError> {
     let mut g = Gyro::new(params, input)?;
+    let mut drive = params.open_loop_drive();
     let cpu0 = thread_cpu_s();
     let start = std::time::Instant::now();
-    g.advance_to(gyro_seconds);
+    match &mut drive {
+        None => {
+            g.advance_to(gyro_seconds);
+        }
+        Some(drive) => {
+            let (step_s, lead_s) = (0.5 / params.dither_hz, g.drive_lead_s());
+            let mut t = 0.0;
+            while t < gyro_seconds {
+                t = (t + step_s).min(gyro_seconds);
+                drive
+                    .keep_ahead(&mut g, t + lead_s)
+                    .expect("the open-loop drive is valid");
+                g.advance_to(t);
+            }
+        }
+    }
     let wall = start.elapsed().as_secs_f64();
     let cpu = match (cpu0, thread_cpu_s()) {
         (Some(a), Some(b)) if b > a => Some(gyro_seconds / (b - a)),

@@ -47,11 +47,19 @@
 //!   board would be simulated twice.)
 //! - Callbacks, not iterators: a callback gets `&mut Harness` between steps, which an iterator
 //!   over half cycles borrowing the harness could not give.
+//! - A driven dither ([`crate::params::DitherModel::Driven`]) needs its drive ahead of the
+//!   board: by default the harness feeds the open-loop drive of the parameters
+//!   ([`GyroParams::open_loop_drive`]: `dither_amplitude_arcsec` at `dither_hz`, a segment every
+//!   half cycle), keeping it [`crate::gyro::Gyro::drive_lead_s`] ahead of the board's time
+//!   before every step. [`HarnessOptions::drive`] replaces it, or (`None`) leaves the feeding
+//!   to the caller through [`Harness::board_mut`] (a firmware drive loop, which reads the
+//!   pick-off with [`SimBoard::pickoff_code`]); the board panics if the drive runs out.
 //! - The readout's settings come from the board's profile ([`BoardConfig::readout_config`],
 //!   i.e. `firmware::profile::BoardProfile::F405` with the simulated board's timer and counter):
 //!   the firmware is configured for the board it runs on, never by a copy of its constants.
 
 use crate::board::{BoardConfig, BoardError, LatchRecord, LatchTiming, SimBoard};
+use crate::dither::drive::OpenLoopDrive;
 use crate::gyro::{Gyro, Traversal};
 use crate::input::InputProfile;
 use crate::params::{GyroParams, ParamError};
@@ -59,6 +67,10 @@ use firmware::readout::{Readout, ReadoutConfig};
 use firmware::sample::TurnaroundSample;
 use firmware::signal::compensation::CompensationSettings;
 use firmware::signal::lockin::CycleRecord;
+
+/// How far ahead of the board's time the harness feeds an open-loop drive at most while it
+/// looks for the next turnaround, s.
+pub const MAX_DRIVE_LOOKAHEAD_S: f64 = 1.0;
 
 /// Everything a [`Harness`] is built from.
 #[derive(Clone, Debug)]
@@ -72,17 +84,27 @@ pub struct HarnessOptions {
     pub board: BoardConfig,
     /// The compensation settings the readout starts with (on a board: from flash).
     pub compensation: CompensationSettings,
+    /// The drive the harness feeds a driven dither (`None`: the caller feeds it).
+    pub drive: Option<OpenLoopDrive>,
 }
 
 impl HarnessOptions {
-    /// The default board for `params` ([`BoardConfig::for_gyro`]: exact latch), compensation off.
+    /// The default board for `params` ([`BoardConfig::for_gyro`]: exact latch), compensation
+    /// off, and for a driven dither its open-loop drive ([`GyroParams::open_loop_drive`]).
     pub fn new(params: GyroParams, input: InputProfile) -> Self {
         Self {
             board: BoardConfig::for_gyro(&params),
+            drive: params.open_loop_drive(),
             params,
             input,
             compensation: CompensationSettings::default(),
         }
+    }
+
+    /// With `drive` fed to a driven dither (`None`: the caller feeds it).
+    pub fn drive(mut self, drive: Option<OpenLoopDrive>) -> Self {
+        self.drive = drive;
+        self
     }
 
     /// With the turnaround latch timed by `latch`.
@@ -161,6 +183,8 @@ pub struct Harness {
     readout: Readout,
     /// The photodiode conversions of the last half cycle.
     lissajous: Vec<(u16, u16)>,
+    /// The drive fed to a driven dither, and how far ahead.
+    drive: Option<(OpenLoopDrive, f64)>,
     /// The last latch and what the readout was fed of it (for [`Harness::replay_into`]).
     last: Option<(TurnaroundSample, Feed)>,
 }
@@ -170,8 +194,13 @@ impl Harness {
     pub fn new(options: HarnessOptions) -> Result<Self, HarnessError> {
         let gyro = Gyro::new(options.params, options.input).map_err(HarnessError::Gyro)?;
         let config = options.board.readout_config(options.params.dither_hz);
+        let lead_s = gyro.drive_lead_s();
+        let drive = options
+            .drive
+            .filter(|_| options.params.resonator().is_some());
         let board = SimBoard::new(gyro, options.board).map_err(HarnessError::Board)?;
         Ok(Self {
+            drive: drive.map(|d| (d, lead_s)),
             readout: Readout::new(&config, options.compensation),
             board,
             config,
@@ -188,6 +217,7 @@ impl Harness {
     /// One half dither cycle, the readout fed as `feed` says; a closed cycle goes back to the
     /// board before it is returned.
     pub fn step_with(&mut self, feed: Feed) -> HalfCycle {
+        self.feed_drive();
         let sample = self.board.next_half_cycle(&mut self.lissajous);
         let latch = self
             .board
@@ -208,6 +238,28 @@ impl Harness {
             sample,
             latch,
             record,
+        }
+    }
+
+    /// Feeds the open-loop drive (if the harness feeds one) a lead ahead of the board's time,
+    /// and further, a lead at a time, until the next turnaround is known (a dither still
+    /// building up from rest may not turn around within one lead); gives up after
+    /// [`MAX_DRIVE_LOOKAHEAD_S`] (the board then panics: there is no turnaround to latch).
+    fn feed_drive(&mut self) {
+        let Some((drive, lead_s)) = &mut self.drive else {
+            return;
+        };
+        let now = self.board.time_s();
+        let mut until = now + *lead_s;
+        loop {
+            drive
+                .keep_ahead(&mut self.board, until)
+                .expect("the open-loop drive's segments are valid");
+            if self.board.try_upcoming_turnaround().is_some() || until > now + MAX_DRIVE_LOOKAHEAD_S
+            {
+                return;
+            }
+            until += *lead_s;
         }
     }
 

@@ -2,8 +2,10 @@
 //!
 //! The rooms:
 //! - the gyro ([`params`], [`units`], [`input`], [`dither`], [`noise`], [`phase`], [`gyro`]):
-//!   the phase equation (docs/physics.md Eq. 6) integrated with the dither phase known analytically;
-//! - the board ([`photodiode`], [`counter`], [`clock`], [`flash`]): the peripherals
+//!   the phase equation (docs/physics.md Eq. 6) integrated with the dither phase known analytically,
+//!   the dither a prescribed sine (`ideal`) or a resonator driven by the firmware's DAC through
+//!   its amplifier (the drive pushed in segments, [`dither`]);
+//! - the board ([`photodiode`], [`pickoff`], [`counter`], [`clock`], [`flash`]): the peripherals
 //!   the firmware reads, producing exactly the plain structs of `firmware::sample`;
 //! - [`board`]: gyro and peripherals assembled into what the firmware's interrupts receive;
 //! - [`harness`]: the board with the firmware's readout in the loop, one half dither cycle per
@@ -26,6 +28,7 @@ pub mod clock;
 pub mod counter;
 pub mod flash;
 pub mod photodiode;
+pub mod pickoff;
 
 pub mod board;
 pub mod device;

@@ -6,6 +6,8 @@
 //! beat-phase units the integrator uses ([`Derived`], rad and rad/s of beat phase). Mutable
 //! state lives elsewhere ([`crate::gyro::Gyro`]).
 
+use crate::dither::drive::OpenLoopDrive;
+use crate::dither::resonator::ResonatorParams;
 use crate::units::{
     arcsec_to_beat_rad, arw_deg_per_rt_h_to_beat_rad_per_rt_s, deg_per_h_to_beat_rad_per_s,
     hz_to_rad_per_s,
@@ -62,6 +64,23 @@ impl AmplitudeModulation {
     }
 }
 
+/// Which dither the gyro has (see [`crate::dither`]).
+// Part of the `Copy` parameter set: a box would not be `Copy`; ~300 bytes copied is nothing.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum DitherModel {
+    /// The prescribed sine of `dither_hz` and `dither_amplitude_arcsec` (with the amplitude
+    /// modulations): the paper's idealised experiment and the theory tests.
+    #[default]
+    Ideal,
+    /// The driven resonator: the dither is what the pushed drive segments make of it
+    /// (`Gyro::push_drive`). `dither_hz` is then the *nominal* dither frequency (the
+    /// readout's configuration, the noise segments, the planner's grid; the resonance f0 must
+    /// lie within a factor 4 of it), `dither_amplitude_arcsec` the nominal amplitude (what
+    /// [`GyroParams::open_loop_drive`] aims at); the amplitude modulations are ignored.
+    Driven(ResonatorParams),
+}
+
 /// Settings of the integrator (see [`crate::phase`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SolverParams {
@@ -107,9 +126,10 @@ impl Default for SolverParams {
 pub struct GyroParams {
     /// Scale factor, arcsec of body angle per fringe (counter pulse).
     pub scale_factor_arcsec: f64,
-    /// Dither frequency, Hz.
+    /// Dither frequency, Hz (the driven dither: its nominal frequency, see [`DitherModel`]).
     pub dither_hz: f64,
-    /// Peak dither amplitude, arcsec of body angle (0 = no dither).
+    /// Peak dither amplitude, arcsec of body angle (0 = no dither; the driven dither: its
+    /// nominal amplitude, what [`GyroParams::open_loop_drive`] aims at).
     pub dither_amplitude_arcsec: f64,
     /// Lock-in threshold Omega_L, deg/h.
     pub lock_in_deg_per_h: f64,
@@ -117,9 +137,10 @@ pub struct GyroParams {
     pub eps_rad: f64,
     /// Angle random walk, deg/sqrt(h) (0 = no noise).
     pub arw_deg_per_rt_h: f64,
-    /// Slow amplitude jitter of the dither resonator.
+    /// Slow amplitude jitter of the dither resonator (the prescribed sine only).
     pub amplitude_jitter: AmplitudeModulation,
-    /// Random-noise dither (a large deliberate amplitude modulation); adds to the jitter.
+    /// Random-noise dither (a large deliberate amplitude modulation); adds to the jitter (the
+    /// prescribed sine only).
     pub random_noise_dither: AmplitudeModulation,
     /// Seed of every random process (noise, jitter tones).
     pub seed: u64,
@@ -134,6 +155,8 @@ pub struct GyroParams {
     pub lock_in_drift_until_s: f64,
     /// Integrator settings.
     pub solver: SolverParams,
+    /// The dither model: the prescribed sine (default) or the driven resonator.
+    pub dither_model: DitherModel,
 }
 
 impl Default for GyroParams {
@@ -153,6 +176,7 @@ impl Default for GyroParams {
             lock_in_drift_per_s: 0.0,
             lock_in_drift_until_s: 0.0,
             solver: SolverParams::default(),
+            dither_model: DitherModel::Ideal,
         }
     }
 }
@@ -212,9 +236,49 @@ fn check_modulation(m: &AmplitudeModulation, what: &'static str) -> Result<(), P
 }
 
 impl GyroParams {
-    /// True if the dither is on (nonzero amplitude and frequency).
+    /// True if the dither is on: the prescribed sine with nonzero amplitude and frequency, or
+    /// the driven resonator (even at rest: it is there to be driven).
     pub fn has_dither(&self) -> bool {
-        self.dither_amplitude_arcsec > 0.0 && self.dither_hz > 0.0
+        match self.dither_model {
+            DitherModel::Ideal => self.dither_amplitude_arcsec > 0.0 && self.dither_hz > 0.0,
+            DitherModel::Driven(_) => self.dither_hz > 0.0,
+        }
+    }
+
+    /// The driven resonator's parameters, if that is the model.
+    pub fn resonator(&self) -> Option<&ResonatorParams> {
+        match &self.dither_model {
+            DitherModel::Ideal => None,
+            DitherModel::Driven(r) => Some(r),
+        }
+    }
+
+    /// The open-loop drive that holds `dither_amplitude_arcsec` at `dither_hz` in steady state
+    /// (segments every half cycle, starting at the rate peaks); `None` for the prescribed sine.
+    pub fn open_loop_drive(&self) -> Option<OpenLoopDrive> {
+        self.resonator()
+            .map(|r| OpenLoopDrive::tuned(r, self.dither_hz, self.dither_amplitude_arcsec))
+    }
+
+    /// This gyro with the driven resonator `resonator`, started in the steady state of
+    /// [`Self::open_loop_drive`] (push that drive and the dither is a steady sine of
+    /// `dither_amplitude_arcsec` at `dither_hz` from t = 0).
+    pub fn with_steady_driven_dither(self, resonator: ResonatorParams) -> Self {
+        let driven = Self {
+            dither_model: DitherModel::Driven(resonator),
+            ..self
+        };
+        let initial = driven
+            .open_loop_drive()
+            .expect("driven")
+            .steady_state(&resonator);
+        Self {
+            dither_model: DitherModel::Driven(ResonatorParams {
+                initial,
+                ..resonator
+            }),
+            ..self
+        }
     }
 
     /// Validates and converts to beat-phase units.
@@ -253,6 +317,15 @@ impl GyroParams {
             &self.random_noise_dither,
             "random_noise_dither: rms in [0, 0.3), 1..64 tones, 0 < min_hz <= max_hz",
         )?;
+        if let DitherModel::Driven(r) = &self.dither_model {
+            r.validate()?;
+            check(
+                self.dither_hz > 0.0
+                    && r.f0_hz >= self.dither_hz / 4.0
+                    && r.f0_hz <= 4.0 * self.dither_hz,
+                "driven dither: dither_hz (nominal) must be > 0 and within a factor 4 of f0",
+            )?;
+        }
         let s = &self.solver;
         check(
             s.step_phase_rad > 0.0 && s.step_phase_rad <= 1.0,

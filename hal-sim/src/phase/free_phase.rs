@@ -7,6 +7,11 @@
 //! unambiguous and the integrator never differentiates across a jump. Pieces are bounded:
 //! with dither they are at most a half cycle (between peaks of the dither rate), without
 //! dither at most `solver.max_piece_s`.
+//!
+//! With the driven dither ([`crate::dither::driven`]) every drive segment start is a
+//! breakpoint too, a piece lasts at most one nominal dither period (the noise segments still
+//! split it when the noise is on), and no piece reaches beyond the time up to which the drive
+//! is known: [`FreePhase::piece_end`] says whether a piece is complete or cut at that horizon.
 
 use crate::dither::{Dither, MAX_JET};
 use crate::input::InputProfile;
@@ -14,14 +19,16 @@ use crate::noise::Noise;
 use crate::params::{Derived, GyroParams};
 use core::f64::consts::TAU;
 
-/// Which formula of each component applies: the smooth piece of the input and the noise
-/// segment.
+/// Which formula of each component applies: the smooth piece of the input, the noise
+/// segment and the drive segment.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PieceId {
     /// Piece index of the input profile.
     pub input: usize,
     /// Noise segment index (also the half-cycle / fixed-length structural segment).
     pub noise: u64,
+    /// Drive segment index of the driven dither (0 for the prescribed sine).
+    pub drive: u64,
 }
 
 /// The lock-in-free phase of one gyro (immutable apart from the noise cache).
@@ -50,6 +57,11 @@ impl FreePhase {
         &self.dither
     }
 
+    /// The dither model, to push drive into.
+    pub fn dither_mut(&mut self) -> &mut Dither {
+        &mut self.dither
+    }
+
     /// The input profile.
     pub fn input(&self) -> &InputProfile {
         &self.input
@@ -65,6 +77,31 @@ impl FreePhase {
         PieceId {
             input: self.input.piece_index(t_s),
             noise: self.noise.segment_index(t_s),
+            drive: self.dither.drive_index_at(t_s),
+        }
+    }
+
+    /// End of the piece that starts at `t_s`, and whether it is complete: `false` when the
+    /// piece is cut at the horizon of the driven dither's known drive (the end returned is the
+    /// horizon, which may equal `t_s`: nothing can be planned until more drive comes).
+    pub fn piece_end(&self, t_s: f64) -> (f64, bool) {
+        let Some(d) = self.dither.driven() else {
+            return (self.piece_end_after(t_s), true);
+        };
+        let mut end = t_s + 1.0 / d.nominal_hz();
+        if self.noise.is_on() {
+            end = end.min(self.noise.segment_end_s(self.noise.segment_index(t_s)));
+        }
+        if let Some(b) = self.input.breakpoint_after(t_s) {
+            end = end.min(b);
+        }
+        if let Some(s) = d.segment_start_after(t_s) {
+            end = end.min(s);
+        }
+        if end <= d.known_until_s() {
+            (end, true)
+        } else {
+            (d.known_until_s(), false)
         }
     }
 
@@ -72,8 +109,12 @@ impl FreePhase {
     ///
     /// Pieces follow the noise segments (half dither cycles between rate peaks). Without
     /// noise nothing jumps at a peak, so pairs of half cycles are merged into one piece:
-    /// one far segment then spans the peak (fewer boundaries to expand, same result).
+    /// one far segment then spans the peak (fewer boundaries to expand, same result). With the
+    /// driven dither this is [`Self::piece_end`]'s end.
     pub fn piece_end_after(&self, t_s: f64) -> f64 {
+        if self.dither.driven().is_some() {
+            return self.piece_end(t_s).0;
+        }
         let mut k = self.noise.segment_index(t_s);
         if !self.noise.is_on() && self.dither.is_on() && k % 2 == 1 {
             k += 1;
@@ -93,7 +134,7 @@ impl FreePhase {
         let mut a = [0.0; MAX_JET];
         let mut b = [0.0; MAX_JET];
         self.input.angle_jet(t_s, piece.input, &mut a[..n]);
-        self.dither.angle_jet(t_s, &mut b[..n]);
+        self.dither.angle_jet(t_s, piece.drive, &mut b[..n]);
         for k in 0..n {
             out[k] = a[k] * self.input_scale + b[k];
         }

@@ -210,6 +210,12 @@ impl LockInDrift {
     }
 }
 
+/// Plans one more piece: a complete one if its drive is known, else one cut at the driven
+/// dither's horizon. False if nothing can be planned.
+fn plan_one(planner: &mut Planner, fp: &FreePhase) -> bool {
+    planner.try_plan_next_piece(fp, false) || planner.try_plan_next_piece(fp, true)
+}
+
 /// The fast integrator of Eq. 6.
 #[derive(Clone, Debug)]
 pub struct Integrator {
@@ -232,10 +238,14 @@ impl Integrator {
     /// Starts at t = 0 with beat phase `psi0`.
     pub fn new(fp: FreePhase, omega_l: f64, solver: &SolverParams, psi0: f64) -> Self {
         let mut planner = Planner::new(&fp, solver, 0.0);
-        while planner.segments.is_empty() {
-            planner.plan_next_piece(&fp);
-        }
-        let seg = planner.segments.pop_front().expect("planned");
+        while planner.segments.is_empty() && plan_one(&mut planner, &fp) {}
+        // A driven dither without drive yet: an empty near segment at t = 0 holds the start.
+        let seg = planner.segments.pop_front().unwrap_or(Segment {
+            t_a: 0.0,
+            t_b: 0.0,
+            far: false,
+            piece: fp.piece_at(0.0),
+        });
         let phi0 = psi0 - fp.theta_rad(0.0);
         let placeholder = State::Far {
             chi_a: 0.0,
@@ -260,6 +270,12 @@ impl Integrator {
     /// The free phase.
     pub fn free_phase(&self) -> &FreePhase {
         &self.fp
+    }
+
+    /// The free phase, to push drive into its driven dither (appending only: what is planned
+    /// stays valid).
+    pub(crate) fn free_phase_mut(&mut self) -> &mut FreePhase {
+        &mut self.fp
     }
 
     /// Lock-in threshold, rad/s.
@@ -359,11 +375,14 @@ impl Integrator {
         }
     }
 
-    fn next_segment(&mut self) -> Segment {
+    /// The next planned segment (planning as needed); `None` at the driven dither's horizon.
+    fn next_segment(&mut self) -> Option<Segment> {
         while self.planner.segments.is_empty() {
-            self.planner.plan_next_piece(&self.fp);
+            if !plan_one(&mut self.planner, &self.fp) {
+                return None;
+            }
         }
-        self.planner.segments.pop_front().expect("planned")
+        self.planner.segments.pop_front()
     }
 
     /// Leaves the current segment at its end: `(phi, chi)` there.
@@ -405,8 +424,11 @@ impl Integrator {
                     }
                 }
             }
+            // At the driven dither's horizon the segment ends exactly at `t`: stay in it.
+            let Some(next) = self.next_segment() else {
+                return;
+            };
             let (phi, chi) = self.finish();
-            let next = self.next_segment();
             self.enter(next, phi, chi);
         }
     }
@@ -426,20 +448,29 @@ impl Integrator {
         }
     }
 
-    /// Plans at least past `t`.
+    /// Plans at least past `t` (with the driven dither: up to its horizon at most).
     pub fn plan_past(&mut self, t: f64) {
-        while self.planner.planned_until() <= t {
-            self.planner.plan_next_piece(&self.fp);
-        }
+        while self.planner.planned_until() <= t && plan_one(&mut self.planner, &self.fp) {}
     }
 
-    /// The first planned turnaround not yet passed (plans ahead as needed).
+    /// The first planned turnaround not yet passed (plans ahead as needed). Loops for ever if
+    /// there is none (no dither, constant input); panics at the driven dither's horizon.
     pub fn upcoming_turnaround(&mut self) -> TurnaroundTime {
+        self.try_upcoming_turnaround()
+            .expect("no turnaround within the known drive: push drive segments further ahead")
+    }
+
+    /// As [`Self::upcoming_turnaround`], but `None` if the driven dither's drive is not known
+    /// far enough: only complete pieces are planned here, so a turnaround is reported once
+    /// its whole piece is known (the same plan whatever the caller's lead).
+    pub fn try_upcoming_turnaround(&mut self) -> Option<TurnaroundTime> {
         loop {
             if let Some(tt) = self.planner.turnarounds.front() {
-                return *tt;
+                return Some(*tt);
             }
-            self.planner.plan_next_piece(&self.fp);
+            if !self.planner.try_plan_next_piece(&self.fp, false) {
+                return None;
+            }
         }
     }
 
@@ -449,6 +480,11 @@ impl Integrator {
             t >= self.t_now,
             "time is forward-only: asked {t} after {}",
             self.t_now
+        );
+        assert!(
+            t <= self.fp.dither().known_until_s(),
+            "asked {t} s beyond the drive known until {} s",
+            self.fp.dither().known_until_s()
         );
         self.plan_past(t);
         while let Some(&tt) = self.planner.turnarounds.front() {

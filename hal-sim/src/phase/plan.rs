@@ -12,6 +12,13 @@
 //! at interior check points as well; anything doubtful is near (always correct, only slower).
 //! Limitation: a rate that jumps across zero at a breakpoint (an input step larger than the
 //! dither rate there) has no smooth zero and is not reported as a turnaround.
+//!
+//! With the driven dither the future is known only up to the drive supplied so far: a piece
+//! is planned only when it is complete ([`Planner::try_plan_next_piece`]), or, when a caller
+//! must reach a time inside an incomplete piece, cut at the drive's horizon. Nothing is ever
+//! planned, probed or refined beyond that horizon: a turnaround near a segment end is
+//! bracketed inside its own piece (the probes include both ends), and the next piece is
+//! planned only once its drive is known.
 
 use super::free_phase::{FreePhase, PieceId};
 use crate::params::SolverParams;
@@ -91,10 +98,31 @@ impl Planner {
         self.probe(fp, piece, t).1
     }
 
-    /// Plans the next smooth piece.
+    /// Plans the next smooth piece (cut at the driven dither's horizon if need be); panics if
+    /// nothing can be planned (the drive is known only up to the cursor).
     pub fn plan_next_piece(&mut self, fp: &FreePhase) {
+        assert!(
+            self.try_plan_next_piece(fp, true),
+            "nothing to plan beyond {} s: the drive is not known further",
+            self.cursor
+        );
+    }
+
+    /// Plans the next smooth piece if its formulas are known to its end; with
+    /// `allow_partial`, also a piece cut at the driven dither's horizon. Returns false if
+    /// nothing was planned.
+    pub fn try_plan_next_piece(&mut self, fp: &FreePhase, allow_partial: bool) -> bool {
         let a = self.cursor;
-        let b = fp.piece_end_after(a);
+        let (b, complete) = fp.piece_end(a);
+        if b <= a || !(complete || allow_partial) {
+            return false;
+        }
+        self.plan_piece(fp, a, b);
+        true
+    }
+
+    /// Plans the piece `[a, b]` (`a` = the cursor).
+    fn plan_piece(&mut self, fp: &FreePhase, a: f64, b: f64) {
         let piece = fp.piece_at(0.5 * (a + b));
         let n = (((b - a) / self.probe_dt).ceil() as usize).max(2);
         let probe = |i: usize| {

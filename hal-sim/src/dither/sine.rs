@@ -1,5 +1,7 @@
-//! The mechanical dither: a sine oscillation of the gyro body whose *angle* is known in
-//! closed form, so the integrator never has to integrate the ~3.7e6 rad/s dither rate.
+//! The prescribed (`ideal`) dither: a sine oscillation of the gyro body whose *angle* is known
+//! in closed form, so the integrator never has to integrate the ~3.7e6 rad/s dither rate. This
+//! is the paper's idealised experiment and the model the theory tests hold the integrator
+//! against; the driven resonator is [`super::driven`].
 //!
 //! Model (all in beat phase: rad, rad/s):
 //!
@@ -25,6 +27,7 @@
 //! turnarounds. They differ from the true turnarounds (zeros of dither + input + noise rate)
 //! by about `Omega_i / psi_ddot` (docs/physics.md pitfall 3), which is why both are offered.
 
+use super::MAX_JET;
 use crate::params::{AmplitudeModulation, Derived, GyroParams};
 use crate::units::beat_rad_to_arcsec;
 use core::f64::consts::TAU;
@@ -32,9 +35,6 @@ use firmware::sample::TurnaroundKind;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::cell::RefCell;
-
-/// Longest derivative jet the dither evaluates (angle and 15 derivatives).
-pub const MAX_JET: usize = 16;
 
 /// One modulation tone: `a sin(nu t + phase)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -44,9 +44,9 @@ struct Tone {
     phase_rad: f64,
 }
 
-/// The dither of one gyro (immutable).
+/// The prescribed sine dither of one gyro (immutable).
 #[derive(Clone, Debug)]
-pub struct Dither {
+pub struct SineDither {
     freq_hz: f64,
     w_rad_per_s: f64,
     amp0_rad: f64,
@@ -96,8 +96,8 @@ fn split(a: f64) -> (f64, f64) {
 
 /// `2 pi frac(f t)`: the dither phase in [0, 2 pi), with `f t` formed as an error-free
 /// product (Dekker; `f64::mul_add` would be a slow libm call without target FMA) and the
-/// floor by the 1.5 * 2^52 rounding trick (valid for 0 <= f t < 2^51).
-fn reduced_phase(freq_hz: f64, t_s: f64) -> f64 {
+/// floor by the 1.5 * 2^52 rounding trick (valid for |f t| < 2^51, negative times included).
+pub(crate) fn reduced_phase(freq_hz: f64, t_s: f64) -> f64 {
     const MAGIC: f64 = 6_755_399_441_055_744.0;
     let p = freq_hz * t_s;
     let (fh, fl) = split(freq_hz);
@@ -119,7 +119,7 @@ fn binomial_row(n: usize) -> [f64; MAX_JET] {
     row
 }
 
-impl Dither {
+impl SineDither {
     /// Builds the dither of `params` (no dither: amplitude 0, every value 0).
     pub fn new(params: &GyroParams, derived: &Derived) -> Self {
         let mut tones = Vec::new();
@@ -333,12 +333,12 @@ impl Dither {
 mod tests {
     use super::*;
 
-    fn dither(jitter: f64) -> Dither {
+    fn dither(jitter: f64) -> SineDither {
         let p = GyroParams {
             amplitude_jitter: AmplitudeModulation::jitter(jitter),
             ..Default::default()
         };
-        Dither::new(&p, &p.derive().unwrap())
+        SineDither::new(&p, &p.derive().unwrap())
     }
 
     #[test]
@@ -376,7 +376,7 @@ mod tests {
             random_noise_dither: AmplitudeModulation::random_noise_dither(0.2),
             ..Default::default()
         };
-        let d = Dither::new(&p, &p.derive().unwrap());
+        let d = SineDither::new(&p, &p.derive().unwrap());
         for i in 0..2000 {
             let t = 3.7 * ((i as f64 * 0.618_033_988_749_895) % 1.0);
             let mut a = [0.0; 8];

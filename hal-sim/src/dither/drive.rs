@@ -1,0 +1,353 @@
+//! The drive as the firmware's DDS writes it: [`DriveSegment`]s, how they reach a gyro
+//! ([`DriveSink`]), and an open-loop source of them ([`OpenLoopDrive`]).
+//!
+//! The firmware's drive timer ticks at a fixed rate `f_s` and writes the DAC code
+//! `mid + round(amp sin(phase + n step))` at every tick. Its DDS parameters change only at its
+//! loop updates (at most about twice per dither cycle), so the drive reaches the simulator as
+//! segments: from `start_s` on, these parameters, until the next segment's start. The
+//! simulator takes them in volts at the DAC output (`DacParams::volts` converts codes).
+//!
+//! The drive is known only as far as the caller has said: a segment's end is the next
+//! segment's start, and [`DriveSink::extend_drive_until`] states how long the last one is
+//! known to hold. The gyro never plans beyond that time (see [`super::driven`] for the lead a
+//! caller keeps).
+
+use super::linear::ResonatorState;
+use super::resonator::ResonatorParams;
+use core::f64::consts::{PI, TAU};
+
+/// Bits of the board's DAC (STM32F405 DAC1: 12 bits).
+pub const DAC_BITS: u32 = 12;
+
+/// The board's DAC and the drive timer that writes it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DacParams {
+    /// Rate of the drive timer (one DAC write and one pick-off conversion per tick), Hz.
+    /// Range [8 f0, 1e7] (the zero-order-hold model needs the images well above f0).
+    pub tick_hz: f64,
+    /// DAC reference (full scale), V. Range (0, 10].
+    pub reference_v: f64,
+}
+
+impl Default for DacParams {
+    /// 20 kHz, 3.3 V (the board's VREF+).
+    fn default() -> Self {
+        Self {
+            tick_hz: 20_000.0,
+            reference_v: 3.3,
+        }
+    }
+}
+
+impl DacParams {
+    /// One DAC code, V.
+    pub fn lsb_v(&self) -> f64 {
+        self.reference_v / f64::from(1u32 << DAC_BITS)
+    }
+
+    /// The output for a (fractional) code, V.
+    pub fn volts(&self, code: f64) -> f64 {
+        code * self.lsb_v()
+    }
+
+    /// The tick period, s.
+    pub fn tick_s(&self) -> f64 {
+        1.0 / self.tick_hz
+    }
+}
+
+/// The DDS parameters from one loop update to the next.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveSegment {
+    /// The tick at which the first sample with these parameters is written, s (>= 0).
+    pub start_s: f64,
+    /// DDS phase of that first sample, rad.
+    pub phase_rad: f64,
+    /// DDS phase step per tick, rad: `2 pi f / f_s`. Range [0, pi) (below Nyquist).
+    pub step_rad: f64,
+    /// Sine amplitude at the DAC output, V (>= 0; `amp` codes times one LSB).
+    pub amplitude_v: f64,
+    /// Centre of the sine at the DAC output, V (the mid code times one LSB).
+    pub offset_v: f64,
+}
+
+impl DriveSegment {
+    /// A segment from DAC codes: amplitude `amplitude_codes` and centre `mid_code` (fractional
+    /// codes allowed), at the DAC's LSB.
+    pub fn from_codes(
+        start_s: f64,
+        phase_rad: f64,
+        step_rad: f64,
+        amplitude_codes: f64,
+        mid_code: f64,
+        dac: &DacParams,
+    ) -> Self {
+        Self {
+            start_s,
+            phase_rad,
+            step_rad,
+            amplitude_v: dac.volts(amplitude_codes),
+            offset_v: dac.volts(mid_code),
+        }
+    }
+
+    /// The DDS frequency `step f_s / (2 pi)`, Hz.
+    pub fn freq_hz(&self, dac: &DacParams) -> f64 {
+        self.step_rad * dac.tick_hz / TAU
+    }
+
+    /// Checks the fields (finite, amplitude >= 0, step in [0, pi), start >= 0).
+    pub fn validate(&self) -> Result<(), DriveError> {
+        let finite = [
+            self.start_s,
+            self.phase_rad,
+            self.step_rad,
+            self.amplitude_v,
+            self.offset_v,
+        ]
+        .iter()
+        .all(|x| x.is_finite());
+        if !finite {
+            return Err(DriveError::Invalid("a drive segment field is not finite"));
+        }
+        if self.start_s < 0.0 {
+            return Err(DriveError::Invalid("a drive segment starts before t = 0"));
+        }
+        if !(0.0..PI).contains(&self.step_rad) {
+            return Err(DriveError::Invalid("step_rad must be in [0, pi)"));
+        }
+        if self.amplitude_v < 0.0 {
+            return Err(DriveError::Invalid("amplitude_v must be >= 0"));
+        }
+        Ok(())
+    }
+}
+
+/// Why a drive segment was refused.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DriveError {
+    /// The gyro's dither is the prescribed sine: it takes no drive.
+    NotDriven,
+    /// A field is out of range; the text says which.
+    Invalid(&'static str),
+    /// The segment starts before the time up to which the drive is already known (the past,
+    /// or a future the gyro may already have planned with).
+    InThePast {
+        /// The segment's start, s.
+        start_s: f64,
+        /// The drive was known until then, s.
+        known_until_s: f64,
+    },
+}
+
+impl core::fmt::Display for DriveError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::NotDriven => write!(f, "the dither is the prescribed sine: no drive input"),
+            Self::Invalid(what) => write!(f, "invalid drive segment: {what}"),
+            Self::InThePast {
+                start_s,
+                known_until_s,
+            } => write!(
+                f,
+                "drive segment at {start_s} s starts before the drive known until {known_until_s} s"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for DriveError {}
+
+/// The time asked for lies beyond the known drive.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveExhausted {
+    /// The time asked for, s.
+    pub asked_s: f64,
+    /// The drive is known until then, s.
+    pub known_until_s: f64,
+}
+
+impl core::fmt::Display for DriveExhausted {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(
+            f,
+            "asked for t = {} s but the drive is known only until {} s: push drive segments \
+             ahead (keep a lead of two dither periods)",
+            self.asked_s, self.known_until_s
+        )
+    }
+}
+
+impl std::error::Error for DriveExhausted {}
+
+/// Whatever takes drive segments: the gyro, the board around it.
+pub trait DriveSink {
+    /// Appends a segment; it starts at or after [`Self::drive_known_until_s`], and the
+    /// previous segment holds until its start.
+    fn push_drive(&mut self, segment: DriveSegment) -> Result<(), DriveError>;
+    /// States that the last segment holds at least until `t_s` (a later time than known so
+    /// far; an earlier one is ignored).
+    fn extend_drive_until(&mut self, t_s: f64) -> Result<(), DriveError>;
+    /// The time up to which the drive is known, s.
+    fn drive_known_until_s(&self) -> f64;
+}
+
+/// An open-loop DDS: constant frequency, amplitude and centre, with its phase accumulator in
+/// Q32 turns as the firmware's would be (exact over any run), re-stated as a new segment every
+/// half cycle (where the drive phase passes a chosen boundary phase + k pi), as a firmware
+/// that updates twice per cycle would hand them over.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OpenLoopDrive {
+    tick_hz: f64,
+    phase0_q32: u32,
+    step_q32: u32,
+    amplitude_v: f64,
+    offset_v: f64,
+    /// Segment boundaries where the unwrapped DDS phase passes this + k/2, turns in [0, 1/2).
+    boundary_turns: f64,
+    next: u64,
+}
+
+const Q32: f64 = 4_294_967_296.0;
+
+impl OpenLoopDrive {
+    /// A DDS at `freq_hz` (rounded to the accumulator's resolution `f_s / 2^32`), amplitude
+    /// `amplitude_v` and centre `offset_v` at the DAC output, phase 0 at t = 0, boundaries
+    /// where the drive phase is 0 or pi.
+    pub fn new(dac: &DacParams, freq_hz: f64, amplitude_v: f64, offset_v: f64) -> Self {
+        let step = (freq_hz / dac.tick_hz * Q32).round();
+        Self {
+            tick_hz: dac.tick_hz,
+            phase0_q32: 0,
+            step_q32: step.clamp(0.0, Q32 / 2.0 - 1.0) as u32,
+            amplitude_v,
+            offset_v,
+            boundary_turns: 0.0,
+            next: 0,
+        }
+    }
+
+    /// The DDS that holds the steady amplitude `amplitude_arcsec` at `freq_hz` through
+    /// `params` (linear: the limit not reached), centred at the amplifier's reference, with
+    /// segment boundaries where the dither angle crosses zero (the rate peaks, where a
+    /// firmware updating at the pick-off comparator's edges would start its segments).
+    pub fn tuned(params: &ResonatorParams, freq_hz: f64, amplitude_arcsec: f64) -> Self {
+        let mut d = Self::new(&params.dac, freq_hz, 0.0, params.amplifier.input_ref_v);
+        let h = params.dac_to_angle(d.freq_hz(), 0.0);
+        d.amplitude_v = amplitude_arcsec / h.abs();
+        // theta ~ sin(drive phase + arg h): zero where the drive phase is -arg h (mod pi).
+        d.with_boundaries_at_drive_phase(-h.arg())
+    }
+
+    /// With the DDS phase at t = 0 set to `phase_rad`.
+    pub fn with_phase(mut self, phase_rad: f64) -> Self {
+        self.phase0_q32 = (phase_rad.rem_euclid(TAU) / TAU * Q32).round() as u64 as u32;
+        self
+    }
+
+    /// With segment boundaries where the drive phase passes `phase_rad` (mod pi).
+    pub fn with_boundaries_at_drive_phase(mut self, phase_rad: f64) -> Self {
+        self.boundary_turns = (phase_rad / TAU).rem_euclid(0.5);
+        self
+    }
+
+    /// The DDS frequency (after rounding the step), Hz.
+    pub fn freq_hz(&self) -> f64 {
+        f64::from(self.step_q32) / Q32 * self.tick_hz
+    }
+
+    /// The amplitude at the DAC output, V.
+    pub fn amplitude_v(&self) -> f64 {
+        self.amplitude_v
+    }
+
+    /// The DDS phase of tick `n`, rad (exact: Q32 accumulator).
+    fn phase_at_tick(&self, n: u64) -> f64 {
+        let acc = (u128::from(self.phase0_q32) + u128::from(n) * u128::from(self.step_q32))
+            % (1u128 << 32);
+        acc as f64 / Q32 * TAU
+    }
+
+    /// First tick at which the unwrapped phase reaches boundary `j` (may be <= 0).
+    fn boundary_tick(&self, j: u64) -> f64 {
+        let target = (self.boundary_turns + 0.5 * j as f64) * Q32 - f64::from(self.phase0_q32);
+        (target / f64::from(self.step_q32)).ceil()
+    }
+
+    /// Start tick of segment `k`: 0 for the first, then the boundaries after tick 0.
+    fn start_tick(&self, k: u64) -> u64 {
+        if k == 0 {
+            return 0;
+        }
+        if self.step_q32 == 0 {
+            // A constant drive has no half cycles: one segment per second.
+            return k * self.tick_hz.round() as u64;
+        }
+        let skip = (0..3).find(|&j| self.boundary_tick(j) >= 1.0).unwrap_or(3);
+        self.boundary_tick(skip + k - 1) as u64
+    }
+
+    /// Segment `k` (the first starts at t = 0).
+    pub fn segment(&self, k: u64) -> DriveSegment {
+        let n = self.start_tick(k);
+        DriveSegment {
+            start_s: n as f64 / self.tick_hz,
+            phase_rad: self.phase_at_tick(n),
+            step_rad: f64::from(self.step_q32) / Q32 * TAU,
+            amplitude_v: self.amplitude_v,
+            offset_v: self.offset_v,
+        }
+    }
+
+    /// The next segment not yet handed out.
+    pub fn next_segment(&mut self) -> DriveSegment {
+        let s = self.segment(self.next);
+        self.next += 1;
+        s
+    }
+
+    /// Pushes segments into `sink` until its drive is known at least until `until_s`.
+    pub fn keep_ahead(
+        &mut self,
+        sink: &mut impl DriveSink,
+        until_s: f64,
+    ) -> Result<(), DriveError> {
+        while sink.drive_known_until_s() < until_s {
+            sink.push_drive(self.next_segment())?;
+        }
+        Ok(())
+    }
+
+    /// The steady state of this drive through `params` at t = 0: start a resonator there and
+    /// it has no transient.
+    pub fn steady_state(&self, params: &ResonatorParams) -> ResonatorState {
+        params.steady_state(&self.segment(0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn open_loop_segments_are_half_cycles_with_a_continuous_phase() {
+        let dac = DacParams::default();
+        let d = OpenLoopDrive::new(&dac, 389.0, 0.4, 1.65).with_boundaries_at_drive_phase(1.0);
+        assert!((d.freq_hz() - 389.0).abs() < 1e-5);
+        let s0 = d.segment(0);
+        assert_eq!(s0.start_s, 0.0);
+        for k in 1..2000 {
+            let (a, b) = (d.segment(k), d.segment(k + 1));
+            let ticks = (b.start_s - a.start_s) * dac.tick_hz;
+            // Half a cycle is 25.7 ticks: 25 or 26.
+            assert!((ticks - 25.5).abs() < 0.51, "{ticks}");
+            // The phase continues the accumulator across the boundary.
+            let expect = (a.phase_rad + ticks.round() * a.step_rad).rem_euclid(TAU);
+            let diff = (b.phase_rad - expect).rem_euclid(TAU);
+            assert!(diff.min(TAU - diff) < 1e-9, "{k}");
+            // The boundary is the first tick past the boundary phase (1 rad + k pi).
+            let past = (b.phase_rad - 1.0).rem_euclid(PI);
+            assert!(past < b.step_rad + 1e-12, "{past}");
+        }
+    }
+}
