@@ -112,8 +112,13 @@ def protocol_checks(exchange, link, check, qemu):
     exchange("bad crc", b"get a*0000", lambda a: a.startswith("ERR 6 "))
     exchange("store", b"store", lambda a: a.startswith("OK stored seq=1 "))
     exchange("set after store", b"set a 3", lambda a: a == "OK a=3")
-    exchange("reload", b"reload", lambda a: a == "OK coeffs=flash:1")
+    exchange("reload", b"reload", lambda a: a == "OK coeffs=flash:1 dither=stored")
     exchange("get after reload", b"get a", lambda a: a == "OK a=12.5")
+    exchange("dither status", b"dither status",
+             lambda a: a.startswith("OK state=off ") and "setpoint_arcsec=450.00" in a)
+    exchange("dither amp", b"dither amp 420", lambda a: a == "OK dither=off amp_arcsec=420 noise_pct=0")
+    exchange("dither amp out of range", b"dither amp 900", lambda a: a.startswith("ERR 5 "))
+    exchange("cal start without a locked drive", b"cal start 100", lambda a: a.startswith("ERR 11 "))
     exchange("second store, with crc", with_crc("store"),
              lambda a: a.startswith("OK stored seq=2 ") and crc_answer_ok(a, a.rsplit("*", 1)[0]))
     exchange("overlong line", b"x" * 300, lambda a: a.startswith("ERR 7 "))

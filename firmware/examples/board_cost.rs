@@ -63,6 +63,7 @@ mod app {
                 adc_a_code: (2048.0 + 1300.0 * c) as u16,
                 adc_b_code: (2048.0 + 1300.0 * s) as u16,
                 timestamp_ticks: i * half_ticks,
+                drive_locked: true,
             };
             if let Some(record) = readout.on_turnaround(config, sample) {
                 out[n % 8] = Some(record);

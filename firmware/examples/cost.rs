@@ -85,6 +85,7 @@ mod app {
                 adc_a_code: a,
                 adc_b_code: b,
                 timestamp_ticks: i * half_ticks,
+                drive_locked: true,
             };
             let mut closed = false;
             let n = counter.count(|| closed = readout.on_turnaround(&config, sample).is_some());

@@ -8,7 +8,9 @@
 //! - flash programming: `storage::ram_flash::RamFlash` (NOR semantics: erase to 0xFF, program
 //!   only clears bits) holds the calibration store, two 8 KiB "sectors";
 //! - turnarounds: the readout is idle (no TIM2/TIM5/ADC/DMA set-up: QEMU's timers and ADC are
-//!   not faithful); `status` reports zero turnarounds.
+//!   not faithful); `status` reports zero turnarounds;
+//! - the dither drive: its controller exists (the `dither` commands work), switched off, and
+//!   its tick never runs (no TIM4/DAC/ADC3 set-up).
 //!
 //! Run by `.ci/qemu_serial.py`, which connects to USART1 over TCP, waits for the banner, checks
 //! the exchanges and ends the run with the line `quit` (an example-only hook: the firmware
@@ -19,13 +21,14 @@
 mod app {
     use firmware::board::app::{boot, serve};
     use firmware::board::ports::BoardPorts;
-    use firmware::board::resources::{init_core, unmask_readout};
+    use firmware::board::resources::{init_core, start_dither, unmask_readout};
     use firmware::board::{clocks, pac, usart, watchdog};
+    use firmware::dither::DitherConfig;
     use firmware::profile::BoardProfile;
     use firmware::protocol::execute::Identity;
     use firmware::service::ServiceConfig;
     use firmware::storage::ram_flash::RamFlash;
-    use firmware::storage::Geometry;
+    use firmware::storage::{DitherSetpoints, Geometry};
 
     firmware::bind_board_interrupts!();
 
@@ -68,7 +71,16 @@ mod app {
         config.intercept = Some(quit);
         // The store lives in RAM: a static, so the 16 KiB are not on the stack.
         let flash = cortex_m::singleton!(: RamFlash<2, SECTOR_BYTES> = RamFlash::new()).unwrap();
-        let (service, records) = boot(config, flash);
+        let (service, records, _stored) = boot(config, flash);
+        // No drive hardware in QEMU (TIM4/DAC/ADC3 are not modelled faithfully): the controller
+        // exists for the protocol, switched off; its tick never runs.
+        let dither = DitherConfig::for_profile(&profile);
+        let off = DitherSetpoints {
+            enabled: false,
+            amplitude_arcsec: dither.default_setpoint_arcsec,
+            noise_percent: 0.0,
+        };
+        start_dither(dither, Some(off));
         defmt::info!(
             "serial_protocol: clocks {}, USART1 up, readout idle",
             source

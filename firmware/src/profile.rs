@@ -53,6 +53,10 @@ pub struct BoardProfile {
     pub dac_full_scale: u16,
     /// Frequencies the dither start-up searches for the resonance, Hz (inclusive).
     pub dither_search_hz: (f64, f64),
+    /// Corner of the drive amplifier's output low-pass (its output resistance into the piezo's
+    /// capacitance), Hz: its phase lag at the dither frequency, atan(f / f_c), is part of the
+    /// drive-to-pick-off phase the frequency loop holds at resonance.
+    pub drive_lowpass_hz: f64,
 }
 
 impl BoardProfile {
@@ -60,7 +64,8 @@ impl BoardProfile {
     /// timers, 32-bit TIM5 encoder, 18 ticks pick-off path, 70 ticks ADC aperture (2.5 + 15 ADC
     /// clocks at 21 MHz), 200-1500 Hz dither, 389 Hz nominal, 1.8655 arcsec per fringe; the
     /// dither drive ticks at 40 kHz (84 MHz / 2100), 0.4 arcsec per pick-off code (450 arcsec =
-    /// 1125 codes, 700 arcsec before the rails), 12-bit DAC, resonance searched in 280-620 Hz.
+    /// 1125 codes, 700 arcsec before the rails), 12-bit DAC, resonance searched in 280-620 Hz, the
+    /// drive amplifier's output low-pass at 3 kHz.
     pub const F405: Self = Self {
         name: "rlg-readout-f405",
         timer_hz: 84_000_000,
@@ -76,6 +81,7 @@ impl BoardProfile {
         pickoff_mid_code: 2048,
         dac_full_scale: 4095,
         dither_search_hz: (280.0, 620.0),
+        drive_lowpass_hz: 3000.0,
     };
 
     /// Timer ticks per drive tick: the drive timer's reload + 1 (2100 on the F405). Exact when

@@ -131,7 +131,11 @@ impl Readout {
         sample: TurnaroundSample,
     ) -> Option<CycleRecord> {
         self.counters.turnarounds = self.counters.turnarounds.wrapping_add(1);
-        let mut flags = CycleFlags::empty();
+        let mut flags = if sample.drive_locked {
+            CycleFlags::empty()
+        } else {
+            CycleFlags::DRIVE_UNLOCKED
+        };
         match self.counter.update(&config.counter, sample.encoder_count) {
             CountUpdate::Glitch(_) => flags = flags.union(CycleFlags::COUNTER_GLITCH),
             CountUpdate::Resynced(_) => {

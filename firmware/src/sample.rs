@@ -31,4 +31,7 @@ pub struct TurnaroundSample {
     pub adc_b_code: u16,
     /// Capture timer value at the turnaround instant (free-running, wraps).
     pub timestamp_ticks: u32,
+    /// The dither drive was locked when the latch fired (the drive tick's last state; on a
+    /// board without a drive, or with the prescribed dither of the simulator, always true).
+    pub drive_locked: bool,
 }

@@ -27,6 +27,8 @@
 //! seeds). It needs only the `firmware` crate.
 
 use firmware::calibration::validation::AcceptanceLimits;
+use firmware::dither::{CommandError, DitherConfig, DitherController, DitherStatus};
+use firmware::profile::BoardProfile;
 use firmware::protocol::endpoint;
 use firmware::protocol::execute::{DeviceLink, DeviceStatus, Executor, Identity};
 use firmware::protocol::line::{LineAssembler, LineEvent};
@@ -38,7 +40,9 @@ use firmware::signal::compensation::CompensationSettings;
 use firmware::signal::lockin::CycleRecord;
 use firmware::signal::lockin::LockinTerms;
 use firmware::signal::lockin::{CycleFlags, CycleOutput};
-use firmware::storage::{CalibrationRecord, DefaultsReason, LoadOutcome, LoadReport, StoreError};
+use firmware::storage::{
+    CalibrationRecord, DefaultsReason, DitherSetpoints, LoadOutcome, LoadReport, StoreError,
+};
 
 /// Event byte: a minute passes.
 pub const TICK: u8 = 0x01;
@@ -64,14 +68,18 @@ pub const IDENTITY: Identity = Identity {
 /// Every error code, for checking `ERR <n> <text>`.
 const CODES: [ErrorCode; 15] = ErrorCode::ALL;
 
-/// The in-memory device: settings staged and applied at the next cycle, a flash log.
-#[derive(Clone, Debug, PartialEq)]
+/// The in-memory device: settings staged and applied at the next cycle, a flash log, and the
+/// firmware's own dither controller (the F405 profile's settings; no ticks, so its state stays
+/// where the commands put it, and its range checks are the real ones).
+#[derive(Clone, Debug)]
 struct MemDevice {
     now_ms: u32,
     active: CompensationSettings,
     staged: Option<CompensationSettings>,
     stored: Vec<CalibrationRecord>,
     fail_next_store: bool,
+    dither_config: DitherConfig,
+    dither: DitherController,
 }
 
 impl DeviceLink for MemDevice {
@@ -121,6 +129,23 @@ impl DeviceLink for MemDevice {
             .unwrap_or(CalibrationRecord::DEFAULTS);
         (record, report(outcome))
     }
+
+    /// The drive is locked whenever it is enabled (no ticks here to lock it).
+    fn dither_status(&mut self) -> DitherStatus {
+        let mut status = self.dither.status(&self.dither_config);
+        if self.dither.enabled() {
+            status.state = firmware::dither::DitherState::Locked;
+        }
+        status
+    }
+
+    fn dither_setpoints(&mut self) -> DitherSetpoints {
+        self.dither.setpoints()
+    }
+
+    fn apply_dither(&mut self, setpoints: DitherSetpoints) -> Result<(), CommandError> {
+        self.dither.apply_setpoints(&self.dither_config, setpoints)
+    }
 }
 
 fn report(outcome: LoadOutcome) -> LoadReport {
@@ -139,6 +164,7 @@ struct Observation {
     settings: CompensationSettings,
     stored: Vec<CalibrationRecord>,
     streaming: bool,
+    dither: DitherSetpoints,
 }
 
 fn observe(executor: &Executor, device: &MemDevice) -> Observation {
@@ -155,6 +181,7 @@ fn observe(executor: &Executor, device: &MemDevice) -> Observation {
         settings: d.active_settings(),
         stored: device.stored.clone(),
         streaming: executor.streaming(),
+        dither: device.dither.setpoints(),
     }
 }
 
@@ -179,6 +206,13 @@ impl Harness {
                 staged: None,
                 stored: Vec::new(),
                 fail_next_store: false,
+                dither_config: DitherConfig::for_profile(&BoardProfile::F405),
+                dither: {
+                    let mut c =
+                        DitherController::new(&DitherConfig::for_profile(&BoardProfile::F405));
+                    c.enable();
+                    c
+                },
             },
             line: LineAssembler::new(),
             cycle: 0,

@@ -274,6 +274,8 @@ pub fn latch_turnaround(
         adc_a_code: codes.a_code,
         adc_b_code: codes.b_code,
         timestamp_ticks: timer.ticks_at(t_s),
+        // The board's drive state is the caller's (the harness sets it from its drive loop).
+        drive_locked: true,
     }
 }
 

@@ -19,14 +19,17 @@
 //! never contains 0x00); the answer to `stream on` is still plain text.
 
 use crate::board::{BoardConfig, BoardError};
+use crate::dither::resonator::ResonatorParams;
+use crate::drive_loop::FirmwareDrive;
 use crate::flash::CalibrationFlash;
-use crate::harness::{Feed, Harness, HarnessError, HarnessOptions};
+use crate::harness::{DriveSource, Feed, Harness, HarnessError, HarnessOptions};
 use crate::input::InputProfile;
 use crate::params::GyroParams;
+use firmware::dither::{DitherConfig, DitherController};
 use firmware::profile::BoardProfile;
 use firmware::protocol::execute::Identity;
 use firmware::readout::Readout;
-use firmware::service::ports::{Clock, ReadoutAccess, SerialTx};
+use firmware::service::ports::{Clock, DitherAccess, ReadoutAccess, SerialTx};
 use firmware::service::{Service, ServiceConfig};
 use firmware::storage::Geometry;
 
@@ -65,6 +68,16 @@ impl SimDevice {
         mut flash: CalibrationFlash,
         boot_count: u32,
     ) -> Result<Self, BoardError> {
+        // A board drives its dither: a prescribed sine becomes the resonator it stands for
+        // (at its frequency, in the steady state of its amplitude), and the firmware's drive
+        // holds it from power-up on.
+        let params = match params.resonator() {
+            Some(_) => params,
+            None => params.with_steady_driven_dither(ResonatorParams {
+                f0_hz: params.dither_hz,
+                ..ResonatorParams::default()
+            }),
+        };
         let board = BoardConfig::for_gyro(&params);
         let profile = BoardProfile {
             nominal_dither_hz: params.dither_hz,
@@ -80,16 +93,24 @@ impl SimDevice {
         flash.power_on();
         let booted = Service::boot(config, flash, Some(boot_count))
             .map_err(|_| BoardError::Config("flash geometry"))?;
-        let harness = HarnessOptions {
+        let config_error = |e| match e {
+            HarnessError::Gyro(_) => BoardError::Config("invalid gyro parameters"),
+            HarnessError::Board(e) => e,
+            HarnessError::Drive(_) => BoardError::Config("the drive does not fit the resonator"),
+        };
+        let mut harness = HarnessOptions {
             board,
+            drive: DriveSource::firmware(&params).map_err(config_error)?,
             ..HarnessOptions::new(params, input)
         }
         .compensation(booted.settings)
         .build()
-        .map_err(|e| match e {
-            HarnessError::Gyro(_) => BoardError::Config("invalid gyro parameters"),
-            HarnessError::Board(e) => e,
-        })?;
+        .map_err(config_error)?;
+        if let (Some(stored), Some(drive)) = (booted.dither, harness.firmware_drive_mut()) {
+            // As `board::resources::start_dither`: refused values leave the defaults.
+            let (controller, config) = drive.controller_mut();
+            let _ = controller.apply_setpoints(config, stored);
+        }
         Ok(Self {
             harness,
             service: booted.service,
@@ -157,9 +178,11 @@ impl SimDevice {
             self.service.on_byte(byte, &mut ports);
             if ports.paused {
                 // The stall: the readout misses what happens meanwhile and re-synchronises
-                // after it (`half_cycle`).
+                // after it (`half_cycle`); the drive is paused for it as on the board.
                 let busy_s = self.service.flash().stats().busy_s - busy_before_s;
                 self.stall_s += busy_s.max(1e-3);
+                let until_s = self.harness.time_s() + self.stall_s;
+                self.harness.stall_drive(until_s);
             }
         }
     }
@@ -171,10 +194,12 @@ impl SimDevice {
 }
 
 /// The simulated board's ports for one service call: simulated time, the output buffer, the
-/// readout in plain memory. A pause only marks itself: the flash model books the stall's length,
-/// which the device then lets pass with the readout deaf.
+/// readout and the dither controller in plain memory. A pause only marks itself: the flash
+/// model books the stall's length, which the device then lets pass with the readout deaf and
+/// the drive paused.
 struct SimPorts<'a> {
     readout: &'a mut Readout,
+    drive: &'a mut FirmwareDrive,
     output: &'a mut Vec<u8>,
     now_ms: u32,
     paused: bool,
@@ -183,12 +208,22 @@ struct SimPorts<'a> {
 impl<'a> SimPorts<'a> {
     /// The ports at the harness's present simulated time.
     fn new(harness: &'a mut Harness, output: &'a mut Vec<u8>) -> Self {
+        let now_ms = (harness.time_s() * 1000.0) as u32;
+        let (readout, drive) = harness.firmware_parts_mut();
         Self {
-            now_ms: (harness.time_s() * 1000.0) as u32,
-            readout: harness.readout_mut(),
+            now_ms,
+            readout,
+            drive: drive.expect("the simulated board's dither is driven by the firmware"),
             output,
             paused: false,
         }
+    }
+}
+
+impl DitherAccess for SimPorts<'_> {
+    fn with_dither<R>(&mut self, f: impl FnOnce(&mut DitherController, &DitherConfig) -> R) -> R {
+        let (controller, config) = self.drive.controller_mut();
+        f(controller, config)
     }
 }
 

@@ -59,10 +59,12 @@
 //!   the firmware is configured for the board it runs on, never by a copy of its constants.
 
 use crate::board::{BoardConfig, BoardError, LatchRecord, LatchTiming, SimBoard};
-use crate::dither::drive::OpenLoopDrive;
+use crate::dither::drive::{DriveError, OpenLoopDrive};
+use crate::drive_loop::FirmwareDrive;
 use crate::gyro::{Gyro, Traversal};
 use crate::input::InputProfile;
 use crate::params::{GyroParams, ParamError};
+use firmware::profile::BoardProfile;
 use firmware::readout::{Readout, ReadoutConfig};
 use firmware::sample::TurnaroundSample;
 use firmware::signal::compensation::CompensationSettings;
@@ -84,8 +86,34 @@ pub struct HarnessOptions {
     pub board: BoardConfig,
     /// The compensation settings the readout starts with (on a board: from flash).
     pub compensation: CompensationSettings,
-    /// The drive the harness feeds a driven dither (`None`: the caller feeds it).
-    pub drive: Option<OpenLoopDrive>,
+    /// What drives a driven dither (nothing for the prescribed sine).
+    pub drive: DriveSource,
+}
+
+/// What drives a driven dither ([`crate::params::DitherModel::Driven`]).
+#[derive(Clone, Debug)]
+pub enum DriveSource {
+    /// The caller feeds the drive through [`Harness::board_mut`] (or the dither is the
+    /// prescribed sine, which takes none).
+    External,
+    /// A fixed open-loop drive ([`GyroParams::open_loop_drive`]: a sine at `dither_hz`
+    /// holding `dither_amplitude_arcsec` in steady state).
+    OpenLoop(OpenLoopDrive),
+    /// The firmware's dither controller in the loop ([`FirmwareDrive`]): what a board does.
+    Firmware(Box<FirmwareDrive>),
+}
+
+impl DriveSource {
+    /// The firmware's drive for `params`' driven dither (the F405 profile, enabled, default
+    /// setpoints); [`DriveSource::External`] for the prescribed sine.
+    pub fn firmware(params: &GyroParams) -> Result<Self, HarnessError> {
+        match params.resonator() {
+            None => Ok(Self::External),
+            Some(r) => FirmwareDrive::new(&BoardProfile::F405, r.dac)
+                .map(|d| Self::Firmware(Box::new(d)))
+                .map_err(HarnessError::Drive),
+        }
+    }
 }
 
 impl HarnessOptions {
@@ -94,15 +122,17 @@ impl HarnessOptions {
     pub fn new(params: GyroParams, input: InputProfile) -> Self {
         Self {
             board: BoardConfig::for_gyro(&params),
-            drive: params.open_loop_drive(),
+            drive: params
+                .open_loop_drive()
+                .map_or(DriveSource::External, DriveSource::OpenLoop),
             params,
             input,
             compensation: CompensationSettings::default(),
         }
     }
 
-    /// With `drive` fed to a driven dither (`None`: the caller feeds it).
-    pub fn drive(mut self, drive: Option<OpenLoopDrive>) -> Self {
+    /// With `drive` driving a driven dither.
+    pub fn drive(mut self, drive: DriveSource) -> Self {
         self.drive = drive;
         self
     }
@@ -132,6 +162,8 @@ pub enum HarnessError {
     Gyro(ParamError),
     /// The board configuration is invalid.
     Board(BoardError),
+    /// The drive cannot drive this dither.
+    Drive(DriveError),
 }
 
 impl core::fmt::Display for HarnessError {
@@ -139,6 +171,7 @@ impl core::fmt::Display for HarnessError {
         match self {
             Self::Gyro(e) => write!(f, "gyro: {e}"),
             Self::Board(e) => write!(f, "board: {e:?}"),
+            Self::Drive(e) => write!(f, "drive: {e:?}"),
         }
     }
 }
@@ -183,8 +216,10 @@ pub struct Harness {
     readout: Readout,
     /// The photodiode conversions of the last half cycle.
     lissajous: Vec<(u16, u16)>,
-    /// The drive fed to a driven dither, and how far ahead.
-    drive: Option<(OpenLoopDrive, f64)>,
+    /// What drives a driven dither.
+    drive: DriveSource,
+    /// How far ahead of the board's time the drive is kept known, s.
+    lead_s: f64,
     /// The last latch and what the readout was fed of it (for [`Harness::replay_into`]).
     last: Option<(TurnaroundSample, Feed)>,
 }
@@ -195,12 +230,14 @@ impl Harness {
         let gyro = Gyro::new(options.params, options.input).map_err(HarnessError::Gyro)?;
         let config = options.board.readout_config(options.params.dither_hz);
         let lead_s = gyro.drive_lead_s();
-        let drive = options
-            .drive
-            .filter(|_| options.params.resonator().is_some());
+        let drive = match options.params.resonator() {
+            Some(_) => options.drive,
+            None => DriveSource::External,
+        };
         let board = SimBoard::new(gyro, options.board).map_err(HarnessError::Board)?;
         Ok(Self {
-            drive: drive.map(|d| (d, lead_s)),
+            drive,
+            lead_s,
             readout: Readout::new(&config, options.compensation),
             board,
             config,
@@ -218,7 +255,11 @@ impl Harness {
     /// board before it is returned.
     pub fn step_with(&mut self, feed: Feed) -> HalfCycle {
         self.feed_drive();
-        let sample = self.board.next_half_cycle(&mut self.lissajous);
+        let mut sample = self.board.next_half_cycle(&mut self.lissajous);
+        if let DriveSource::Firmware(drive) = &self.drive {
+            // The latch copies the drive tick's state, as `board::turnaround::latch` does.
+            sample.drive_locked = drive.locked_at(self.board.time_s());
+        }
         let latch = self
             .board
             .last_latch()
@@ -241,26 +282,66 @@ impl Harness {
         }
     }
 
-    /// Feeds the open-loop drive (if the harness feeds one) a lead ahead of the board's time,
+    /// Feeds the drive (open loop, or the firmware's ticks) a lead ahead of the board's time,
     /// and further, a lead at a time, until the next turnaround is known (a dither still
     /// building up from rest may not turn around within one lead); gives up after
     /// [`MAX_DRIVE_LOOKAHEAD_S`] (the board then panics: there is no turnaround to latch).
     fn feed_drive(&mut self) {
-        let Some((drive, lead_s)) = &mut self.drive else {
+        if matches!(self.drive, DriveSource::External) {
             return;
-        };
+        }
         let now = self.board.time_s();
-        let mut until = now + *lead_s;
+        let mut until = now + self.lead_s;
         loop {
-            drive
-                .keep_ahead(&mut self.board, until)
-                .expect("the open-loop drive's segments are valid");
+            match &mut self.drive {
+                DriveSource::External => return,
+                DriveSource::OpenLoop(drive) => drive
+                    .keep_ahead(&mut self.board, until)
+                    .expect("the open-loop drive's segments are valid"),
+                DriveSource::Firmware(drive) => drive
+                    .run_until(&mut self.board, until)
+                    .expect("the firmware's drive segments are valid"),
+            }
             if self.board.try_upcoming_turnaround().is_some() || until > now + MAX_DRIVE_LOOKAHEAD_S
             {
                 return;
             }
-            until += *lead_s;
+            until += self.lead_s;
         }
+    }
+
+    /// The CPU stalls until `until_s` (a flash erase): the firmware's drive pauses as on the
+    /// board ([`FirmwareDrive::stall`]); the caller steps with [`Feed::Stalled`] meanwhile.
+    /// Nothing happens to an open-loop or external drive.
+    pub fn stall_drive(&mut self, until_s: f64) {
+        if let DriveSource::Firmware(drive) = &mut self.drive {
+            drive
+                .stall(&mut self.board, until_s)
+                .expect("the stall's drive segments are valid");
+        }
+    }
+
+    /// The firmware's dither drive, when it drives the dither.
+    pub fn firmware_drive(&self) -> Option<&FirmwareDrive> {
+        match &self.drive {
+            DriveSource::Firmware(drive) => Some(drive),
+            _ => None,
+        }
+    }
+
+    /// The firmware's dither drive, for commands between steps.
+    pub fn firmware_drive_mut(&mut self) -> Option<&mut FirmwareDrive> {
+        self.firmware_parts_mut().1
+    }
+
+    /// The firmware's two contexts the command service reaches between steps: the readout and
+    /// the dither drive (when the firmware drives the dither).
+    pub fn firmware_parts_mut(&mut self) -> (&mut Readout, Option<&mut FirmwareDrive>) {
+        let drive = match &mut self.drive {
+            DriveSource::Firmware(drive) => Some(drive.as_mut()),
+            _ => None,
+        };
+        (&mut self.readout, drive)
     }
 
     /// Steps until the simulated time reaches `end_s` (the last latch is the first at or past

@@ -9,7 +9,8 @@
 //!   the firmware reads, producing exactly the plain structs of `firmware::sample`;
 //! - [`board`]: gyro and peripherals assembled into what the firmware's interrupts receive;
 //! - [`harness`]: the board with the firmware's readout in the loop, one half dither cycle per
-//!   step: every firmware-in-the-loop run (the sweep, the system tests) goes through it.
+//!   step: every firmware-in-the-loop run (the sweep, the system tests) goes through it;
+//!   [`drive_loop`] puts the firmware's dither drive in the loop beside it.
 //!
 //! The board's facts (timer clock, counter width, latch delays, dither range) are the
 //! firmware's (`firmware::profile::BoardProfile::F405`), not repeated here.
@@ -32,4 +33,5 @@ pub mod pickoff;
 
 pub mod board;
 pub mod device;
+pub mod drive_loop;
 pub mod harness;

@@ -56,12 +56,16 @@ pub struct PickoffConfig {
 }
 
 impl Default for PickoffConfig {
-    /// 3 mV/arcsec (450 arcsec is +-1.35 V, 82 % of the ADC's half range; it saturates beyond
-    /// 550 arcsec), centred at mid-scale, no errors, 1 mV RMS noise (1.2 LSB), no lag.
+    /// The board's nominal pick-off (`BoardProfile::F405.pickoff_arcsec_per_code`, 0.4 arcsec
+    /// per code: 2.01 mV/arcsec, so 450 arcsec is +-0.91 V, 55 % of the ADC's half range, and
+    /// it saturates beyond 819 arcsec), centred at mid-scale, no errors, 1 mV RMS noise
+    /// (1.2 LSB), no lag. The firmware converts codes with the same nominal figure: a real
+    /// board's deviation from it is `gain_error`.
     fn default() -> Self {
         let adc = AdcConfig::default();
+        let arcsec_per_code = firmware::profile::BoardProfile::F405.pickoff_arcsec_per_code;
         Self {
-            sensitivity_v_per_arcsec: 0.003,
+            sensitivity_v_per_arcsec: adc.lsb_v() / arcsec_per_code,
             offset_v: adc.mid_scale_v(),
             gain_error: 0.0,
             lag_s: 0.0,

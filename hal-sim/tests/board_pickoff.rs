@@ -59,7 +59,8 @@ fn the_voltage_follows_the_angle_with_its_errors() {
     let dither = gyro.free_phase().dither();
     let (t_ext, _) = dither.pickoff_turnaround_after(0.01).unwrap();
     let a = dither.pickoff_angle_arcsec(t_ext);
-    let expect = 1.6 + 0.003 * 1.02 * (a + 1e-7 * a * a * a);
+    let k = pickoff.sensitivity_v_per_arcsec;
+    let expect = 1.6 + k * 1.02 * (a + 1e-7 * a * a * a);
     let v = b.pickoff_v(t_ext + 5e-6);
     assert!((v - expect).abs() < 1e-12, "{v} vs {expect}");
     let angle_zero = crossing(|t| dither.pickoff_angle_arcsec(t), 0.01, 1e-5);
@@ -256,12 +257,13 @@ fn a_dither_starting_from_rest_builds_up_under_the_harness() {
         (measured / reached - 1.0).abs() < 0.01,
         "{measured} vs {reached}"
     );
-    // The pick-off's ADC sees it: the codes swing by about 2 x 3 mV/arcsec x the amplitude.
+    // The pick-off's ADC sees it: the codes swing by 2 x the sensitivity x the amplitude.
     let codes: Vec<u16> = (0..52)
         .map(|i| h.board_mut().pickoff_code(t + i as f64 * 5e-5))
         .collect();
     let swing = f64::from(codes.iter().max().unwrap() - codes.iter().min().unwrap());
-    let expect_swing = 2.0 * 0.003 * reached / (3.3 / 4096.0);
+    let k = hal_sim::pickoff::PickoffConfig::default().sensitivity_v_per_arcsec;
+    let expect_swing = 2.0 * k * reached / (3.3 / 4096.0);
     assert!(
         (swing / expect_swing - 1.0).abs() < 0.02,
         "{swing} vs {expect_swing}"

@@ -196,8 +196,9 @@ pub struct SweepArgs {
         allow_negative_numbers = true
     )]
     pub azimuths: Vec<f64>,
-    /// Settling time after power-up, s.
-    #[arg(long, default_value_t = 0.5)]
+    /// Settling time after the dither drive has locked (the board waits for that first), s:
+    /// the locked amplitude loop takes about 2 s to settle the last 0.2 %.
+    #[arg(long, default_value_t = 3.0)]
     pub settle: f64,
     /// Measuring time per azimuth, s.
     #[arg(long, default_value_t = 5.0)]

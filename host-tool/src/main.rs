@@ -93,9 +93,17 @@ fn connect(c: &ConnectionArgs) -> Result<Box<dyn Link>, Failure> {
     };
     let device = sim::boot(input, 1, CalibrationFlash::default(), 0)
         .map_err(|e| Failure::Connect(e.to_string()))?;
-    let mut link = SimLink::new(device);
-    // A board that has been on for a moment: dither and readout settled, a first rate.
-    link.pause(Duration::from_millis(1500));
+    // A board that has been on for a moment: its dither drive locked and settled, the readout
+    // with a first rate.
+    let mut client = Client::new(SimLink::new(device));
+    ops::wait_for_drive_lock(
+        &mut client,
+        ops::DRIVE_LOCK_TIMEOUT,
+        Duration::from_millis(100),
+    )
+    .map_err(|e| Failure::Connect(e.to_string()))?;
+    let mut link = client.into_link();
+    link.pause(Duration::from_secs(2));
     Ok(Box::new(link))
 }
 

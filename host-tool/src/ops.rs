@@ -52,14 +52,42 @@ impl CalibrateOptions {
     }
 }
 
-/// Starts a run, polls `cal status` until it is complete (reporting `(done, total)` cycles),
-/// and returns `cal result` (an `ERR 12` if the fit is refused).
+/// Longest wait for the dither drive to lock before a calibration (a cold start searches the
+/// resonance over 280-620 Hz: about 1.2 s; a fault's back-off doubles up to 32 s).
+pub const DRIVE_LOCK_TIMEOUT: Duration = Duration::from_secs(40);
+
+/// Polls `status` until the dither drive reports `drive=locked`, at most `timeout` on the
+/// link's clock; an error names the drive's state if it does not lock.
+pub fn wait_for_drive_lock<L: Link>(
+    client: &mut Client<L>,
+    timeout: Duration,
+    poll: Duration,
+) -> Result<(), ClientError> {
+    let start = client.elapsed();
+    loop {
+        let status = client.command("status")?;
+        match status.field("drive") {
+            Some("locked") => return Ok(()),
+            // Firmware without a dither drive reports no `drive=` field: nothing to wait for.
+            None => return Ok(()),
+            Some(_) if client.elapsed() - start > timeout => {
+                return Err(unexpected(&status, "the dither drive did not lock"));
+            }
+            Some(_) => client.pause(poll)?,
+        }
+    }
+}
+
+/// Waits for the dither drive to lock ([`wait_for_drive_lock`]: the board refuses `cal start`
+/// before), starts a run, polls `cal status` until it is complete (reporting `(done, total)`
+/// cycles), and returns `cal result` (an `ERR 12` if the fit is refused).
 pub fn calibrate<L: Link>(
     client: &mut Client<L>,
     options: &CalibrateOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Answer, ClientError> {
     let total = options.cycles as u64 + options.warmup_cycles as u64;
+    wait_for_drive_lock(client, DRIVE_LOCK_TIMEOUT, options.poll)?;
     client.command(&format!(
         "cal start {} {}",
         options.cycles, options.warmup_cycles

@@ -2,7 +2,8 @@
 //!
 //! The gyro's sensitive axis lies horizontal on a table at latitude `L`; at azimuth `alpha` it
 //! sees `Omega_E cos(L) cos(alpha)` of the Earth rate (hal-sim's `InputProfile::rotary_table`).
-//! For each azimuth the board is powered up on the same simulated flash, left to settle, and
+//! For each azimuth the board is powered up on the same simulated flash, left until its dither
+//! drive locks and then to settle, and
 //! its rate read from the stream (mean compensated and raw rate over the streamed cycles) or
 //! from `status` (the board's own one-second averages). With a calibration, the board is first
 //! calibrated at one azimuth through the protocol (`unlock`, `cal start`, `cal result`,
@@ -19,6 +20,9 @@ use hal_sim::units::EARTH_RATE_SOLAR_DEG_PER_H;
 use rlg_sim::plot::{Figure, Panel, Series, Style};
 use std::io::{self, Write};
 use std::time::Duration;
+
+/// Between two `status` polls while waiting for the dither drive to lock (simulated time).
+const LOCK_POLL: Duration = Duration::from_millis(100);
 
 /// Where the measured rate comes from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -95,6 +99,7 @@ pub fn sweep(
         let device = sim::boot(table(*azimuth), options.seed, flash, boot_count)?;
         boot_count += 1;
         let mut client = Client::new(SimLink::new(device));
+        ops::wait_for_drive_lock(&mut client, ops::DRIVE_LOCK_TIMEOUT, LOCK_POLL)?;
         client.pause(options.settle)?;
         ops::unlock(&mut client, &sim::sim_key())?;
         calibration = Some(ops::calibrate(&mut client, cal, &mut |_, _| {})?);
@@ -107,6 +112,7 @@ pub fn sweep(
         let device = sim::boot(table(azimuth_deg), options.seed, flash, boot_count)?;
         boot_count += 1;
         let mut client = Client::new(SimLink::new(device));
+        ops::wait_for_drive_lock(&mut client, ops::DRIVE_LOCK_TIMEOUT, LOCK_POLL)?;
         client.pause(options.settle)?;
         let mut point = measure(&mut client, options)?;
         point.azimuth_deg = azimuth_deg;

@@ -146,7 +146,7 @@ fn sweep_prints_one_row_per_azimuth() {
         "--azimuths",
         "0,90,180",
         "--seconds",
-        "1",
+        "5",
         "--calibrate",
         "--csv",
         csv.to_str().unwrap(),
@@ -155,7 +155,9 @@ fn sweep_prints_one_row_per_azimuth() {
     let rows: Vec<&str> = out.lines().filter(|l| !l.starts_with('#')).collect();
     assert_eq!(rows.len(), 4, "{out}");
     assert!(rows[0].starts_with("azimuth_deg,expected_deg_h,measured_deg_h"));
-    // Calibrated: within 0.01 deg/h of the Earth-rate projection.
+    // Calibrated: within 0.01 deg/h of the Earth-rate projection. (5 s per azimuth: the
+    // closed-loop dither's amplitude wander enters the rate as its change over the window, so
+    // the error falls as 1 / T: 0.04 deg/h at 1 s.)
     for row in &rows[1..] {
         let error: f64 = row.split(',').nth(3).unwrap().parse().unwrap();
         assert!(error.abs() < 0.01, "{row}");

@@ -18,7 +18,14 @@ fn board(rate_deg_per_h: f64, flash: CalibrationFlash, boot_count: u32) -> Clien
     )
     .unwrap();
     let mut client = Client::new(SimLink::new(device));
-    client.pause(Duration::from_millis(600)).unwrap();
+    // Powered up and left until its dither drive has locked, as a technician would.
+    ops::wait_for_drive_lock(
+        &mut client,
+        ops::DRIVE_LOCK_TIMEOUT,
+        Duration::from_millis(100),
+    )
+    .unwrap();
+    client.pause(Duration::from_millis(500)).unwrap();
     client
 }
 
@@ -92,7 +99,10 @@ fn protected_commands_need_the_key_and_answer_the_applied_value() {
     assert_eq!(err_code(ask(&mut c, "frobnicate")), 1);
     assert!(ask(&mut c, "store").unwrap().starts_with("stored seq=1"));
     assert_eq!(ask(&mut c, "defaults").unwrap(), "a=0 b=0 comp=off");
-    assert_eq!(ask(&mut c, "reload").unwrap(), "coeffs=flash:1");
+    assert_eq!(
+        ask(&mut c, "reload").unwrap(),
+        "coeffs=flash:1 dither=stored"
+    );
     assert_eq!(ask(&mut c, "get a").unwrap(), "a=344.12344");
     assert_eq!(ask(&mut c, "lock").unwrap(), "locked");
     assert_eq!(err_code(ask(&mut c, "comp off")), 9);

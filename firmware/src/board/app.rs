@@ -25,7 +25,7 @@ use crate::protocol::execute::Identity;
 use crate::readout::Readout;
 use crate::service::{Service, ServiceConfig};
 use crate::signal::lockin::CycleRecord;
-use crate::storage::Geometry;
+use crate::storage::{DitherSetpoints, Geometry};
 
 /// Milliseconds between health logs (defmt, only when a counter changed).
 const HEALTH_LOG_MS: u32 = 10_000;
@@ -105,18 +105,22 @@ fn identity(profile: &BoardProfile) -> Identity {
 }
 
 /// Boots the service on `flash` and creates the readout with the settings it loaded; returns
-/// the service and the main loop's end of the cycle-record queue. The readout's interrupts are
-/// the caller's to unmask.
+/// the service, the main loop's end of the cycle-record queue and the dither drive's stored
+/// setpoints (for [`start_dither`]). The readout's interrupts are the caller's to unmask.
 pub fn boot<F: NorFlash>(
     config: ServiceConfig,
     flash: F,
-) -> (Service<F>, Consumer<'static, CycleRecord>) {
+) -> (
+    Service<F>,
+    Consumer<'static, CycleRecord>,
+    Option<DitherSetpoints>,
+) {
     let booted = Service::boot(config, flash, None)
         .unwrap_or_else(|e| defmt::panic!("calibration store geometry: {}", e));
     defmt::info!("calibration: {}", booted.report);
     let readout = Readout::new(&config.readout, booted.settings);
     let records = resources::init_readout(config.readout, readout);
-    (booted.service, records)
+    (booted.service, records, booted.dither)
 }
 
 /// Brings the board up and runs it: clocks, watchdog, serial link, calibration from flash,
@@ -148,14 +152,14 @@ pub fn run() -> ! {
         identity(&profile),
         Geometry::F405_SECTORS_10_11,
     );
-    let (service, records) = boot(config, flash::InternalFlash::new(dp.FLASH));
+    let (service, records, dither_setpoints) = boot(config, flash::InternalFlash::new(dp.FLASH));
     let _encoder = encoder::Encoder::new(dp.TIM5);
     SCHEDULER.init(turnaround::Scheduler::new());
     adc::init(&dp.ADC_COMMON, &dp.ADC1, &dp.ADC2, &dp.TIM3, &dp.DMA2);
     turnaround::init(&dp.TIM2);
     let dither_config = DitherConfig::for_profile(&profile);
     dither::init(&dp.TIM4, &dp.DAC, &dp.ADC3, dither_config.dac_mid_code);
-    start_dither(dither_config);
+    start_dither(dither_config, dither_setpoints);
     unmask_readout(true);
     // SAFETY: the USART's queues were set up in `usart::init`.
     unsafe { NVIC::unmask(pac::Interrupt::USART1) };

@@ -42,6 +42,8 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use super::pac;
 use super::resources::DITHER;
+use super::turnaround::DRIVE_LOCKED;
+use crate::dither::DitherState;
 use crate::profile::BoardProfile;
 
 /// TIM4 reload: 84 MHz / 2100 = 40 kHz, the profile's drive tick.
@@ -123,5 +125,7 @@ pub fn on_tick(
         let tick = task.controller.on_tick(&task.config, code);
         dac.dhr12r1()
             .write(|w| unsafe { w.bits(tick.dac_code as u32) });
+        let locked = task.controller.state() == DitherState::Locked;
+        DRIVE_LOCKED.store(locked, Ordering::Relaxed);
     });
 }

@@ -1,19 +1,21 @@
 //! The board's side of the command service's ports (`crate::service::ports`): the SysTick
-//! clock, the USART1 transmit queue, and the readout behind its priority lock, stopped for a
-//! flash store by masking the readout interrupts.
+//! clock, the USART1 transmit queue, the readout behind its priority lock, stopped for a flash
+//! store by masking the readout interrupts, and the dither controller behind the drive tick's
+//! priority lock.
 //!
 //! The watchdog lives here too: the service may wait (a full TX queue, a flash stall), and every
 //! wait refreshes it, so the main loop's own refresh is not the only one.
 
 use core::sync::atomic::Ordering;
 
-use super::resources::{self, READOUT, TURNAROUNDS_DROPPED};
+use super::resources::{self, DITHER, READOUT, TURNAROUNDS_DROPPED};
 use super::turnaround;
 use super::usart::SerialPort;
 use super::watchdog::Watchdog;
+use crate::dither::{DitherConfig, DitherController};
 use crate::protocol::respond::MAX_RESPONSE;
 use crate::readout::Readout;
-use crate::service::ports::{Clock, ReadoutAccess, SerialTx};
+use crate::service::ports::{Clock, DitherAccess, ReadoutAccess, SerialTx};
 
 /// What the main loop hands the service.
 pub struct BoardPorts {
@@ -91,5 +93,16 @@ impl ReadoutAccess for BoardPorts {
     /// Turnarounds the hardware path lost: scheduled too late, or dropped from a full queue.
     fn missed_below_readout(&self) -> u32 {
         turnaround::LATE.load(Ordering::Relaxed) + TURNAROUNDS_DROPPED.load(Ordering::Relaxed)
+    }
+}
+
+impl DitherAccess for BoardPorts {
+    /// Under the drive tick's priority lock (BASEPRI at its ceiling; only the turnaround latch
+    /// stays unmasked). The controller exists from `resources::start_dither` on, before the
+    /// main loop.
+    fn with_dither<R>(&mut self, f: impl FnOnce(&mut DitherController, &DitherConfig) -> R) -> R {
+        DITHER
+            .lock(|task| f(&mut task.controller, &task.config))
+            .unwrap_or_else(|| defmt::panic!("dither used before start_dither"))
     }
 }

@@ -62,6 +62,7 @@ use crate::dither::{DitherConfig, DitherController};
 use crate::readout::{Readout, ReadoutConfig};
 use crate::sample::TurnaroundSample;
 use crate::signal::lockin::CycleRecord;
+use crate::storage::DitherSetpoints;
 use pac::Interrupt;
 
 /// NVIC priorities (the F405 implements the upper 4 bits).
@@ -226,11 +227,15 @@ pub fn unmask_readout(hardware: bool) {
     }
 }
 
-/// Starts the dither controller (enabled: the start-up begins at the first tick) and unmasks
-/// the drive tick. TIM4, the DAC and ADC3 must be set up (`dither::init`).
-pub fn start_dither(config: DitherConfig) {
+/// Starts the dither controller with the stored setpoints (none stored, or refused: the
+/// defaults, enabled) and unmasks the drive tick; enabled, the start-up begins at the first
+/// tick. TIM4, the DAC and ADC3 must be set up (`dither::init`).
+pub fn start_dither(config: DitherConfig, stored: Option<DitherSetpoints>) {
     let mut controller = DitherController::new(&config);
-    controller.enable();
+    let applied = stored.is_some_and(|s| controller.apply_setpoints(&config, s).is_ok());
+    if !applied {
+        controller.enable();
+    }
     DITHER.init(DitherTask { config, controller });
     // SAFETY: the tick's state was initialised just above.
     unsafe { NVIC::unmask(Interrupt::TIM4) };

@@ -74,6 +74,9 @@ pub static LATE: AtomicU32 = AtomicU32::new(0);
 /// Pick-off edges whose interval lay outside the plausible half-period range (a glitch or a
 /// gap): the edge history was dropped.
 pub static IMPLAUSIBLE: AtomicU32 = AtomicU32::new(0);
+/// The dither drive is locked: written by the drive tick after every tick, copied into each
+/// [`TurnaroundSample`] by the latch (a cycle latched while it is not is flagged invalid).
+pub static DRIVE_LOCKED: AtomicBool = AtomicBool::new(false);
 /// Set by [`pause`]: the pick-off handler forgets its edge history at its next run.
 static RESTART: AtomicBool = AtomicBool::new(false);
 
@@ -233,6 +236,7 @@ pub fn latch(
         adc_a_code: adc1.jdr1().read().bits() as u16,
         adc_b_code: adc2.jdr1().read().bits() as u16,
         timestamp_ticks: tim2.ccr1().read().bits().wrapping_add(APERTURE_DELAY_TICKS),
+        drive_locked: DRIVE_LOCKED.load(Ordering::Relaxed),
     })
 }
 

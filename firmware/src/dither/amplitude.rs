@@ -124,6 +124,16 @@ impl AmplitudeLoop {
         self.drive_q16
     }
 
+    /// Moves the loop from `from` to `to` (another crossover) between two updates, bumplessly:
+    /// the PI's state is its output, and its remembered input is rescaled to the new gain, so
+    /// the next update changes the drive only by the new loop's own step.
+    pub fn retune(&mut self, from: &AmplitudeLoopConfig, to: &AmplitudeLoopConfig) {
+        let ratio = to.crossover_rad_s / from.crossover_rad_s;
+        for x in &mut self.pi.x {
+            *x = crate::math::round_f32_to_i32(*x as f32 * ratio);
+        }
+    }
+
     /// The drive amplitude in force, Q16 codes.
     pub fn drive_q16(&self) -> i32 {
         self.drive_q16

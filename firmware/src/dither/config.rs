@@ -8,6 +8,15 @@ use super::startup::StartupConfig;
 use super::supervisor::FaultLimits;
 use crate::profile::BoardProfile;
 
+/// Crossover of the amplitude loop once locked, Hz. The loop's measurement noise (the
+/// half-cycle fit of a 1 mV rms pick-off: 0.4 code rms) reaches the amplitude within the loop's
+/// bandwidth, and the amplitude's change between two turnarounds grows with the bandwidth
+/// squared: at the acquisition loop's 4 Hz it is 0.013 arcsec per dither cycle (0.043 rad of
+/// beat phase in the readout's per-cycle output, twice the lock-in correction it is
+/// calibrated against); at 0.25 Hz it is below the photodiode noise. The resonator's own
+/// bandwidth (f0 / 2Q = 0.19 Hz at Q = 1000) is of the same order, so drift is still held.
+pub const LOCKED_AMPLITUDE_CROSSOVER_HZ: f32 = 0.25;
+
 /// Everything the dither controller needs to know that does not change while it runs.
 #[derive(Clone, Debug)]
 pub struct DitherConfig {
@@ -24,14 +33,21 @@ pub struct DitherConfig {
     /// The pick-off's sampling instant after its tick, ticks in Q16: the ADC's aperture less
     /// any pick-off lag (a board calibration; enters the phase detector and the estimates).
     pub sample_delay_q16: u32,
+    /// Corner of the drive amplifier's output low-pass, Hz (the board profile's): its lag is
+    /// compensated in the phase detector ([`DitherConfig::drive_lag`]).
+    pub drive_lowpass_hz: f32,
     /// Settable amplitude setpoints, arcsec (inclusive).
     pub setpoint_range_arcsec: (f32, f32),
     /// The setpoint after reset, arcsec.
     pub default_setpoint_arcsec: f32,
     /// Start-up: search range, sweep, ring detection, lock criteria.
     pub startup: StartupConfig,
-    /// The amplitude loop.
+    /// The amplitude loop while acquiring (fast: from the ring-up to the setpoint).
     pub amplitude: AmplitudeLoopConfig,
+    /// The amplitude loop while locked (slow: every change of the drive moves the dither
+    /// between two turnarounds, which the readout's per-cycle output carries, so the locked
+    /// loop passes as little pick-off noise into the amplitude as holding it allows).
+    pub amplitude_locked: AmplitudeLoopConfig,
     /// The frequency loop.
     pub frequency: FrequencyLoopConfig,
     /// Fault limits and the back-off.
@@ -60,10 +76,17 @@ impl DitherConfig {
             sample_delay_q16: ((profile.aperture_delay_ticks as u64) << 16)
                 .div_ceil(profile.drive_tick_period_timer_ticks() as u64)
                 as u32,
+            drive_lowpass_hz: profile.drive_lowpass_hz as f32,
             setpoint_range_arcsec: (50.0, 650.0),
             default_setpoint_arcsec: 450.0,
             startup,
             amplitude: AmplitudeLoopConfig::new(4.0, 4.0, dither_hz, 0.93 * half_range),
+            amplitude_locked: AmplitudeLoopConfig::new(
+                LOCKED_AMPLITUDE_CROSSOVER_HZ,
+                1.0,
+                dither_hz,
+                0.93 * half_range,
+            ),
             frequency: FrequencyLoopConfig::new(
                 2.0,
                 4.0,
@@ -73,6 +96,14 @@ impl DitherConfig {
             ),
             faults: FaultLimits::new(tick_hz as f32, 0xFFF, 0.92 * pickoff_half_range),
         }
+    }
+
+    /// The drive amplifier's phase lag at drive step `step`: atan(f / f_c), Q32 turns (`f32`
+    /// arithmetic, once per half cycle).
+    pub fn drive_lag(&self, step: crate::units::Phase) -> crate::units::Phase {
+        let f_hz = step.to_bits() as f32 / 4_294_967_296.0 * self.tick_hz;
+        let turns = libm::atanf(f_hz / self.drive_lowpass_hz) / core::f32::consts::TAU;
+        crate::units::Phase::from_bits(crate::math::round_f32_to_i32(turns * 4_294_967_296.0) as u32)
     }
 
     /// Arcsec of dither per pick-off code.

@@ -20,6 +20,7 @@ use super::measure::{HalfCycle, Window, MAX_WINDOW};
 use super::noise::{NoiseDither, MAX_DEPTH_PERCENT};
 use super::startup::{Ring, RingListener};
 use super::supervisor::{Backoff, DitherState, FaultCounters, FaultKind, Run};
+use crate::storage::DitherSetpoints;
 use crate::units::Phase;
 
 /// What one tick produced.
@@ -230,7 +231,49 @@ impl DitherController {
         self.noise.reseed(seed);
     }
 
+    /// Applies stored or commanded setpoints whole: the amplitude and the noise depth are
+    /// range-checked first, so an error changes nothing; the drive is enabled or disabled only
+    /// if that differs from [`Self::enabled`] (a running start-up is not restarted).
+    pub fn apply_setpoints(
+        &mut self,
+        config: &DitherConfig,
+        setpoints: DitherSetpoints,
+    ) -> Result<(), CommandError> {
+        let (lo, hi) = config.setpoint_range_arcsec;
+        check_range(setpoints.amplitude_arcsec, lo, hi)?;
+        check_range(setpoints.noise_percent, 0.0, MAX_DEPTH_PERCENT)?;
+        if setpoints.amplitude_arcsec != self.setpoint_arcsec {
+            self.set_setpoint_arcsec(config, setpoints.amplitude_arcsec)?;
+        }
+        self.set_noise_depth_percent(setpoints.noise_percent)?;
+        match (setpoints.enabled, self.enabled()) {
+            (true, false) => self.enable(),
+            (false, true) => self.disable(),
+            _ => {}
+        }
+        Ok(())
+    }
+
     // ---- queries ----
+
+    /// Whether the drive is on or asked to be (a fault with its retry pending counts as on;
+    /// a request not yet taken by a tick counts as given).
+    pub fn enabled(&self) -> bool {
+        match self.request {
+            Some(Request::Enable) => true,
+            Some(Request::Disable) => false,
+            Some(Request::Restart) | None => !matches!(self.mode, Mode::Off),
+        }
+    }
+
+    /// The setpoints in force, as a `store` saves them.
+    pub fn setpoints(&self) -> DitherSetpoints {
+        DitherSetpoints {
+            enabled: self.enabled(),
+            amplitude_arcsec: self.setpoint_arcsec,
+            noise_percent: self.noise.depth_q16() as f32 / 655.36,
+        }
+    }
 
     /// The DDS parameters in force: an exact description of every DAC sample from
     /// `drive().start_tick` until the next change.
@@ -473,7 +516,8 @@ impl DitherController {
         if let Some(fit) = h.fit {
             self.offset_codes = fit.offset_codes;
             let shift = reference_shift(step, config.sample_delay_q16);
-            self.phase_error = fit.phase + shift - Phase::HALF_TURN;
+            // At resonance the pick-off lags the DAC by a quarter turn plus the amplifier's lag.
+            self.phase_error = fit.phase + shift + config.drive_lag(step) - Phase::HALF_TURN;
             self.estimate = DitherEstimate {
                 tick: k,
                 amplitude_arcsec: config.codes_to_arcsec(fit.amplitude_codes),
@@ -531,6 +575,8 @@ impl DitherController {
                         <= config.startup.lock_phase_error.to_bits();
                 if self.in_lock.exceeds(near, config.startup.lock_half_cycles) {
                     self.mode = Mode::Locked { since: k };
+                    self.amplitude
+                        .retune(&config.amplitude, &config.amplitude_locked);
                     self.saturated.clear();
                     self.out_of_range.clear();
                 } else if k.wrapping_sub(since) > config.faults.acquire_timeout_ticks {
@@ -539,15 +585,19 @@ impl DitherController {
                 (drive, step)
             }
             Mode::Locked { since } => {
-                if self.setpoint_changed {
+                let loop_config = if self.setpoint_changed {
                     self.mode = Mode::Acquire { since: k };
                     self.in_lock.clear();
-                } else if k.wrapping_sub(since) >= config.faults.stable_ticks {
-                    self.backoff.on_stable();
-                }
-                let drive = self
-                    .amplitude
-                    .update(&config.amplitude, setpoint, amplitude);
+                    self.amplitude
+                        .retune(&config.amplitude_locked, &config.amplitude);
+                    &config.amplitude
+                } else {
+                    if k.wrapping_sub(since) >= config.faults.stable_ticks {
+                        self.backoff.on_stable();
+                    }
+                    &config.amplitude_locked
+                };
+                let drive = self.amplitude.update(loop_config, setpoint, amplitude);
                 let step = self.frequency.update(&config.frequency, self.phase_error);
                 let drive = if matches!(self.mode, Mode::Locked { .. }) {
                     self.noise.apply(drive)

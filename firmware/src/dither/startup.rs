@@ -68,9 +68,9 @@ impl StartupConfig {
             // A ring at the lowest frequency is timed within (6 + 1) / 2 = 3.5 periods; one
             // more period of margin.
             listen_timeout_ticks: (4.5 * tick_hz / search_hz.0) as u32 + 1,
-            lock_tolerance: 0.01,
+            lock_tolerance: 0.002,
             lock_phase_error: Phase::from_bits(1 << 26), // 1/64 turn, 0.1 rad
-            lock_half_cycles: 8,
+            lock_half_cycles: 256,
         }
     }
 }

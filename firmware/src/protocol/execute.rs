@@ -9,10 +9,13 @@
 //! the groups and dispatches each command to its group's function:
 //!
 //! - reads (`id`, `status`, `get`, `cal status`, `cal result`, `help`) never need an unlock;
-//! - everything that changes coefficients, compensation or flash (`set`, `comp`, `track`,
-//!   `cal accept`, `store`, `reload`, `defaults`) needs one, and extends it when it succeeds;
+//! - everything that changes coefficients, compensation, the dither drive or flash (`set`,
+//!   `comp`, `track`, `cal accept`, `store`, `reload`, `defaults`, `dither on|off|amp|noise`)
+//!   needs one, and extends it when it succeeds;
 //! - while a calibration run collects cycles, those commands answer `ERR 10` (busy): the run's
 //!   data would no longer match the coefficients;
+//! - `cal start` answers `ERR 11` while the dither drive is not locked (its cycles would all be
+//!   flagged invalid);
 //! - a refused command changes nothing, with one deliberate exception: `cal result` on a
 //!   completed run solves the fit, and a fit that fails its checks is answered `ERR 12` while
 //!   the session moves to "refused" (the refusal *is* the result; `cal status` reports it).
@@ -22,12 +25,13 @@ use super::commands::calibration::CalibrationState;
 use super::commands::info::{self, StatusFlags};
 use super::commands::provenance::Provenance;
 use super::commands::stream::StreamState;
-use super::commands::{settings, storage, Answer};
-use super::parse::Command;
+use super::commands::{dither, settings, storage, Answer};
+use super::parse::{Command, DitherCommand};
 use super::respond::Response;
 use super::stream::StreamRecord;
 use super::ErrorCode;
 use crate::calibration::validation::AcceptanceLimits;
+use crate::dither::DitherState;
 use crate::signal::compensation::CompensationSettings;
 use crate::signal::lockin::CycleRecord;
 use crate::storage::{FitSummary, LoadReport};
@@ -149,7 +153,14 @@ impl Executor {
             Command::CalStart {
                 cycles,
                 warmup_cycles,
-            } => self.calibration.start(cycles, warmup_cycles),
+            } => {
+                // A run needs the dither the board holds: while the drive starts (or is off, or
+                // in a fault) every cycle is flagged and the run could only be refused at the end.
+                if device.dither_status().state != DitherState::Locked {
+                    return Err(ErrorCode::WrongState);
+                }
+                self.calibration.start(cycles, warmup_cycles)
+            }
             Command::CalStatus => Ok(self.calibration.status()),
             Command::CalAbort => Ok(self.calibration.abort()),
             Command::CalResult => self.calibration.result(id),
@@ -159,11 +170,12 @@ impl Executor {
             Command::Stream(divider) => Ok(self.stream.command(divider)),
             Command::Unlock(given) => self.access.unlock(id, now_ms, given),
             Command::Lock => Ok(self.access.lock()),
+            Command::Dither(command) => dither::command(device, command),
         }
     }
 }
 
-/// Commands that change coefficients, compensation or flash.
+/// Commands that change coefficients, compensation, the dither drive or flash.
 fn protected(command: &Command) -> bool {
     matches!(
         command,
@@ -174,5 +186,50 @@ fn protected(command: &Command) -> bool {
             | Command::Store
             | Command::Reload
             | Command::Defaults
-    )
+    ) || matches!(command, Command::Dither(c) if *c != DitherCommand::Status)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::protocol::commands::testing::{report, MemDevice, ID};
+    use crate::protocol::parse::parse;
+    use crate::storage::{DefaultsReason, LoadOutcome};
+
+    fn run(e: &mut Executor, d: &mut MemDevice, line: &str) -> std::string::String {
+        let command = parse(line).unwrap();
+        e.execute(&ID, d, command)
+            .finish(false)
+            .as_str()
+            .trim_end()
+            .to_owned()
+    }
+
+    /// `cal start` needs the drive locked (its cycles would all be flagged otherwise); the
+    /// dither's setpoint commands are protected, its status is a read.
+    #[test]
+    fn cal_start_needs_a_locked_drive_and_dither_setpoints_need_the_unlock() {
+        let loaded = report(LoadOutcome::Defaults {
+            reason: DefaultsReason::Erased,
+        });
+        let mut e = Executor::new(&loaded, None, 1, AcceptanceLimits::DEFAULT);
+        let mut d = MemDevice::default();
+        d.drive.controller.disable();
+        assert!(run(&mut e, &mut d, "cal start 100").starts_with("ERR 11 "));
+        assert!(run(&mut e, &mut d, "cal status").starts_with("OK cal=idle"));
+        d.drive.controller.enable();
+        assert!(run(&mut e, &mut d, "cal start 100").starts_with("OK cal=running"));
+        run(&mut e, &mut d, "cal abort");
+        for line in [
+            "dither on",
+            "dither off",
+            "dither amp 400",
+            "dither noise 5",
+        ] {
+            assert!(run(&mut e, &mut d, line).starts_with("ERR 9 "), "{line}");
+        }
+        assert!(run(&mut e, &mut d, "dither status").starts_with("OK state="));
+        assert!(run(&mut e, &mut d, &format!("unlock {:x}", ID.key)).starts_with("OK"));
+        assert!(run(&mut e, &mut d, "dither amp 400").starts_with("OK dither=on amp_arcsec=400"));
+    }
 }

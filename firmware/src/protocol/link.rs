@@ -7,8 +7,9 @@
 //! [`super::commands`] see nothing else of the device. These types are re-exported from
 //! [`super::execute`], where callers have always found them.
 
+use crate::dither::{CommandError, DitherStatus};
 use crate::signal::compensation::CompensationSettings;
-use crate::storage::{CalibrationRecord, LoadReport, StoreError};
+use crate::storage::{CalibrationRecord, DitherSetpoints, LoadReport, StoreError};
 
 /// What the device is, for `id` (constants of the build and of the board's OTP block).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -70,4 +71,11 @@ pub trait DeviceLink {
     fn store(&mut self, record: &CalibrationRecord) -> Result<u32, StoreError<Self::FlashError>>;
     /// Reads the newest valid record (or the defaults) with the store's report.
     fn load(&mut self) -> (CalibrationRecord, LoadReport);
+    /// The dither drive's status, in physical units.
+    fn dither_status(&mut self) -> DitherStatus;
+    /// The dither drive's setpoints in force (what `store` saves).
+    fn dither_setpoints(&mut self) -> DitherSetpoints;
+    /// Applies setpoints to the dither drive whole: every field is range-checked first, and a
+    /// refused one changes nothing.
+    fn apply_dither(&mut self, setpoints: DitherSetpoints) -> Result<(), CommandError>;
 }

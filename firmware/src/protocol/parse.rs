@@ -18,6 +18,20 @@ pub enum Coefficient {
     B,
 }
 
+/// A `dither` command.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DitherCommand {
+    /// `dither on` | `dither off`: start the drive (its start-up finds the resonance) or stop it.
+    Enable(bool),
+    /// `dither amp <arcsec>`: the amplitude setpoint, arcsec peak of body angle (the drive's
+    /// range, `DitherConfig::setpoint_range_arcsec`).
+    Amplitude(f32),
+    /// `dither noise <percent>`: the random-noise dither's depth, percent (0 = off).
+    Noise(f32),
+    /// `dither status`: state, amplitude, frequency, drive level, phase error, faults.
+    Status,
+}
+
 /// Every command of the protocol (see the README for examples).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Command {
@@ -62,6 +76,8 @@ pub enum Command {
     Unlock(u32),
     /// `lock`: lock at once.
     Lock,
+    /// `dither on|off|amp <arcsec>|noise <percent>|status`: the dither drive.
+    Dither(DitherCommand),
 }
 
 /// Largest run length `cal start` accepts: one hour at 1 kHz dither.
@@ -189,6 +205,22 @@ pub fn parse(text: &str) -> Result<Command, ErrorCode> {
         } else {
             return Err(ErrorCode::Syntax);
         }
+    } else if is("dither") {
+        let sub = words.next().ok_or(ErrorCode::Syntax)?;
+        let sub_is = |w: &str| sub.eq_ignore_ascii_case(w);
+        Command::Dither(if sub_is("on") {
+            DitherCommand::Enable(true)
+        } else if sub_is("off") {
+            DitherCommand::Enable(false)
+        } else if sub_is("amp") {
+            DitherCommand::Amplitude(number(words.next())?)
+        } else if sub_is("noise") {
+            DitherCommand::Noise(number(words.next())?)
+        } else if sub_is("status") {
+            DitherCommand::Status
+        } else {
+            return Err(ErrorCode::Syntax);
+        })
     } else if is("store") {
         Command::Store
     } else if is("reload") {
@@ -283,6 +315,27 @@ mod tests {
         assert_eq!(parse("stream off"), Ok(Command::Stream(None)));
         assert_eq!(parse("unlock 0xC0FFEE"), Ok(Command::Unlock(0xC0FFEE)));
         assert_eq!(parse("  status\t"), Ok(Command::Status));
+        assert_eq!(
+            parse("dither amp 420.5"),
+            Ok(Command::Dither(DitherCommand::Amplitude(420.5)))
+        );
+        assert_eq!(
+            parse("DITHER noise 12"),
+            Ok(Command::Dither(DitherCommand::Noise(12.0)))
+        );
+        assert_eq!(
+            parse("dither off"),
+            Ok(Command::Dither(DitherCommand::Enable(false)))
+        );
+        assert_eq!(
+            parse("dither status"),
+            Ok(Command::Dither(DitherCommand::Status))
+        );
+        assert_eq!(parse("dither"), Err(ErrorCode::Syntax));
+        assert_eq!(parse("dither spin"), Err(ErrorCode::Syntax));
+        assert_eq!(parse("dither amp"), Err(ErrorCode::Syntax));
+        assert_eq!(parse("dither amp nan"), Err(ErrorCode::NotFinite));
+        assert_eq!(parse("dither noise x"), Err(ErrorCode::BadNumber));
     }
 
     /// Every kind of bad input has its own error code.

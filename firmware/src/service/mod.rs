@@ -11,7 +11,8 @@
 //!   into the readout), and a stream frame (queued whole or dropped and counted).
 //!
 //! Everything that differs between the board and the simulator is behind the small traits of
-//! [`ports`] (clock, serial transmitter, readout access) and `embedded_storage`'s `NorFlash`
+//! [`ports`] (clock, serial transmitter, readout access, dither access) and `embedded_storage`'s
+//! `NorFlash`
 //! (the calibration flash, owned by the service). The board's main loop (`board::app`) and
 //! hal-sim's `SimDevice` each instantiate this one `Service`; neither has protocol glue of its
 //! own. A flash store pauses the readout through [`ports::pause`], whose guard is the pause.
@@ -25,6 +26,7 @@ use embedded_storage::nor_flash::NorFlash;
 use heapless::String;
 
 use crate::calibration::validation::AcceptanceLimits;
+use crate::dither::{CommandError, DitherStatus};
 use crate::profile::BoardProfile;
 use crate::protocol::endpoint;
 use crate::protocol::execute::{DeviceLink, DeviceStatus, Executor, Identity};
@@ -35,9 +37,10 @@ use crate::signal::compensation::CompensationSettings;
 use crate::signal::lockin::CycleRecord;
 use crate::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use crate::storage::{
-    CalibrationRecord, CalibrationStore, Geometry, GeometryError, LoadReport, StoreError,
+    CalibrationRecord, CalibrationStore, DitherSetpoints, Geometry, GeometryError, LoadReport,
+    StoreError,
 };
-use ports::{Clock, ReadoutAccess, SerialTx};
+use ports::{Clock, DitherAccess, ReadoutAccess, SerialTx};
 
 /// What differs between services (immutable).
 #[derive(Clone, Copy, Debug)]
@@ -78,12 +81,15 @@ impl ServiceConfig {
     }
 }
 
-/// A service just booted: the settings its readout must start with, and what the load found.
+/// A service just booted: the settings its readout and its dither drive must start with, and
+/// what the load found.
 pub struct Booted<F: NorFlash> {
     /// The service, locked, owning the flash.
     pub service: Service<F>,
     /// The compensation settings loaded from flash (or the defaults).
     pub settings: CompensationSettings,
+    /// The dither drive's stored setpoints; `None`: the drive keeps its defaults.
+    pub dither: Option<DitherSetpoints>,
     /// What the load found: loaded or defaults (and why), and the store's health.
     pub report: LoadReport,
 }
@@ -125,12 +131,17 @@ impl<F: NorFlash> Service<F> {
         Ok(Booted {
             service,
             settings: record.settings,
+            dither: record.dither,
             report,
         })
     }
 
     /// One received byte; a completed line is executed and answered through `ports`.
-    pub fn on_byte<P: Clock + SerialTx + ReadoutAccess>(&mut self, byte: u8, ports: &mut P) {
+    pub fn on_byte<P: Clock + SerialTx + ReadoutAccess + DitherAccess>(
+        &mut self,
+        byte: u8,
+        ports: &mut P,
+    ) {
         // Framing follows the mode the host was in when it sent the line.
         let streaming = self.executor.streaming();
         let mut line = String::<MAX_LINE>::new();
@@ -231,7 +242,7 @@ struct ServiceDevice<'a, F, P> {
     ports: &'a mut P,
 }
 
-impl<F: NorFlash, P: Clock + ReadoutAccess> DeviceLink for ServiceDevice<'_, F, P> {
+impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess> DeviceLink for ServiceDevice<'_, F, P> {
     type FlashError = F::Error;
 
     fn now_ms(&self) -> u32 {
@@ -261,6 +272,19 @@ impl<F: NorFlash, P: Clock + ReadoutAccess> DeviceLink for ServiceDevice<'_, F, 
 
     fn load(&mut self) -> (CalibrationRecord, LoadReport) {
         self.store.load(self.flash)
+    }
+
+    fn dither_status(&mut self) -> DitherStatus {
+        self.ports.with_dither(|drive, config| drive.status(config))
+    }
+
+    fn dither_setpoints(&mut self) -> DitherSetpoints {
+        self.ports.with_dither(|drive, _| drive.setpoints())
+    }
+
+    fn apply_dither(&mut self, setpoints: DitherSetpoints) -> Result<(), CommandError> {
+        self.ports
+            .with_dither(|drive, config| drive.apply_setpoints(config, setpoints))
     }
 }
 

@@ -1,4 +1,4 @@
-//! What the command service needs from the platform it runs on: three small traits, and the
+//! What the command service needs from the platform it runs on: four small traits, and the
 //! readout pause as a guard.
 //!
 //! The board implements them on its peripherals (`board::ports`: SysTick, the USART queues, the
@@ -13,6 +13,7 @@
 //! restarts it. The pause therefore lasts exactly as long as the guard lives, and no path can
 //! store without stopping the readout or forget to restart it (an early return included).
 
+use crate::dither::{DitherConfig, DitherController};
 use crate::readout::Readout;
 use crate::storage::ReadoutPaused;
 
@@ -46,6 +47,13 @@ pub trait ReadoutAccess {
     fn missed_below_readout(&self) -> u32 {
         0
     }
+}
+
+/// The service's access to the dither drive's controller, which runs in the drive tick's
+/// (higher-priority) context.
+pub trait DitherAccess {
+    /// Runs `f` on the controller and its configuration, excluding the drive tick meanwhile.
+    fn with_dither<R>(&mut self, f: impl FnOnce(&mut DitherController, &DitherConfig) -> R) -> R;
 }
 
 /// The readout stopped for as long as this guard lives (see the module docs).

@@ -2,8 +2,10 @@
 //! rely on (one answer per line, settings staged into the readout, the store inside the pause,
 //! dropped frames counted, status folding).
 
-use super::ports::{Clock, ReadoutAccess, SerialTx};
+use super::ports::{Clock, DitherAccess, ReadoutAccess, SerialTx};
 use super::*;
+use crate::dither::{DitherConfig, DitherController};
+use crate::protocol::commands::testing::MemDrive;
 use crate::readout::Readout;
 use crate::signal::lockin::LockinTerms;
 use crate::signal::lockin::{CycleFlags, CycleOutput};
@@ -22,6 +24,27 @@ struct TestPorts {
     missed_below: u32,
     /// 's' stop, 'r' restart, 'w' a byte of flash traffic seen while stopped.
     log: StdString,
+    drive: MemDrive,
+}
+
+impl TestPorts {
+    fn new(readout: Readout) -> Self {
+        Self {
+            readout,
+            now_ms: 0,
+            out: Vec::new(),
+            frame_room: true,
+            missed_below: 0,
+            log: StdString::new(),
+            drive: MemDrive::default(),
+        }
+    }
+}
+
+impl DitherAccess for TestPorts {
+    fn with_dither<R>(&mut self, f: impl FnOnce(&mut DitherController, &DitherConfig) -> R) -> R {
+        f(&mut self.drive.controller, &self.drive.config)
+    }
 }
 
 impl Clock for TestPorts {
@@ -77,14 +100,10 @@ fn config() -> ServiceConfig {
 
 fn boot(flash: Flash) -> (Service<Flash>, TestPorts) {
     let booted = Service::boot(config(), flash, None).unwrap();
-    let ports = TestPorts {
-        readout: Readout::new(&booted.service.config().readout, booted.settings),
-        now_ms: 0,
-        out: Vec::new(),
-        frame_room: true,
-        missed_below: 0,
-        log: StdString::new(),
-    };
+    let ports = TestPorts::new(Readout::new(
+        &booted.service.config().readout,
+        booted.settings,
+    ));
     (booted.service, ports)
 }
 
@@ -204,14 +223,7 @@ fn a_failed_store_is_reported_and_still_restarts_the_readout() {
     };
     let booted = Service::boot(config(), flash, None).unwrap();
     let mut s = booted.service;
-    let mut p = TestPorts {
-        readout: Readout::new(&s.config().readout, booted.settings),
-        now_ms: 0,
-        out: Vec::new(),
-        frame_room: true,
-        missed_below: 0,
-        log: StdString::new(),
-    };
+    let mut p = TestPorts::new(Readout::new(&s.config().readout, booted.settings));
     p.out.clear();
     for &b in format!("unlock {KEY:08x}\nstore\n").as_bytes() {
         s.on_byte(b, &mut p);
@@ -269,14 +281,7 @@ fn the_intercept_hook_sees_lines_first() {
     c.intercept = Some(|line| line == "quit");
     let booted = Service::boot(c, Flash::new(), None).unwrap();
     let mut s = booted.service;
-    let mut p = TestPorts {
-        readout: Readout::new(&c.readout, booted.settings),
-        now_ms: 0,
-        out: Vec::new(),
-        frame_room: true,
-        missed_below: 0,
-        log: StdString::new(),
-    };
+    let mut p = TestPorts::new(Readout::new(&c.readout, booted.settings));
     assert_eq!(ask(&mut s, &mut p, "quit"), "");
     assert!(ask(&mut s, &mut p, "id").starts_with("OK "));
 }

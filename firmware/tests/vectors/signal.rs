@@ -242,6 +242,7 @@ pub fn readout_chain(out: &mut Outputs) {
             adc_a_code,
             adc_b_code,
             timestamp_ticks: ticks,
+            drive_locked: true,
         };
         if let Some(r) = readout.on_turnaround(&config, sample) {
             out.i64(r.output.increment_q32);

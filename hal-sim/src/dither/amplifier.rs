@@ -68,13 +68,14 @@ pub struct AmplifierParams {
 }
 
 impl Default for AmplifierParams {
-    /// Gain 20 (the DAC's +-1.65 V become +-33 V), reference 1.65 V, limit +-30 V, 3 kHz.
+    /// Gain 20 (the DAC's +-1.65 V become +-33 V), reference 1.65 V, limit +-30 V, and the
+    /// board's output low-pass (`BoardProfile::F405.drive_lowpass_hz`, 3 kHz).
     fn default() -> Self {
         Self {
             gain_v_per_v: 20.0,
             input_ref_v: 1.65,
             output_limit_v: 30.0,
-            cutoff_hz: 3000.0,
+            cutoff_hz: firmware::profile::BoardProfile::F405.drive_lowpass_hz,
         }
     }
 }

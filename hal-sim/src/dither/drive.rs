@@ -30,10 +30,11 @@ pub struct DacParams {
 }
 
 impl Default for DacParams {
-    /// 20 kHz, 3.3 V (the board's VREF+).
+    /// The board's: the profile's drive tick (`BoardProfile::F405.drive_tick_hz`, 40 kHz) and
+    /// 3.3 V (VREF+).
     fn default() -> Self {
         Self {
-            tick_hz: 20_000.0,
+            tick_hz: f64::from(firmware::profile::BoardProfile::F405.drive_tick_hz),
             reference_v: 3.3,
         }
     }
@@ -339,8 +340,12 @@ mod tests {
         for k in 1..2000 {
             let (a, b) = (d.segment(k), d.segment(k + 1));
             let ticks = (b.start_s - a.start_s) * dac.tick_hz;
-            // Half a cycle is 25.7 ticks: 25 or 26.
-            assert!((ticks - 25.5).abs() < 0.51, "{ticks}");
+            // Half a cycle is 0.5 f_s / 389 Hz ticks (51.4 at 40 kHz): the whole ticks around it.
+            let half = 0.5 * dac.tick_hz / 389.0;
+            assert!(
+                (ticks - half.floor()).abs() < 1e-6 || (ticks - half.ceil()).abs() < 1e-6,
+                "{ticks}"
+            );
             // The phase continues the accumulator across the boundary.
             let expect = (a.phase_rad + ticks.round() * a.step_rad).rem_euclid(TAU);
             let diff = (b.phase_rad - expect).rem_euclid(TAU);

@@ -379,9 +379,9 @@ mod tests {
             "{out_v}"
         );
         assert!((dac_v / 1.65 - 0.23).abs() < 0.01, "{dac_v}");
-        // -90 deg, the low-pass's atan(389/3000) = 7.39 deg, half a tick 3.50 deg.
+        // -90 deg, the low-pass's atan(389/3000) = 7.39 deg, half a 40 kHz tick 1.75 deg.
         let lag_deg = -h.arg().to_degrees();
-        assert!((lag_deg - (90.0 + 7.39 + 3.50)).abs() < 0.01, "{lag_deg}");
+        assert!((lag_deg - (90.0 + 7.39 + 1.75)).abs() < 0.01, "{lag_deg}");
     }
 
     #[test]

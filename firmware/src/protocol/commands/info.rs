@@ -14,7 +14,7 @@ use crate::signal::compensation::Coefficients;
 const HELP: &str =
     "commands: id status get{a|b|coeffs} set{a|b}<rad/s> comp{on|off} track{on|off} \
 cal{start<n>[<warmup>]|status|abort|result|accept} store reload defaults stream{on[<n>]|off} \
-unlock<key> lock help";
+dither{on|off|amp<arcsec>|noise<percent>|status} unlock<key> lock help";
 
 /// What `status` reports of the executor's own state.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -50,10 +50,13 @@ pub fn status<D: DeviceLink>(id: &Identity, device: &mut D, flags: StatusFlags) 
     let s = device.status();
     let settings = device.active_settings();
     let amplitude_arcsec = s.dither_amplitude_rad * id.scale_factor_arcsec / core::f32::consts::TAU;
+    let drive = super::dither::state_word(device.dither_status().state);
     ok_with(format_args!(
-        "signal={} dither_hz={:.3} dither_amp_arcsec={:.2} rate_deg_h={:.4} turnarounds={} cycles={} \
-counter_glitches={} phase_glitches={} signal_lost={} missed={} comp={} track={} coeffs={} locked={}",
+        "signal={} drive={} dither_hz={:.3} dither_amp_arcsec={:.2} rate_deg_h={:.4} turnarounds={} \
+cycles={} counter_glitches={} phase_glitches={} signal_lost={} missed={} comp={} track={} coeffs={} \
+locked={}",
         if s.signal_ok { "ok" } else { "lost" },
+        drive,
         s.dither_hz,
         amplitude_arcsec,
         s.rate_deg_per_h,
@@ -146,7 +149,7 @@ mod tests {
         };
         assert_eq!(
             text(status(&ID, &mut device, flags)).trim_end(),
-            "OK signal=ok dither_hz=389.000 dither_amp_arcsec=200.00 rate_deg_h=15.0000 \
+            "OK signal=ok drive=locked dither_hz=389.000 dither_amp_arcsec=200.00 rate_deg_h=15.0000 \
 turnarounds=10 cycles=5 counter_glitches=1 phase_glitches=2 signal_lost=3 missed=4 comp=off \
 track=on coeffs=flash:3 locked=yes"
         );

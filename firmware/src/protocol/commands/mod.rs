@@ -13,6 +13,7 @@
 //! | [`storage`] | `store` `reload` | [`provenance::Provenance`] |
 //! | [`stream`] | `stream on/off` | [`stream::StreamState`] |
 //! | [`access`] | `unlock` `lock` | [`access::AccessState`] |
+//! | [`dither`] | `dither on/off/amp/noise/status` | none (the drive holds its setpoints) |
 //!
 //! A group function answers `Ok(response)` or `Err(code)`; a refusal changes nothing (the one
 //! deliberate exception is `cal result`, see [`calibration`]). Modules import downwards only:
@@ -21,6 +22,7 @@
 
 pub mod access;
 pub mod calibration;
+pub mod dither;
 pub mod info;
 pub mod provenance;
 pub mod settings;
@@ -44,10 +46,14 @@ fn ok_with(args: core::fmt::Arguments<'_>) -> Response {
 /// An in-memory device for the groups' unit tests.
 #[cfg(test)]
 pub(crate) mod testing {
+    use crate::dither::{CommandError, DitherConfig, DitherController, DitherStatus};
+    use crate::profile::BoardProfile;
     use crate::protocol::link::{DeviceLink, DeviceStatus, Identity};
     use crate::protocol::respond::Response;
     use crate::signal::compensation::CompensationSettings;
-    use crate::storage::{CalibrationRecord, DefaultsReason, LoadOutcome, LoadReport, StoreError};
+    use crate::storage::{
+        CalibrationRecord, DefaultsReason, DitherSetpoints, LoadOutcome, LoadReport, StoreError,
+    };
 
     pub const ID: Identity = Identity {
         firmware_version: "1.2.3",
@@ -59,6 +65,31 @@ pub(crate) mod testing {
         capture_timer_hz: 84_000_000,
     };
 
+    /// The firmware's dither controller without ticks (the F405 profile's settings, enabled):
+    /// the commands' range checks and setpoints are the real ones. Equal when the setpoints
+    /// and the state are.
+    #[derive(Clone, Debug)]
+    pub struct MemDrive {
+        pub config: DitherConfig,
+        pub controller: DitherController,
+    }
+
+    impl Default for MemDrive {
+        fn default() -> Self {
+            let config = DitherConfig::for_profile(&BoardProfile::F405);
+            let mut controller = DitherController::new(&config);
+            controller.enable();
+            Self { config, controller }
+        }
+    }
+
+    impl PartialEq for MemDrive {
+        fn eq(&self, other: &Self) -> bool {
+            self.controller.setpoints() == other.controller.setpoints()
+                && self.controller.state() == other.controller.state()
+        }
+    }
+
     /// Settings in force, staged settings, stored records; `fail_store` makes `store` fail.
     #[derive(Clone, Debug, Default, PartialEq)]
     pub struct MemDevice {
@@ -68,6 +99,7 @@ pub(crate) mod testing {
         pub staged: u32,
         pub stored: Vec<CalibrationRecord>,
         pub fail_store: bool,
+        pub drive: MemDrive,
     }
 
     impl DeviceLink for MemDevice {
@@ -107,6 +139,21 @@ pub(crate) mod testing {
                 .copied()
                 .unwrap_or(CalibrationRecord::DEFAULTS);
             (record, report(outcome))
+        }
+        /// The drive is locked whenever it is enabled (no ticks here to lock it).
+        fn dither_status(&mut self) -> DitherStatus {
+            let mut status = self.drive.controller.status(&self.drive.config);
+            if self.drive.controller.enabled() {
+                status.state = crate::dither::DitherState::Locked;
+            }
+            status
+        }
+        fn dither_setpoints(&mut self) -> DitherSetpoints {
+            self.drive.controller.setpoints()
+        }
+        fn apply_dither(&mut self, setpoints: DitherSetpoints) -> Result<(), CommandError> {
+            let MemDrive { config, controller } = &mut self.drive;
+            controller.apply_setpoints(config, setpoints)
         }
     }
 

@@ -18,7 +18,7 @@ pub fn store<D: DeviceLink>(device: &mut D, provenance: &mut Provenance, id: &Id
         settings: device.active_settings(),
         fit: provenance.fit,
         reset_to_defaults: false,
-        dither: None,
+        dither: Some(device.dither_setpoints()),
     };
     let sequence = device.store(&record).map_err(|_| ErrorCode::FlashError)?;
     provenance.source = Source::Flash { sequence };
@@ -27,13 +27,24 @@ pub fn store<D: DeviceLink>(device: &mut D, provenance: &mut Provenance, id: &Id
     )))
 }
 
-/// `reload`: the newest valid record (or the defaults) staged, with where it came from.
+/// `reload`: the newest valid record (or the defaults) staged, with where it came from; its
+/// dither setpoints applied when it holds any (`dither=stored`), else the drive's stay
+/// (`dither=kept`; also when the drive refuses the stored values, which a record of other
+/// firmware could hold: `dither=refused`).
 pub fn reload<D: DeviceLink>(device: &mut D, provenance: &mut Provenance) -> Response {
     let (record, report) = device.load();
     device.stage_settings(record.settings);
     provenance.source = Source::of(&report);
     provenance.fit = record.fit;
-    ok_with(format_args!("coeffs={}", SourceText(provenance.source)))
+    let dither = match record.dither {
+        Some(setpoints) if device.apply_dither(setpoints).is_ok() => "stored",
+        Some(_) => "refused",
+        None => "kept",
+    };
+    ok_with(format_args!(
+        "coeffs={} dither={dither}",
+        SourceText(provenance.source)
+    ))
 }
 
 #[cfg(test)]
@@ -41,7 +52,7 @@ mod tests {
     use super::*;
     use crate::protocol::commands::testing::{report, text, MemDevice, ID};
     use crate::signal::compensation::Coefficients;
-    use crate::storage::{DefaultsReason, FitSummary, LoadOutcome};
+    use crate::storage::{DefaultsReason, DitherSetpoints, FitSummary, LoadOutcome};
 
     fn unsaved() -> Provenance {
         let mut p = Provenance::new(&report(LoadOutcome::Loaded { sequence: 1 }), None, 7);
@@ -90,7 +101,7 @@ mod tests {
         let mut p = unsaved();
         assert_eq!(
             text(reload(&mut device, &mut p)).trim_end(),
-            "OK coeffs=defaults:erased"
+            "OK coeffs=defaults:erased dither=kept"
         );
         assert_eq!(p.source, Source::Defaults(DefaultsReason::Erased));
         assert_eq!((p.fit, device.staged), (None, 1));
@@ -100,8 +111,41 @@ mod tests {
         device.settings = CalibrationRecord::DEFAULTS.settings;
         assert_eq!(
             text(reload(&mut device, &mut p)).trim_end(),
-            "OK coeffs=flash:1"
+            "OK coeffs=flash:1 dither=stored"
         );
         assert!(device.settings.enabled);
+    }
+
+    #[test]
+    fn store_saves_the_dither_setpoints_and_reload_applies_them() {
+        let mut device = MemDevice::default();
+        let mut p = unsaved();
+        let chosen = DitherSetpoints {
+            enabled: false,
+            amplitude_arcsec: 380.0,
+            noise_percent: 12.5,
+        };
+        device.apply_dither(chosen).unwrap();
+        store(&mut device, &mut p, &ID).unwrap();
+        assert_eq!(device.stored[0].dither, Some(chosen));
+        let other = DitherSetpoints {
+            enabled: true,
+            amplitude_arcsec: 500.0,
+            noise_percent: 0.0,
+        };
+        device.apply_dither(other).unwrap();
+        let answer = text(reload(&mut device, &mut p));
+        assert_eq!(answer.trim_end(), "OK coeffs=flash:1 dither=stored");
+        assert_eq!(device.dither_setpoints(), chosen);
+        // A record whose setpoints the drive refuses (another firmware's wider range): the
+        // coefficients load, the drive keeps what it had.
+        device.stored[0].dither = Some(DitherSetpoints {
+            amplitude_arcsec: 5000.0,
+            ..chosen
+        });
+        device.apply_dither(other).unwrap();
+        let answer = text(reload(&mut device, &mut p));
+        assert_eq!(answer.trim_end(), "OK coeffs=flash:1 dither=refused");
+        assert_eq!(device.dither_setpoints(), other);
     }
 }

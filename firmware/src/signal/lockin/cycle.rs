@@ -43,6 +43,10 @@ impl CycleFlags {
     pub const TURNAROUND_MISSED: Self = Self(1 << 2);
     /// No compensation time constant could be formed (no dither, or an implausible one).
     pub const DITHER_INVALID: Self = Self(1 << 3);
+    /// The dither drive was not locked at a turnaround of the cycle (starting, off, or in a
+    /// fault: `crate::dither`): the dither is not what the board holds it to, so the cycle's
+    /// output is invalid. Its P1/P2 are still measured (compensable as far as they go).
+    pub const DRIVE_UNLOCKED: Self = Self(1 << 4);
 
     /// No flag.
     pub const fn empty() -> Self {

@@ -1,0 +1,199 @@
+//! The firmware's dither drive in the loop: `firmware::dither::DitherController` ticking on the
+//! simulated pick-off, its DDS turned into the driven resonator's drive segments.
+//!
+//! On the board, TIM4 fires every drive tick (40 kHz, `BoardProfile::drive_tick_hz`): one
+//! hardware edge samples the pick-off (ADC3, the sampling instant 0.83 us after the edge:
+//! `BoardProfile::aperture_delay_ticks`) and loads the DAC with the code the previous tick's
+//! handler wrote; the handler then runs `on_tick` with the new pick-off code and writes the
+//! code for the next edge. [`FirmwareDrive::run_until`] does exactly that, tick by tick, on the
+//! simulated board: the pick-off code from [`SimBoard::pickoff_code`] at the sampling instant,
+//! `on_tick`, and when the controller reports a new DDS ([`firmware::dither::Tick`]'s
+//! `drive_changed`) a [`DriveSegment`] from the tick at which its first sample is written.
+//!
+//! # Why segments, not codes
+//! The controller changes its DDS only at its loop updates (about twice per dither cycle), and
+//! between two updates its codes are `mid + round(amp sin(phase + n step))` exactly
+//! ([`firmware::dither::Drive`]), which the resonator model takes as one segment in closed form
+//! (`crate::dither`: the staircase's fundamental; images and the DAC's rounding are bounded
+//! there). So the simulator costs one `on_tick` and one pick-off evaluation per tick, and the
+//! phase integrator sees about two breakpoints per dither cycle.
+//!
+//! # Causality
+//! The code a tick's handler writes is output at the next edge, so after tick `n` the drive is
+//! known up to the edge of tick `n + 2` (tick `n + 1`'s handler can change it from there on at
+//! the earliest); the pick-off sample of tick `n` lies before that. The drive never depends on
+//! anything later than the pick-off, so a caller may run the drive ahead of the readout by any
+//! lead (`crate::gyro::Gyro::drive_lead_s`).
+//!
+//! # The lock flag
+//! [`FirmwareDrive::locked_at`] tells whether the controller was locked at a given instant (the
+//! last tick at or before it): the board's latch copies the drive tick's state into every
+//! `TurnaroundSample` (`drive_locked`), and the harness does the same with this.
+
+use crate::board::SimBoard;
+use crate::dither::drive::{DacParams, DriveError, DriveSegment};
+use firmware::dither::{DitherConfig, DitherController, DitherState, Drive, Tick};
+use firmware::profile::BoardProfile;
+use std::collections::VecDeque;
+
+/// State changes kept for [`FirmwareDrive::locked_at`] (a few seconds of lock changes).
+const STATE_HISTORY: usize = 64;
+
+/// The firmware's dither controller driving a simulated board.
+#[derive(Clone, Debug)]
+pub struct FirmwareDrive {
+    config: DitherConfig,
+    controller: DitherController,
+    dac: DacParams,
+    /// The next tick to run (absolute, from t = 0).
+    next_tick: u64,
+    /// Ticks the controller did not see (CPU stalls): absolute tick = controller tick + this.
+    missed_ticks: u64,
+    /// Edge to pick-off sampling instant, s.
+    sample_delay_s: f64,
+    /// (first tick, locked) at every change of the lock state, oldest first.
+    locked_since: VecDeque<(u64, bool)>,
+}
+
+impl FirmwareDrive {
+    /// The controller of `profile` (its settings, the drive enabled with the default
+    /// setpoints) ticking at the DAC's rate; its first tick is at t = 0. The DAC's tick rate
+    /// must be the profile's (the controller's phase detector assumes it).
+    pub fn new(profile: &BoardProfile, dac: DacParams) -> Result<Self, DriveError> {
+        let config = DitherConfig::for_profile(profile);
+        if (dac.tick_hz - f64::from(profile.drive_tick_hz)).abs() > 1e-9 * dac.tick_hz {
+            return Err(DriveError::Invalid(
+                "the resonator's DAC ticks at another rate than the board's drive",
+            ));
+        }
+        let mut controller = DitherController::new(&config);
+        controller.enable();
+        Ok(Self {
+            sample_delay_s: f64::from(profile.aperture_delay_ticks) / f64::from(profile.timer_hz),
+            controller,
+            config,
+            dac,
+            next_tick: 0,
+            missed_ticks: 0,
+            locked_since: VecDeque::from([(0, false)]),
+        })
+    }
+
+    /// The controller (status, setpoints, estimate).
+    pub fn controller(&self) -> &DitherController {
+        &self.controller
+    }
+
+    /// The controller and its settings, for commands between ticks (they take effect at the
+    /// next tick, as on the board).
+    pub fn controller_mut(&mut self) -> (&mut DitherController, &DitherConfig) {
+        (&mut self.controller, &self.config)
+    }
+
+    /// The controller's settings.
+    pub fn config(&self) -> &DitherConfig {
+        &self.config
+    }
+
+    /// The edge time of absolute tick `n`, s.
+    pub fn tick_time_s(&self, n: u64) -> f64 {
+        n as f64 / self.dac.tick_hz
+    }
+
+    /// Time of the next tick to run, s: the drive is known up to the edge after it.
+    pub fn next_tick_s(&self) -> f64 {
+        self.tick_time_s(self.next_tick)
+    }
+
+    /// Runs every tick whose edge is at or before `t_s`; the board's drive is then known up to
+    /// the edge after the last tick run (beyond `t_s`).
+    pub fn run_until(&mut self, board: &mut SimBoard, t_s: f64) -> Result<(), DriveError> {
+        while self.tick_time_s(self.next_tick) <= t_s {
+            self.tick(board)?;
+        }
+        Ok(())
+    }
+
+    /// One tick: sample the pick-off, run the controller, pass a new DDS on as a segment.
+    fn tick(&mut self, board: &mut SimBoard) -> Result<(), DriveError> {
+        let n = self.next_tick;
+        let edge_s = self.tick_time_s(n);
+        // The DAC holds this tick's code until the next edge at least.
+        board.extend_drive_until(self.tick_time_s(n + 1))?;
+        let code = board.pickoff_code(edge_s + self.sample_delay_s);
+        let tick: Tick = self.controller.on_tick(&self.config, code);
+        if tick.drive_changed {
+            let segment = self.segment(self.controller.drive(), n + 1)?;
+            board.push_drive(segment)?;
+        }
+        let locked = self.controller.state() == DitherState::Locked;
+        self.note_lock(n, locked);
+        self.next_tick = n + 1;
+        Ok(())
+    }
+
+    fn note_lock(&mut self, tick: u64, locked: bool) {
+        if self.locked_since.back().is_none_or(|&(_, l)| l != locked) {
+            if self.locked_since.len() == STATE_HISTORY {
+                self.locked_since.pop_front();
+            }
+            self.locked_since.push_back((tick, locked));
+        }
+    }
+
+    /// The CPU stalls (a flash erase) from the next tick until `until_s`, as the board handles
+    /// it (`board::resources::pause_dither`/`resume_dither`): the drive is zero (mid-scale)
+    /// from the next edge, the drive tick does not run meanwhile (the timer does: the
+    /// controller's tick count falls behind), and the controller restarts, listening first,
+    /// at the first tick after the stall. The dither rings down meanwhile.
+    pub fn stall(&mut self, board: &mut SimBoard, until_s: f64) -> Result<(), DriveError> {
+        // The main loop wrote mid-scale into the DAC's holding register before the stall: the
+        // next edge outputs it.
+        let first = self.next_tick;
+        let mid = f64::from(self.config.dac_mid_code);
+        let off = DriveSegment::from_codes(self.tick_time_s(first), 0.0, 0.0, 0.0, mid, &self.dac);
+        board.extend_drive_until(self.tick_time_s(first))?;
+        board.push_drive(off)?;
+        let resume = ((until_s * self.dac.tick_hz).ceil() as u64).max(first);
+        board.extend_drive_until(self.tick_time_s(resume))?;
+        self.missed_ticks += resume - self.next_tick;
+        self.next_tick = resume;
+        self.note_lock(first, false);
+        self.controller.restart();
+        Ok(())
+    }
+
+    /// The segment of `drive`, whose first sample is written at the edge of absolute tick
+    /// `first` (the controller's wrapping tick count must agree).
+    fn segment(&self, drive: Drive, first: u64) -> Result<DriveSegment, DriveError> {
+        if drive.start_tick != (first - self.missed_ticks) as u32 {
+            return Err(DriveError::Invalid(
+                "the controller's drive does not start at the next tick",
+            ));
+        }
+        let turns = |bits: u32| f64::from(bits) / 4_294_967_296.0;
+        Ok(DriveSegment::from_codes(
+            self.tick_time_s(first),
+            core::f64::consts::TAU * turns(drive.phase.to_bits()),
+            core::f64::consts::TAU * turns(drive.step.to_bits()),
+            drive.amplitude_codes(),
+            f64::from(drive.mid_code),
+            &self.dac,
+        ))
+    }
+
+    /// Whether the controller was locked after the last tick at or before `t_s` (false before
+    /// the first tick, and for instants older than the kept history).
+    pub fn locked_at(&self, t_s: f64) -> bool {
+        let tick = (t_s * self.dac.tick_hz).floor();
+        if tick < 0.0 {
+            return false;
+        }
+        let tick = tick as u64;
+        self.locked_since
+            .iter()
+            .rev()
+            .find(|&&(since, _)| since <= tick)
+            .is_some_and(|&(_, locked)| locked)
+    }
+}
