@@ -27,7 +27,7 @@ mod common;
 use common::{chow_dead_band_deg_h, paper_gyro};
 use firmware::signal::compensation::CompensationSettings;
 use hal_sim::params::GyroParams;
-use rlg_sim::experiment::{measure_rate, RunLength};
+use rlg_sim::experiment::{measure_rate, DitherDrive, RunLength};
 
 const LENGTH: RunLength = RunLength {
     warmup_s: 0.5,
@@ -41,9 +41,15 @@ fn edge_from_outside(params: &GyroParams, chow_deg_h: f64, multiples: &[f64]) ->
         .iter()
         .map(|m| {
             let input = m * chow_deg_h;
-            let out = measure_rate(params, input, LENGTH, CompensationSettings::default())
-                .expect("run")
-                .uncompensated_hz
+            let out = measure_rate(
+                params,
+                DitherDrive::Ideal,
+                input,
+                LENGTH,
+                CompensationSettings::default(),
+            )
+            .expect("run")
+            .uncompensated_hz
                 * sf;
             (input * input - out * out).sqrt()
         })
@@ -78,9 +84,15 @@ fn check_band(params: &GyroParams, regression: Regression) {
         100.0 * regression.edge_relative
     );
     // Inside the band (70 % of it) the output is flat: below 1 % of the band.
-    let inside = measure_rate(params, 0.7 * chow, LENGTH, CompensationSettings::default())
-        .expect("run")
-        .uncompensated_hz
+    let inside = measure_rate(
+        params,
+        DitherDrive::Ideal,
+        0.7 * chow,
+        LENGTH,
+        CompensationSettings::default(),
+    )
+    .expect("run")
+    .uncompensated_hz
         * params.scale_factor_arcsec;
     eprintln!("inside the band: {inside:.3e} deg/h");
     assert!(

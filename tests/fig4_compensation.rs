@@ -29,7 +29,7 @@ use common::{paper_gyro, TAU};
 use firmware::signal::compensation::CompensationSettings;
 use hal_sim::params::GyroParams;
 use rayon::prelude::*;
-use rlg_sim::experiment::{calibrate, measure_rate, settings_from_fit, RunLength};
+use rlg_sim::experiment::{calibrate, measure_rate, settings_from_fit, DitherDrive, RunLength};
 
 const RECORD: RunLength = RunLength {
     warmup_s: 0.5,
@@ -44,7 +44,13 @@ const RANGE_DEG_H: f64 = 13.888;
 fn calibrated(
     params: &GyroParams,
 ) -> (CompensationSettings, firmware::calibration::fit::FitResult) {
-    let fit = calibrate(params, &[-RANGE_DEG_H, RANGE_DEG_H], CALIBRATION).expect("calibration");
+    let fit = calibrate(
+        params,
+        DitherDrive::Ideal,
+        &[-RANGE_DEG_H, RANGE_DEG_H],
+        CALIBRATION,
+    )
+    .expect("calibration");
     (settings_from_fit(&fit).expect("representable"), fit)
 }
 
@@ -58,7 +64,7 @@ fn deviations(
         .into_par_iter()
         .map(|i| {
             let input = -RANGE_DEG_H + 2.0 * RANGE_DEG_H * i as f64 / (points - 1) as f64;
-            let m = measure_rate(params, input, RECORD, settings).expect("run");
+            let m = measure_rate(params, DitherDrive::Ideal, input, RECORD, settings).expect("run");
             (input, m.compensated_hz * params.scale_factor_arcsec - input)
         })
         .collect()

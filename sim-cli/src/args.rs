@@ -29,6 +29,58 @@ pub enum Command {
     Sweep(SweepArgs),
     /// Measure the simulator's speed: simulated gyro-seconds per wall-second on one core.
     Speed(SpeedArgs),
+    /// The dither drive: the firmware's controller starts the driven resonator from rest and
+    /// holds it (amplitude, resonance, faults); one CSV row per dither cycle.
+    Dither(DitherArgs),
+}
+
+/// How the dither is made.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DitherDrive {
+    /// The prescribed sine of --dither-hz and --dither-amplitude-arcsec (the paper's idealised
+    /// experiment).
+    Ideal,
+    /// A driven resonator at --dither-hz (Q 1000) with the firmware's drive in the loop, started
+    /// in its steady state; cycles before the drive locks are discarded with the warm-up.
+    ClosedLoop,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct DitherArgs {
+    /// Simulated seconds.
+    #[arg(long, default_value_t = 5.0)]
+    pub seconds: f64,
+    /// Resonance f0 at the start, Hz (300..=600).
+    #[arg(long, default_value_t = 389.0)]
+    pub dither_hz: f64,
+    /// Quality factor of the dither resonator (100..=100000).
+    #[arg(long, default_value_t = 1000.0)]
+    pub q_factor: f64,
+    /// The drive's amplitude setpoint, arcsec (50..=650).
+    #[arg(long, default_value_t = 450.0)]
+    pub dither_amplitude_arcsec: f64,
+    /// Linear drift of the resonance over the run, Hz (-10..=10).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub resonance_drift_hz: f64,
+    /// The pick-off signal disappears at this time, s.
+    #[arg(long)]
+    pub pickoff_lost_at_s: Option<f64>,
+    /// Random-noise dither: the drive's amplitude randomised every half cycle by this depth,
+    /// percent (0..=50).
+    #[arg(long, default_value_t = 0.0)]
+    pub dither_noise_percent: f64,
+    /// Random seed (pick-off noise, noise dither).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Write one row per dither cycle as CSV (t_s,amplitude_arcsec,resonance_hz,drive_hz,state).
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// Write amplitude, frequency and state against time as SVG.
+    #[arg(long)]
+    pub svg: Option<PathBuf>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// The gyro and its dither (defaults: the docs/physics.md parameter set, after the paper).
@@ -92,6 +144,13 @@ pub struct SweepArgs {
     /// Write the figure (both curves and the residuals) as SVG.
     #[arg(long)]
     pub svg: Option<PathBuf>,
+    /// How the dither is made: the prescribed sine, or the firmware's drive in the loop.
+    #[arg(long, value_enum, default_value_t = DitherDrive::Ideal)]
+    pub dither_drive: DitherDrive,
+    /// Random-noise dither depth, percent (0..=50; needs --dither-drive closed-loop: the noise
+    /// dither is the firmware drive's).
+    #[arg(long, default_value_t = 0.0)]
+    pub dither_noise_percent: f64,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub jobs: Option<usize>,
@@ -151,6 +210,16 @@ impl SweepArgs {
             return Err(format!(
                 "--calibration-rate-deg-h must be finite, got {bad}"
             ));
+        }
+        if !(0.0..=50.0).contains(&self.dither_noise_percent) {
+            return Err("--dither-noise-percent must be in 0..=50".into());
+        }
+        if self.dither_noise_percent > 0.0 && self.dither_drive == DitherDrive::Ideal {
+            return Err(
+                "--dither-noise-percent needs --dither-drive closed-loop (the noise dither is \
+                 the firmware drive's)"
+                    .into(),
+            );
         }
         Ok(())
     }

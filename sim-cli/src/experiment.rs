@@ -11,11 +11,13 @@
 //!   compensated output of the same cycles, each averaged over whole output periods.
 
 use firmware::calibration::fit::{FitAccumulator, FitResult, SolveError};
+use firmware::dither::DitherState;
 use firmware::readout::ReadoutConfig;
 use firmware::signal::compensation::{CoefficientError, Coefficients, CompensationSettings};
 use firmware::signal::lockin::{CycleOutput, CycleRecord};
 use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
-use hal_sim::harness::HarnessOptions;
+use hal_sim::dither::resonator::ResonatorParams;
+use hal_sim::harness::{DriveSource, HarnessOptions};
 use hal_sim::input::InputProfile;
 use hal_sim::params::GyroParams;
 
@@ -62,11 +64,34 @@ pub fn run_seed(seed: u64, rate_deg_h: f64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// How the dither is made in a run.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum DitherDrive {
+    /// The prescribed sine of the parameters (the paper's idealised experiment).
+    #[default]
+    Ideal,
+    /// A driven resonator at the parameters' `dither_hz` (hal-sim's default resonator, Q 1000,
+    /// started in its steady state) held by the firmware's drive at `dither_amplitude_arcsec`,
+    /// with random-noise dither of `noise_percent` (0 = off).
+    ClosedLoop {
+        /// Random-noise dither depth, percent (0..=50).
+        noise_percent: f64,
+    },
+}
+
+/// With the firmware's drive, recording starts this long after the drive locks (the locked
+/// amplitude loop settles its last 0.2 % in about 2 s), and no earlier than the warm-up.
+pub const DRIVE_SETTLE_S: f64 = 2.0;
+/// A closed-loop run whose drive has not locked after this long fails.
+pub const DRIVE_LOCK_TIMEOUT_S: f64 = 10.0;
+
 /// Runs the board at a constant input rate (hal-sim's
 /// [`Harness`](hal_sim::harness::Harness), firmware in the loop) and hands every cycle closed
-/// after the warm-up to `on_cycle`. The run's noise comes from [`run_seed`].
+/// after the warm-up to `on_cycle` (with the firmware's drive: after the drive has locked and
+/// settled, [`DRIVE_SETTLE_S`]). The run's noise comes from [`run_seed`].
 pub fn run_constant_rate(
     params: &GyroParams,
+    drive: DitherDrive,
     rate_deg_h: f64,
     length: RunLength,
     settings: CompensationSettings,
@@ -76,16 +101,52 @@ pub fn run_constant_rate(
         seed: run_seed(params.seed, rate_deg_h),
         ..*params
     };
-    let mut harness = HarnessOptions::new(params, InputProfile::constant(rate_deg_h))
-        .compensation(settings)
-        .build()
-        .map_err(|e| ExperimentError::Simulator(e.to_string()))?;
+    let simulator = |e: String| ExperimentError::Simulator(e);
+    let (params, source) = match drive {
+        DitherDrive::Ideal => (params, None),
+        DitherDrive::ClosedLoop { .. } => {
+            let driven = params.with_steady_driven_dither(ResonatorParams {
+                f0_hz: params.dither_hz,
+                ..ResonatorParams::default()
+            });
+            let source = DriveSource::firmware(&driven).map_err(|e| simulator(e.to_string()))?;
+            (driven, Some(source))
+        }
+    };
+    let mut options =
+        HarnessOptions::new(params, InputProfile::constant(rate_deg_h)).compensation(settings);
+    if let Some(source) = source {
+        options = options.drive(source);
+    }
+    let mut harness = options.build().map_err(|e| simulator(e.to_string()))?;
+    let mut start_s = length.warmup_s;
+    if let DitherDrive::ClosedLoop { noise_percent } = drive {
+        let fw = harness
+            .firmware_drive_mut()
+            .ok_or_else(|| simulator("no firmware drive".into()))?;
+        let (controller, config) = fw.controller_mut();
+        controller
+            .set_setpoint_arcsec(config, params.dither_amplitude_arcsec as f32)
+            .map_err(|e| simulator(format!("dither amplitude for the drive: {e:?}")))?;
+        controller
+            .set_noise_depth_percent(noise_percent as f32)
+            .map_err(|e| simulator(format!("noise dither depth: {e:?}")))?;
+        controller.set_noise_seed(params.seed as u32);
+        while harness
+            .firmware_drive()
+            .is_some_and(|d| d.controller().state() != DitherState::Locked)
+        {
+            if harness.time_s() > DRIVE_LOCK_TIMEOUT_S {
+                return Err(simulator("the dither drive did not lock".into()));
+            }
+            harness.step();
+        }
+        start_s = start_s.max(harness.time_s() + DRIVE_SETTLE_S);
+    }
     let config = *harness.config();
-    harness.run_cycles(
-        length.warmup_s,
-        length.warmup_s + length.record_s,
-        |record| on_cycle(&config, record),
-    );
+    harness.run_cycles(start_s, start_s + length.record_s, |record| {
+        on_cycle(&config, record)
+    });
     Ok(())
 }
 
@@ -93,6 +154,7 @@ pub fn run_constant_rate(
 /// output (count plus fractional fringe) regressed on [1, P1, P2], pooled over runs.
 pub fn calibrate(
     params: &GyroParams,
+    drive: DitherDrive,
     rates_deg_h: &[f64],
     length: RunLength,
 ) -> Result<FitResult, ExperimentError> {
@@ -101,6 +163,7 @@ pub fn calibrate(
         let mut run = FitAccumulator::new();
         run_constant_rate(
             params,
+            drive,
             rate,
             length,
             CompensationSettings::default(),
@@ -141,6 +204,7 @@ pub struct MeasuredRate {
 /// whole output periods (falling back to the plain mean where it advances less than a fringe).
 pub fn measure_rate(
     params: &GyroParams,
+    drive: DitherDrive,
     rate_deg_h: f64,
     length: RunLength,
     settings: CompensationSettings,
@@ -148,7 +212,7 @@ pub fn measure_rate(
     let mut raw = RateAverager::new();
     let mut compensated = RateAverager::new();
     let mut averager: Option<AveragerConfig> = None;
-    run_constant_rate(params, rate_deg_h, length, settings, |config, c| {
+    run_constant_rate(params, drive, rate_deg_h, length, settings, |config, c| {
         let cfg = averager.get_or_insert(AveragerConfig {
             window_cycles: u32::MAX,
             mode: AveragingMode::WholePeriods,

@@ -5,6 +5,7 @@
 
 #![warn(missing_docs)]
 
+pub mod dither_run;
 pub mod experiment;
 pub mod plot;
 pub mod report;

@@ -6,15 +6,17 @@
 
 mod args;
 
-use args::{Cli, Command, GyroArgs, SpeedArgs, SweepArgs};
+use args::{Cli, Command, DitherArgs, GyroArgs, SpeedArgs, SweepArgs};
 use clap::Parser;
 use hal_sim::gyro::measure_speed;
 use hal_sim::input::InputProfile;
 use hal_sim::params::{AmplitudeModulation, GyroParams};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
-use rlg_sim::experiment::{calibrate, measure_rate, settings_from_fit, RunLength};
+use rlg_sim::dither_run::{self, DitherRunOptions};
+use rlg_sim::experiment::{calibrate, measure_rate, settings_from_fit, DitherDrive, RunLength};
 use rlg_sim::report::{self, SweepRow};
+use std::io::Write;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
@@ -22,6 +24,7 @@ fn main() -> ExitCode {
     let outcome = match cli.command {
         Command::Sweep(args) => sweep(&args),
         Command::Speed(args) => speed(&args),
+        Command::Dither(args) => dither(&args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
@@ -95,8 +98,14 @@ fn sweep(args: &SweepArgs) -> Result<(), Failure> {
         warmup_s: args.warmup_seconds,
         record_s: args.calibration_seconds,
     };
-    let fit =
-        calibrate(&params, &cal_rates, cal_length).map_err(|e| Failure::Run(e.to_string()))?;
+    let drive = match args.dither_drive {
+        args::DitherDrive::Ideal => DitherDrive::Ideal,
+        args::DitherDrive::ClosedLoop => DitherDrive::ClosedLoop {
+            noise_percent: args.dither_noise_percent,
+        },
+    };
+    let fit = calibrate(&params, drive, &cal_rates, cal_length)
+        .map_err(|e| Failure::Run(e.to_string()))?;
     bar.inc(1);
     bar.finish_and_clear();
     let settings = settings_from_fit(&fit).map_err(|e| Failure::Run(e.to_string()))?;
@@ -127,7 +136,8 @@ fn sweep(args: &SweepArgs) -> Result<(), Failure> {
     let rows: Result<Vec<SweepRow>, String> = rates
         .par_iter()
         .map(|&rate| {
-            let m = measure_rate(&params, rate, length, settings).map_err(|e| e.to_string())?;
+            let m =
+                measure_rate(&params, drive, rate, length, settings).map_err(|e| e.to_string())?;
             bar.inc(1);
             Ok(SweepRow {
                 input_deg_h: rate,
@@ -185,5 +195,94 @@ fn speed(args: &SpeedArgs) -> Result<(), Failure> {
         "simulated {:.1} gyro-s: {:.1} gyro-seconds per wall-second{cpu} (one core)",
         args.seconds, speed.gyro_s_per_wall_s
     );
+    Ok(())
+}
+
+fn dither(args: &DitherArgs) -> Result<(), Failure> {
+    let options = DitherRunOptions {
+        resonance_hz: args.dither_hz,
+        q_factor: args.q_factor,
+        setpoint_arcsec: args.dither_amplitude_arcsec,
+        resonance_drift_hz: args.resonance_drift_hz,
+        pickoff_lost_at_s: args.pickoff_lost_at_s,
+        noise_percent: args.dither_noise_percent,
+        seconds: args.seconds,
+        seed: args.seed,
+    };
+    options.validate().map_err(Failure::Usage)?;
+    // Preconditions before the run: the output files can be created.
+    let mut csv = match &args.csv {
+        Some(path) => Some(std::io::BufWriter::new(
+            std::fs::File::create(path)
+                .map_err(|e| Failure::Usage(format!("{}: {e}", path.display())))?,
+        )),
+        None => None,
+    };
+    if let Some(path) = &args.svg {
+        std::fs::File::create(path)
+            .map_err(|e| Failure::Usage(format!("{}: {e}", path.display())))?;
+    }
+    if let Some(w) = csv.as_mut() {
+        writeln!(w, "{}", dither_run::CSV_HEADER).map_err(|e| Failure::Run(e.to_string()))?;
+    }
+    let bar = progress((args.seconds * args.dither_hz) as u64, args.quiet, "dither");
+    let mut rows = Vec::new();
+    let mut write_error = None;
+    let summary = dither_run::run(&options, |row| {
+        bar.inc(1);
+        if let Some(w) = csv.as_mut() {
+            // Rows go to disk as they come (buffered; flushed once per ~second of gyro time).
+            let written = writeln!(w, "{}", dither_run::csv_line(row)).and_then(|_| {
+                if rows.len() % 400 == 399 {
+                    w.flush()
+                } else {
+                    Ok(())
+                }
+            });
+            if let Err(e) = written {
+                write_error.get_or_insert(e);
+            }
+        }
+        rows.push(*row);
+    })
+    .map_err(Failure::Run)?;
+    bar.finish_and_clear();
+    if let Some(mut w) = csv {
+        w.flush().map_err(|e| Failure::Run(e.to_string()))?;
+    }
+    if let Some(e) = write_error {
+        return Err(Failure::Run(format!("writing the CSV: {e}")));
+    }
+    let opt = |v: Option<f64>| v.map_or("never".to_string(), |t| format!("{t:.3} s"));
+    println!(
+        "settled within 1 % of {} arcsec at {} (overshoot {:.2} %), locked at {}",
+        options.setpoint_arcsec,
+        opt(summary.settle_s),
+        summary.overshoot_percent,
+        opt(summary.locked_s)
+    );
+    println!(
+        "amplitude error after settling: {:.4} % rms; largest |drive - resonance| while locked: {:.5} Hz",
+        summary.amplitude_rms_error_percent, summary.max_frequency_error_hz
+    );
+    if summary.fault_s.is_some() || options.pickoff_lost_at_s.is_some() {
+        println!(
+            "fault {} at {}; at the end: drive level {:.4} of full scale, amplitude {:.1} arcsec",
+            summary
+                .fault
+                .map_or("none".to_string(), |k| format!("{k:?}")),
+            opt(summary.fault_s),
+            summary.final_drive_level,
+            summary.final_amplitude_arcsec
+        );
+    }
+    if let Some(path) = &args.csv {
+        eprintln!("wrote {}", path.display());
+    }
+    if let Some(path) = &args.svg {
+        std::fs::write(path, dither_run::figure(&rows, &options).to_svg())
+            .map_err(|e| Failure::Run(format!("{}: {e}", path.display())))?;
+        eprintln!("wrote {}", path.display());
+    }
     Ok(())
 }

@@ -49,6 +49,7 @@ use super::linear::{Forcing, ResonatorState, SegmentResponse};
 use super::resonator::ResonatorParams;
 use super::MAX_JET;
 use firmware::sample::TurnaroundKind;
+use std::cell::Cell;
 use std::collections::VecDeque;
 
 /// Drive history kept behind the gyro's time, s.
@@ -74,6 +75,9 @@ pub struct DrivenDither {
     known_until_s: f64,
     /// The next split of the last segment is at its start + `split_k` holds.
     split_k: u64,
+    /// The segment the last lookup found (absolute index): the integrator asks for nearby
+    /// times, so [`Self::index_at`] checks it and its successor before searching.
+    hint: Cell<u64>,
 }
 
 impl DrivenDither {
@@ -86,6 +90,7 @@ impl DrivenDither {
             scale,
             segments: VecDeque::new(),
             first: 0,
+            hint: Cell::new(0),
             known_until_s: 0.0,
             split_k: 1,
         };
@@ -190,6 +195,18 @@ impl DrivenDither {
 
     /// Index of the segment containing `t_s` (counted from the start; before t = 0, segment 0).
     pub fn index_at(&self, t_s: f64) -> u64 {
+        let contains = |i: usize| {
+            self.segments.get(i).is_some_and(|r| r.start_s <= t_s)
+                && self.segments.get(i + 1).is_none_or(|r| r.start_s > t_s)
+        };
+        let hint = self.hint.get().saturating_sub(self.first) as usize;
+        for i in [hint, hint + 1] {
+            if contains(i) {
+                let index = self.first + i as u64;
+                self.hint.set(index);
+                return index;
+            }
+        }
         let i = self.segments.partition_point(|r| r.start_s <= t_s);
         if i == 0 {
             assert!(
@@ -198,7 +215,9 @@ impl DrivenDither {
             );
             return 0;
         }
-        self.first + (i - 1) as u64
+        let index = self.first + (i - 1) as u64;
+        self.hint.set(index);
+        index
     }
 
     /// The first segment start strictly after `t_s`, if one is known.
