@@ -9,7 +9,7 @@
 //! | context | vector | prio | work | worst case |
 //! |---|---|---|---|---|
 //! | turnaround latch | `ADC` (JEOC) | 0x00 | copy ADC1/ADC2 JDR1, TIM5 CCR3, TIM2 CCR1 into a `TurnaroundSample`, enqueue, pend the readout task | 61 instr, 0.7 us |
-//! | dither drive tick | `TIM4` (CC1, 40 kHz) | 0x10 | ADC3 JDR1 (pick-off) -> `DitherController::on_tick` -> DAC DHR12R1 | 18 + 232 instr, 2.5 us; at the end of a half dither cycle 18 + 1196, 11.7 us |
+//! | dither drive tick | `TIM4` (CC1, 40 kHz) | 0x10 | ADC3 JDR1 (pick-off) -> `DitherController::on_tick` -> DAC DHR12R1 | 18 + 232 instr, 2.5 us; at the end of a half dither cycle 18 + 1243, 12.0 us |
 //! | pick-off | `TIM2` (CC3/CC4) | 0x20 | edge time -> predicted turnaround -> `CCR1` | 55 instr, 0.7 us (both edges pending: 1.1 us) |
 //! | serial | `USART1` | 0x30 | RX byte -> RX queue; TX queue -> DR | 35 + 20 per byte, 0.9 us |
 //! | Lissajous block | `DMA2_STREAM0` (HT/TC) | 0x40 | mark a half buffer ready, pend the readout task | 44 instr (static count), 0.6 us |
@@ -49,7 +49,7 @@
 //! # CPU load (docs/board.md has the derivation)
 //! At 389 Hz dither: 14.1 % of 168 MHz (dither drive 10.8 %, turnaround chain 1.6 %, Lissajous
 //! stream 1.7 %); with a calibration run and the binary stream on every cycle: 17.1 %. At
-//! 1 kHz: 17.6 %; with a calibration run and the stream on every second cycle: 23.3 %.
+//! 1 kHz: 17.7 %; with a calibration run and the stream on every second cycle: 23.4 %.
 
 use core::cell::UnsafeCell;
 use core::sync::atomic::{AtomicU32, Ordering};

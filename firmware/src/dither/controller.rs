@@ -299,6 +299,8 @@ impl DitherController {
     /// The state.
     pub fn state(&self) -> DitherState {
         match self.mode {
+            // Asked to start, the first tick not yet run.
+            Mode::Off if self.request == Some(Request::Enable) => DitherState::Starting,
             Mode::Off => DitherState::Off,
             Mode::Locked { .. } => DitherState::Locked,
             Mode::Fault { kind, .. } => DitherState::Fault(kind),
