@@ -18,7 +18,7 @@
 //! so a host splitting at 0x00 sees either a frame or a line starting with `OK`/`ERR` (text
 //! never contains 0x00); the answer to `stream on` is still plain text.
 
-use crate::board::{BoardConfig, BoardError};
+use crate::board::{BoardConfig, BoardError, LatchTiming};
 use crate::dither::resonator::ResonatorParams;
 use crate::drive_loop::FirmwareDrive;
 use crate::flash::CalibrationFlash;
@@ -78,7 +78,12 @@ impl SimDevice {
                 ..ResonatorParams::default()
             }),
         };
-        let board = BoardConfig::for_gyro(&params);
+        // As on the board: the turnarounds latched at the instants the firmware predicts from
+        // the pick-off's edges, not at the simulator's true turnarounds.
+        let board = BoardConfig {
+            latch: LatchTiming::scheduled(0.0),
+            ..BoardConfig::for_gyro(&params)
+        };
         let profile = BoardProfile {
             nominal_dither_hz: params.dither_hz,
             scale_factor_arcsec: params.scale_factor_arcsec,

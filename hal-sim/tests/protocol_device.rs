@@ -79,6 +79,13 @@ fn a_fresh_board_identifies_itself_and_runs_on_defaults() {
         (field(&status, "dither_amp_arcsec").parse::<f64>().unwrap() - 450.0).abs() < 1.1,
         "{status}"
     );
+    // The drive's own view, and the fringe count's independent check of the pick-off's gain:
+    // the pick-off is nominal here, so its amplitude and the count's agree (to 0.3 %: one
+    // half cycle's fit against the count's last excursion).
+    let dither = ask(&mut dev, "dither status");
+    assert!(dither.starts_with("OK state=locked "), "{dither}");
+    let gain: f64 = field(&dither, "pickoff_gain").parse().unwrap();
+    assert!((gain - 1.0).abs() < 0.003, "{dither}");
     assert_eq!(ask(&mut dev, "get coeffs").split(' ').nth(1), Some("a=0"));
     assert!(ask(&mut dev, "help").starts_with("OK commands:"));
 }

@@ -16,6 +16,7 @@ use firmware::readout::ReadoutConfig;
 use firmware::signal::compensation::{CoefficientError, Coefficients, CompensationSettings};
 use firmware::signal::lockin::{CycleOutput, CycleRecord};
 use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
+use hal_sim::board::LatchTiming;
 use hal_sim::dither::resonator::ResonatorParams;
 use hal_sim::harness::{DriveSource, HarnessOptions};
 use hal_sim::input::InputProfile;
@@ -72,7 +73,9 @@ pub enum DitherDrive {
     Ideal,
     /// A driven resonator at the parameters' `dither_hz` (hal-sim's default resonator, Q 1000,
     /// started in its steady state) held by the firmware's drive at `dither_amplitude_arcsec`,
-    /// with random-noise dither of `noise_percent` (0 = off).
+    /// with random-noise dither of `noise_percent` (0 = off); the turnarounds latched where
+    /// the firmware schedules them from the pick-off (the board's way, never the simulator's
+    /// true turnaround).
     ClosedLoop {
         /// Random-noise dither depth, percent (0..=50).
         noise_percent: f64,
@@ -116,7 +119,8 @@ pub fn run_constant_rate(
     let mut options =
         HarnessOptions::new(params, InputProfile::constant(rate_deg_h)).compensation(settings);
     if let Some(source) = source {
-        options = options.drive(source);
+        // What a board does: the turnaround instants predicted from the pick-off's edges.
+        options = options.drive(source).latch(LatchTiming::scheduled(0.0));
     }
     let mut harness = options.build().map_err(|e| simulator(e.to_string()))?;
     let mut start_s = length.warmup_s;

@@ -170,7 +170,7 @@ impl Executor {
             Command::Stream(divider) => Ok(self.stream.command(divider)),
             Command::Unlock(given) => self.access.unlock(id, now_ms, given),
             Command::Lock => Ok(self.access.lock()),
-            Command::Dither(command) => dither::command(device, command),
+            Command::Dither(command) => dither::command(device, id, command),
         }
     }
 }

@@ -10,15 +10,21 @@
 
 use super::{ok_with, Answer};
 use crate::dither::{CommandError, DitherState, DitherStatus, FaultKind, StartPhase};
-use crate::protocol::link::DeviceLink;
+use crate::protocol::link::{DeviceLink, Identity};
 use crate::protocol::parse::DitherCommand;
 use crate::protocol::ErrorCode;
 
 /// One `dither` command.
-pub fn command<D: DeviceLink>(device: &mut D, command: DitherCommand) -> Answer {
+pub fn command<D: DeviceLink>(device: &mut D, id: &Identity, command: DitherCommand) -> Answer {
     let mut setpoints = device.dither_setpoints();
     match command {
-        DitherCommand::Status => return Ok(status(&device.dither_status())),
+        DitherCommand::Status => {
+            // The independent check: the readout's dither amplitude from the fringe count's
+            // excursion between turnarounds, in arcsec through the scale factor.
+            let count_rad = device.status().dither_amplitude_rad;
+            let count_arcsec = count_rad * id.scale_factor_arcsec / core::f32::consts::TAU;
+            return Ok(status(&device.dither_status(), count_arcsec));
+        }
         DitherCommand::Enable(on) => setpoints.enabled = on,
         DitherCommand::Amplitude(arcsec) => setpoints.amplitude_arcsec = arcsec,
         DitherCommand::Noise(percent) => setpoints.noise_percent = percent,
@@ -60,8 +66,11 @@ fn fault_word(kind: FaultKind) -> &'static str {
 /// the measured amplitude and the setpoint (arcsec), the drive frequency (Hz), the drive level
 /// (fraction of the DAC's half range), the phase error (rad), the noise depth (percent), the
 /// fault counters per kind (pick-off lost, pick-off saturated, no oscillation, drive saturated,
-/// amplitude out of range), the faults in a row and the back-off (s).
-fn status(s: &DitherStatus) -> crate::protocol::respond::Response {
+/// amplitude out of range), the faults in a row and the back-off (s); then the amplitude the
+/// fringe count measures (`count_amp_arcsec`, from the readout) and the pick-off's gain against
+/// it (`pickoff_gain`, pick-off amplitude / count amplitude: 1 for a calibrated pick-off; `-`
+/// without a count amplitude).
+fn status(s: &DitherStatus, count_arcsec: f32) -> crate::protocol::respond::Response {
     let detail = match (s.state, s.start_phase) {
         (DitherState::Fault(kind), _) => ("fault", fault_word(kind)),
         (DitherState::Starting, Some(StartPhase::Listen)) => ("start", "listen"),
@@ -72,7 +81,8 @@ fn status(s: &DitherStatus) -> crate::protocol::respond::Response {
     let f = s.faults.0;
     ok_with(format_args!(
         "state={} {}={} amp_arcsec={:.2} setpoint_arcsec={:.2} freq_hz={:.4} drive={:.4} \
-phase_err_rad={:.5} noise_pct={:.2} faults={},{},{},{},{} in_a_row={} backoff_s={:.1}",
+phase_err_rad={:.5} noise_pct={:.2} faults={},{},{},{},{} in_a_row={} backoff_s={:.1} \
+count_amp_arcsec={:.2} pickoff_gain={}",
         state_word(s.state),
         detail.0,
         detail.1,
@@ -89,18 +99,33 @@ phase_err_rad={:.5} noise_pct={:.2} faults={},{},{},{},{} in_a_row={} backoff_s=
         f[4],
         s.faults_in_a_row,
         s.retry_backoff_s,
+        count_arcsec,
+        GainText(s.amplitude_arcsec, count_arcsec),
     ))
+}
+
+/// `pick-off / count` to 5 decimals, or `-` when there is no count amplitude.
+struct GainText(f32, f32);
+
+impl core::fmt::Display for GainText {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        if self.1 > 1.0 && self.0.is_finite() {
+            write!(f, "{:.5}", self.0 / self.1)
+        } else {
+            f.write_str("-")
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::protocol::commands::testing::{text, MemDevice};
+    use crate::protocol::commands::testing::{text, MemDevice, ID};
     use crate::protocol::respond::MAX_RESPONSE;
     use crate::storage::DitherSetpoints;
 
     fn answer(device: &mut MemDevice, c: DitherCommand) -> Result<String, ErrorCode> {
-        command(device, c).map(|r| text(r).trim_end().to_owned())
+        command(device, &ID, c).map(|r| text(r).trim_end().to_owned())
     }
 
     #[test]
@@ -159,6 +184,10 @@ mod tests {
             "{line}"
         );
         assert!(line.contains(" faults=0,0,0,0,0 in_a_row=0 "), "{line}");
+        assert!(
+            line.ends_with(" count_amp_arcsec=0.00 pickoff_gain=-"),
+            "{line}"
+        );
         // The longest the line can get: every counter at u32::MAX, every float wide.
         let mut s = device.dither_status();
         s.state = DitherState::Fault(FaultKind::AmplitudeOutOfRange);
@@ -171,7 +200,7 @@ mod tests {
         s.phase_error_rad = -1.0e7;
         s.noise_depth_percent = -1.0e7;
         s.retry_backoff_s = 1.0e7;
-        let long = status(&s).finish(true);
+        let long = status(&s, -1.0e7).finish(true);
         assert!(long.len() <= MAX_RESPONSE, "{} bytes: {long}", long.len());
         assert!(
             long.contains("state=fault fault=amplitude_out_of_range"),
