@@ -46,9 +46,15 @@ fn bench_phase(c: &mut Criterion) {
         amplitude_jitter: AmplitudeModulation::jitter(0.002),
         ..Default::default()
     };
+    // The noise alone: what `driven_noise` is to be compared with.
+    let noise_only = GyroParams {
+        arw_deg_per_rt_h: 0.01,
+        ..Default::default()
+    };
     for (name, params) in [
         ("steady_dither", GyroParams::default()),
         ("noise_and_jitter", noisy),
+        ("noise", noise_only),
     ] {
         group.bench_function(name, |b| {
             b.iter_batched(
