@@ -7,16 +7,16 @@
 //! Method as in `theory_chow.rs`: the mean output over whole slip periods at 1.5, 2, 3 and -2
 //! times the band, `Omega_L0^2 = mean(Omega_i^2 - out^2)`; locked just inside (0.8 band).
 
+mod chow_support;
+
 use core::f64::consts::TAU;
+
 use firmware::calibration::validation::chow_dead_band_rad_per_s;
-use firmware::sample::TurnaroundKind;
 use hal_sim::dither::resonator::ResonatorParams;
 use hal_sim::gyro::{Gyro, Turnaround};
 use hal_sim::input::InputProfile;
 use hal_sim::params::GyroParams;
-use hal_sim::units::{
-    arcsec_to_beat_rad, beat_rad_per_s_to_deg_per_h, deg_per_h_to_beat_rad_per_s,
-};
+use hal_sim::units::{arcsec_to_beat_rad, beat_rad_per_s_to_deg_per_h};
 
 fn params() -> GyroParams {
     GyroParams::default().with_steady_driven_dither(ResonatorParams::default())
@@ -55,24 +55,7 @@ impl Driven {
 /// Mean output (rad/s of beat phase) over `slips` whole slip periods.
 fn mean_output(p: GyroParams, input_deg_h: f64, slips: f64) -> f64 {
     let mut g = Driven::new(p, input_deg_h);
-    let mut plus = Vec::new();
-    while plus.len() < 200_000 {
-        let t = g.next_turnaround();
-        if t.time_s < 0.02 || t.kind != TurnaroundKind::Plus {
-            continue;
-        }
-        plus.push((t.time_s, t.psi_rad));
-        let (t0, psi0) = plus[0];
-        let target = TAU * slips;
-        let moved = (t.psi_rad - psi0).abs();
-        if moved >= target {
-            let (ta, pa) = plus[plus.len() - 2];
-            let frac = (target - (pa - psi0).abs()) / (moved - (pa - psi0).abs());
-            let t_star = ta + frac * (t.time_s - ta);
-            return (t.psi_rad - psi0).signum() * target / (t_star - t0);
-        }
-    }
-    panic!("no slip at {input_deg_h} deg/h");
+    chow_support::mean_output(|| g.next_turnaround(), slips)
 }
 
 #[test]
@@ -91,26 +74,7 @@ fn dead_band_matches_chow_with_the_driven_dither() {
 
     let chow = chow_dead_band_rad_per_s(d.omega_l_rad_per_s, arcsec_to_beat_rad(450.0, sf));
     let chow_deg_h = beat_rad_per_s_to_deg_per_h(chow, sf);
-    let mut sum = 0.0;
-    let ratios = [1.5, 2.0, 3.0, -2.0];
-    for r in ratios {
-        let input = r * chow_deg_h;
-        let wi = deg_per_h_to_beat_rad_per_s(input, sf);
-        let out = mean_output(p, input, 3.0);
-        let band2 = wi * wi - out * out;
-        eprintln!(
-            "  input {input:+.4} deg/h: output {:+.5} deg/h, implied band {:.5} deg/h",
-            beat_rad_per_s_to_deg_per_h(out, sf),
-            beat_rad_per_s_to_deg_per_h(band2.max(0.0).sqrt(), sf)
-        );
-        sum += band2;
-    }
-    let fit = (sum / ratios.len() as f64).sqrt();
-    let rel = fit / chow - 1.0;
-    eprintln!(
-        "Chow band {chow_deg_h:.5} deg/h, fitted {:.5} deg/h, rel {rel:+.2e}",
-        beat_rad_per_s_to_deg_per_h(fit, sf)
-    );
+    let rel = chow_support::fitted_band_relative(chow, sf, |input| mean_output(p, input, 3.0));
     assert!(rel.abs() < 5e-3, "fitted band off Chow by {rel}");
     // Regression: as close as with the prescribed sine (measured 1.7e-5 there).
     assert!(rel.abs() < 1e-4, "fitted band off Chow by {rel}");
