@@ -12,7 +12,7 @@
 //! turnarounds instead (inside the near regions: more, shorter near pieces).
 
 use criterion::{criterion_group, BatchSize, Criterion, Throughput};
-use hal_sim::dither::drive::OpenLoopDrive;
+use hal_sim::dither::open_loop::OpenLoopDrive;
 use hal_sim::dither::resonator::ResonatorParams;
 use hal_sim::gyro::{measure_speed, Gyro};
 use hal_sim::input::InputProfile;

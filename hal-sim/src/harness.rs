@@ -59,11 +59,13 @@
 //!   the firmware is configured for the board it runs on, never by a copy of its constants.
 
 use crate::board::{BoardConfig, BoardError, LatchRecord, LatchTiming, SimBoard};
-use crate::dither::drive::{DriveError, OpenLoopDrive};
+use crate::dither::drive::DriveError;
+use crate::dither::open_loop::OpenLoopDrive;
 use crate::drive_loop::FirmwareDrive;
 use crate::gyro::{Gyro, Traversal};
 use crate::input::InputProfile;
-use crate::params::{GyroParams, ParamError};
+use crate::param_error::ParamError;
+use crate::params::GyroParams;
 use firmware::profile::BoardProfile;
 use firmware::readout::{Readout, ReadoutConfig};
 use firmware::sample::TurnaroundSample;

@@ -21,6 +21,7 @@ pub mod dither;
 pub mod gyro;
 pub mod input;
 pub mod noise;
+pub mod param_error;
 pub mod params;
 pub mod phase;
 pub mod units;

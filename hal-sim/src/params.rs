@@ -6,8 +6,9 @@
 //! beat-phase units the integrator uses ([`Derived`], rad and rad/s of beat phase). Mutable
 //! state lives elsewhere ([`crate::gyro::Gyro`]).
 
-use crate::dither::drive::OpenLoopDrive;
+use crate::dither::open_loop::OpenLoopDrive;
 use crate::dither::resonator::ResonatorParams;
+use crate::param_error::ParamError;
 use crate::units::{
     arcsec_to_beat_rad, arw_deg_per_rt_h_to_beat_rad_per_rt_s, deg_per_h_to_beat_rad_per_s,
     hz_to_rad_per_s,
@@ -180,23 +181,6 @@ impl Default for GyroParams {
         }
     }
 }
-
-/// Why a parameter set was rejected.
-#[derive(Clone, Debug, PartialEq)]
-pub enum ParamError {
-    /// A field is not finite or out of its range; the text says which and why.
-    OutOfRange(&'static str),
-}
-
-impl core::fmt::Display for ParamError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self {
-            ParamError::OutOfRange(what) => write!(f, "parameter out of range: {what}"),
-        }
-    }
-}
-
-impl std::error::Error for ParamError {}
 
 /// Parameters converted to beat-phase units (rad, rad/s), validated.
 #[derive(Clone, Copy, Debug, PartialEq)]

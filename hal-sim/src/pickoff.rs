@@ -29,7 +29,7 @@
 //!   the ADC reads the offset plus noise, and the comparator sees a constant (no edges).
 
 use crate::gyro::Gyro;
-use crate::params::ParamError;
+use crate::param_error::ParamError;
 use crate::photodiode::AdcConfig;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

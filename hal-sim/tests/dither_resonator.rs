@@ -12,9 +12,10 @@
 //! Everything is deterministic (no noise); each tolerance is stated where it is checked.
 
 use core::f64::consts::{PI, TAU};
-use hal_sim::dither::drive::{DriveSegment, OpenLoopDrive};
+use hal_sim::dither::drive::DriveSegment;
 use hal_sim::dither::driven::DrivenDither;
 use hal_sim::dither::linear::{Forcing, LinearSystem, ResonatorState, SegmentResponse};
+use hal_sim::dither::open_loop::OpenLoopDrive;
 use hal_sim::dither::resonator::ResonatorParams;
 use hal_sim::dither::MAX_JET;
 

@@ -2,7 +2,8 @@
 //! advancing interleave, and the phase integrator's accuracy against the brute-force reference
 //! with drive segments that change at the turnarounds.
 
-use hal_sim::dither::drive::{DriveError, DriveSegment, DriveSink, OpenLoopDrive};
+use hal_sim::dither::drive::{DriveError, DriveSegment, DriveSink};
+use hal_sim::dither::open_loop::OpenLoopDrive;
 use hal_sim::dither::resonator::ResonatorParams;
 use hal_sim::gyro::{Gyro, Turnaround};
 use hal_sim::input::InputProfile;

@@ -25,7 +25,7 @@ fn params() -> GyroParams {
 /// A driven gyro at `input_deg_h` with its open-loop drive, fed two periods ahead.
 struct Driven {
     gyro: Gyro,
-    drive: hal_sim::dither::drive::OpenLoopDrive,
+    drive: hal_sim::dither::open_loop::OpenLoopDrive,
 }
 
 impl Driven {

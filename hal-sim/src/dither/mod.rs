@@ -58,6 +58,7 @@ pub mod amplifier;
 pub mod drive;
 pub mod driven;
 pub mod linear;
+pub mod open_loop;
 pub mod resonator;
 pub mod sine;
 

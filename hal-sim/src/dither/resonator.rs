@@ -30,7 +30,7 @@
 use super::amplifier::AmplifierParams;
 use super::drive::{DacParams, DriveSegment};
 use super::linear::{Complex, Forcing, LinearSystem, ResonatorState, SegmentResponse};
-use crate::params::ParamError;
+use crate::param_error::ParamError;
 use core::f64::consts::{PI, TAU};
 
 /// A scripted temperature: piecewise linear through up to [`TemperatureProfile::MAX_KNOTS`]

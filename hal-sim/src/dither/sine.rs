@@ -29,6 +29,7 @@
 
 use super::MAX_JET;
 use crate::params::{AmplitudeModulation, Derived, GyroParams};
+use crate::phase::trig::reduced_phase;
 use crate::units::beat_rad_to_arcsec;
 use core::f64::consts::TAU;
 use firmware::sample::TurnaroundKind;
@@ -87,29 +88,6 @@ fn draw_tones(m: &AmplitudeModulation, seed: u64, out: &mut Vec<Tone>) {
 }
 
 /// Veltkamp split of `a` into two 26-bit halves (`a = hi + lo` exactly).
-#[inline]
-fn split(a: f64) -> (f64, f64) {
-    let c = 134_217_729.0 * a;
-    let hi = c - (c - a);
-    (hi, a - hi)
-}
-
-/// `2 pi frac(f t)`: the dither phase in [0, 2 pi), with `f t` formed as an error-free
-/// product (Dekker; `f64::mul_add` would be a slow libm call without target FMA) and the
-/// floor by the 1.5 * 2^52 rounding trick (valid for |f t| < 2^51, negative times included).
-pub(crate) fn reduced_phase(freq_hz: f64, t_s: f64) -> f64 {
-    const MAGIC: f64 = 6_755_399_441_055_744.0;
-    let p = freq_hz * t_s;
-    let (fh, fl) = split(freq_hz);
-    let (th, tl) = split(t_s);
-    let e = ((fh * th - p) + fh * tl + fl * th) + fl * tl;
-    let mut n = (p + MAGIC) - MAGIC;
-    if n > p {
-        n -= 1.0;
-    }
-    TAU * ((p - n) + e)
-}
-
 fn binomial_row(n: usize) -> [f64; MAX_JET] {
     let mut row = [0.0; MAX_JET];
     row[0] = 1.0;

@@ -1,4 +1,7 @@
-//! Fast `(cos, sin)` for the integrator's inner loops and the dither phase.
+//! Fast `(cos, sin)` for the integrator's inner loops and the dither phase, and the dither
+//! phase itself reduced exactly ([`reduced_phase`]).
+
+use core::f64::consts::TAU;
 
 /// `(cos x, sin x)` for |x| < 1e5, to ~2 ulp of 1: Cody-Waite reduction by pi/2 and Taylor
 /// polynomials on [-pi/4, pi/4] (libm is ~3x slower and this is the integrator's inner loop).
@@ -39,4 +42,27 @@ pub fn fast_cos_sin(x: f64) -> (f64, f64) {
         v[swap] * SIGN[((q + 1) >> 1) & 1],
         v[1 - swap] * SIGN[q >> 1],
     )
+}
+
+#[inline]
+fn split(a: f64) -> (f64, f64) {
+    let c = 134_217_729.0 * a;
+    let hi = c - (c - a);
+    (hi, a - hi)
+}
+
+/// `2 pi frac(f t)`: the dither phase in [0, 2 pi), with `f t` formed as an error-free
+/// product (Dekker; `f64::mul_add` would be a slow libm call without target FMA) and the
+/// floor by the 1.5 * 2^52 rounding trick (valid for |f t| < 2^51, negative times included).
+pub fn reduced_phase(freq_hz: f64, t_s: f64) -> f64 {
+    const MAGIC: f64 = 6_755_399_441_055_744.0;
+    let p = freq_hz * t_s;
+    let (fh, fl) = split(freq_hz);
+    let (th, tl) = split(t_s);
+    let e = ((fh * th - p) + fh * tl + fl * th) + fl * tl;
+    let mut n = (p + MAGIC) - MAGIC;
+    if n > p {
+        n -= 1.0;
+    }
+    TAU * ((p - n) + e)
 }
