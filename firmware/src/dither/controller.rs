@@ -2,6 +2,10 @@
 //! status. It owns the state of every part (window, loops, start-up, supervisor, noise); the
 //! parts' settings come in as the immutable [`DitherConfig`].
 //!
+//! (Over 600 lines, on purpose: the modes of the start-up, the lock and the faults are one
+//! state machine over one state, and splitting its transitions across files would hide which
+//! mode can follow which. The parts it drives each have their own file.)
+//!
 //! # One tick
 //! Sample k of the pick-off arrives with tick k; the call returns the DAC code of tick k + 1.
 //! The sine of that code's phase phi(k + 1) is computed once and serves twice: as the DAC

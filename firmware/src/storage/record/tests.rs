@@ -1,0 +1,162 @@
+//! The record's tests: round trips of both format versions, the documented layout, every
+//! single bit flip refused, the plausibility checks.
+
+use super::*;
+
+fn sample() -> CalibrationRecord {
+    CalibrationRecord {
+        serial_number: 0x1234_5678,
+        boot_count: 42,
+        settings: CompensationSettings {
+            coefficients: Coefficients {
+                a_q16: 12_345_678,
+                b_q16: -7_654_321,
+            },
+            enabled: true,
+        },
+        fit: Some(FitSummary {
+            cycles: 1_000_000,
+            runs: 4,
+            a_std_rad_per_s: 1.5e-3,
+            b_std_rad_per_s: 2.5e-3,
+            residual_std_rad: 3e-4,
+            variance_reduction: 0.93,
+            condition_number: 1.7,
+            mean_rate_rad_per_s: -12.5,
+        }),
+        reset_to_defaults: false,
+        dither: Some(DitherSetpoints {
+            enabled: true,
+            amplitude_arcsec: 450.0,
+            noise_percent: 12.5,
+        }),
+    }
+}
+
+/// The version-1 bytes of a record without dither setpoints (what older firmware wrote).
+fn encode_v1(record: &CalibrationRecord, sequence: u32) -> [u8; V1_RECORD_BYTES] {
+    assert!(record.dither.is_none());
+    let v2 = encode(record, sequence);
+    let mut bytes = [0u8; V1_RECORD_BYTES];
+    bytes[..offset::V1_CRC].copy_from_slice(&v2[..offset::V1_CRC]);
+    bytes[offset::VERSION] = V1_FORMAT_VERSION;
+    bytes[offset::LENGTH_WORDS] = (V1_RECORD_BYTES / 4) as u8;
+    seal(&mut bytes);
+    bytes
+}
+
+#[test]
+fn round_trip() {
+    for record in [
+        sample(),
+        CalibrationRecord::DEFAULTS,
+        CalibrationRecord::reset(7, 9),
+    ] {
+        let bytes = encode(&record, 99);
+        assert_eq!(decode(&bytes), Ok((99, record)));
+    }
+}
+
+#[test]
+fn layout_is_little_endian_at_documented_offsets() {
+    let bytes = encode(&sample(), 0x0102_0304);
+    assert_eq!(&bytes[..4], &[0x1B, 0xCA, 2, 20]);
+    assert_eq!(&bytes[4..8], &[4, 3, 2, 1]);
+    assert_eq!(&bytes[8..12], &[0x78, 0x56, 0x34, 0x12]);
+    assert_eq!(&bytes[56..60], &450.0f32.to_le_bytes());
+    assert_eq!(&bytes[60..64], &12.5f32.to_le_bytes());
+    assert_eq!(bytes[25], 0b101, "fit and dither present");
+    assert_eq!(&bytes[64..72], &[1, 0, 0, 0, 0, 0, 0, 0]);
+    assert_eq!(get_u32(&bytes, offset::CRC), crc32(&bytes[..72]));
+    assert_eq!(get_u32(&bytes, offset::COMMIT), COMMIT_MARKER);
+}
+
+#[test]
+fn version_1_records_still_load_without_dither_setpoints() {
+    let mut record = sample();
+    record.dither = None;
+    let v1 = encode_v1(&record, 7);
+    assert_eq!(&v1[..4], &[0x1B, 0xCA, 1, 16]);
+    assert_eq!(decode(&v1), Ok((7, record)));
+    // A version-1 frame cannot claim the version-2 dither flag.
+    let mut bad = v1;
+    bad[offset::FLAGS] |= FLAG_DITHER_PRESENT;
+    seal(&mut bad);
+    assert_eq!(decode(&bad), Err(RecordError::BadFlags));
+    // A frame whose length does not match its version is not read as that version.
+    let mut short = encode(&record, 7);
+    short[offset::VERSION] = V1_FORMAT_VERSION;
+    seal(&mut short);
+    assert_eq!(
+        decode(&short),
+        Err(RecordError::UnknownVersion { version: 1 })
+    );
+}
+
+#[test]
+fn dither_setpoints_are_range_checked_and_absent_means_zero_bytes() {
+    let mut record = sample();
+    for (amplitude, noise) in [
+        (0.0, 0.0),
+        (-1.0, 0.0),
+        (f32::NAN, 0.0),
+        (MAX_DITHER_AMPLITUDE_ARCSEC * 1.01, 0.0),
+        (450.0, -0.1),
+        (450.0, 100.5),
+        (450.0, f32::INFINITY),
+    ] {
+        record.dither = Some(DitherSetpoints {
+            enabled: true,
+            amplitude_arcsec: amplitude,
+            noise_percent: noise,
+        });
+        assert_eq!(record.check(), Err(RecordError::ImplausibleDither));
+        // Bytes holding them are refused at load as well.
+        assert_eq!(
+            decode(&encode(&record, 1)),
+            Err(RecordError::ImplausibleDither)
+        );
+    }
+    record.dither = None;
+    let mut bytes = encode(&record, 1);
+    bytes[offset::DITHER_AMPLITUDE] = 1; // bytes without the flag
+    seal(&mut bytes);
+    assert_eq!(decode(&bytes), Err(RecordError::ImplausibleDither));
+    let mut bytes = encode(&sample(), 1);
+    bytes[offset::RESERVED + 3] = 1;
+    seal(&mut bytes);
+    assert_eq!(decode(&bytes), Err(RecordError::ImplausibleDither));
+    let mut reset = CalibrationRecord::reset(1, 1);
+    reset.dither = sample().dither;
+    assert_eq!(reset.check(), Err(RecordError::ImplausibleReset));
+}
+
+#[test]
+fn every_single_bit_flip_is_refused() {
+    let bytes = encode(&sample(), 5);
+    for bit in 0..RECORD_BYTES * 8 {
+        let mut flipped = bytes;
+        flipped[bit / 8] ^= 1 << (bit % 8);
+        assert!(decode(&flipped).is_err(), "bit {bit}");
+    }
+    let mut record = sample();
+    record.dither = None;
+    let v1 = encode_v1(&record, 5);
+    for bit in 0..V1_RECORD_BYTES * 8 {
+        let mut flipped = v1;
+        flipped[bit / 8] ^= 1 << (bit % 8);
+        assert!(decode(&flipped).is_err(), "v1 bit {bit}");
+    }
+}
+
+#[test]
+fn implausible_records_are_refused() {
+    let mut record = sample();
+    record.fit.as_mut().unwrap().condition_number = 0.5;
+    assert_eq!(record.check(), Err(RecordError::ImplausibleFit));
+    record.fit.as_mut().unwrap().condition_number = f32::NAN;
+    assert_eq!(record.check(), Err(RecordError::ImplausibleFit));
+    let mut reset = CalibrationRecord::reset(1, 1);
+    reset.settings.enabled = true;
+    assert_eq!(reset.check(), Err(RecordError::ImplausibleReset));
+}
