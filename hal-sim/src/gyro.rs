@@ -14,7 +14,10 @@
 //! With the driven dither ([`crate::params::DitherModel::Driven`]) the gyro also takes the
 //! drive: [`Gyro::push_drive`] appends the firmware's DDS segments, [`Gyro::extend_drive_until`]
 //! says how long the last one holds, and [`Gyro::drive_known_until_s`] is how far the dither is
-//! known. The gyro never plans beyond that time; [`Gyro::try_advance_to`] refuses to pass it
+//! known. The gyro never plans beyond that time, nor, with the noise on, beyond the noise
+//! horizon (the noise steps snap to the drive's segment starts, so a noise segment is known
+//! once the drive decides its end: [`Gyro::known_until_s`], less than 3/4 of a nominal period
+//! before the drive horizon, [`crate::noise`]); [`Gyro::try_advance_to`] refuses to pass it
 //! (and [`Gyro::advance_to`] panics). Keep the drive known [`Gyro::drive_lead_s`] (two nominal
 //! dither periods) ahead of every time you advance to: then every planned piece is complete,
 //! the next turnaround is always found, and the results do not depend on how pushing and
@@ -184,10 +187,10 @@ impl Gyro {
         psi
     }
 
-    /// As [`Self::advance_to`], but refuses (and stays where it is) if `t_s` lies beyond the
-    /// time up to which the drive is known.
+    /// As [`Self::advance_to`], but refuses (and stays where it is) if `t_s` lies beyond
+    /// [`Self::known_until_s`].
     pub fn try_advance_to(&mut self, t_s: f64) -> Result<f64, DriveExhausted> {
-        let known_until_s = self.drive_known_until_s();
+        let known_until_s = self.known_until_s();
         if t_s > known_until_s {
             return Err(DriveExhausted {
                 asked_s: t_s,
@@ -202,10 +205,10 @@ impl Gyro {
     /// becomes the new horizon). [`DriveError::NotDriven`] for the prescribed sine.
     pub fn push_drive(&mut self, segment: DriveSegment) -> Result<(), DriveError> {
         let keep_from_s = self.integ.t_now() - HISTORY_S;
-        let dither = self.integ.free_phase_mut().dither_mut();
-        let driven = dither.driven_mut().ok_or(DriveError::NotDriven)?;
+        let fp = self.integ.free_phase_mut();
+        let driven = fp.dither_mut().driven_mut().ok_or(DriveError::NotDriven)?;
         driven.push(segment)?;
-        driven.forget_before(keep_from_s);
+        fp.forget_before(keep_from_s);
         Ok(())
     }
 
@@ -223,6 +226,15 @@ impl Gyro {
     /// for the prescribed sine).
     pub fn drive_known_until_s(&self) -> f64 {
         self.integ.free_phase().dither().known_until_s()
+    }
+
+    /// The time up to which the gyro can advance (and answer `theta`, the rate), s: the drive
+    /// horizon [`Self::drive_known_until_s`], or with the noise on under a driven dither the
+    /// noise horizon if that is earlier: the start of the first noise segment whose end the
+    /// drive does not decide yet, less than 3/4 of a nominal period before the drive horizon
+    /// (see [`crate::noise`]). Infinite for the prescribed sine.
+    pub fn known_until_s(&self) -> f64 {
+        self.integ.free_phase().known_until_s()
     }
 
     /// The lead a caller keeps between the drive horizon and the times it advances to: two
@@ -278,24 +290,30 @@ impl Gyro {
     }
 
     fn check_known(&self, t_s: f64) {
-        let known = self.drive_known_until_s();
+        let known = self.known_until_s();
         assert!(
             t_s <= known,
-            "t = {t_s} s lies beyond the drive known until {known} s"
+            "t = {t_s} s lies beyond the drive (and noise) known until {known} s"
         );
     }
 
     /// The lock-in-free phase `theta(t)` (input + dither + noise angle), rad of beat phase.
-    /// A driven dither answers only within its known drive (panics beyond).
+    /// A driven dither answers only up to [`Self::known_until_s`] (panics beyond).
     pub fn theta_rad(&self, t_s: f64) -> f64 {
         self.check_known(t_s);
         self.integ.free_phase().theta_rad(t_s)
     }
 
-    /// The lock-in-free rate at `t_s`, rad/s of beat phase (within the known drive).
+    /// The lock-in-free rate at `t_s`, rad/s of beat phase, up to [`Self::known_until_s`] (with
+    /// the noise on, strictly before the noise horizon: the rate after it is not known yet).
     pub fn lockin_free_rate_rad_per_s(&self, t_s: f64) -> f64 {
         self.check_known(t_s);
         let fp = self.integ.free_phase();
+        let noise_until = fp.noise().known_until_s(fp.dither());
+        assert!(
+            t_s < noise_until,
+            "t = {t_s} s: the noise rate from {noise_until} s on is not known yet"
+        );
         fp.omega_and_slope(t_s, fp.piece_at(t_s)).0
     }
 

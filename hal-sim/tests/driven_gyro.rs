@@ -138,6 +138,136 @@ fn results_do_not_depend_on_how_the_drive_is_fed() {
     assert!(worst < 1e-10, "{worst}");
 }
 
+/// A driven gyro with angle random walk (0.05 deg/sqrt(h)).
+fn noisy_params() -> GyroParams {
+    GyroParams {
+        arw_deg_per_rt_h: 0.05,
+        ..GyroParams::default()
+    }
+    .with_steady_driven_dither(ResonatorParams::default())
+}
+
+/// How [`run_noisy`] feeds the drive.
+#[derive(Clone, Copy)]
+enum Feed {
+    /// Pushed this far ahead of every time advanced to, s.
+    Lead(f64),
+    /// Only until the gyro's horizon ([`Gyro::known_until_s`]: the noise horizon, less than 3/4
+    /// of a period before the drive's) reaches the time advanced to, with the last segment
+    /// extended half-way to the next start before each push.
+    Minimal,
+}
+
+/// Runs `seconds` of the driven gyro with noise and the wobbling `drive`, fed as `feed` says,
+/// advancing in steps of `step_s`; returns every turnaround (of the traversals completed).
+fn run_noisy(drive: &OpenLoopDrive, feed: Feed, step_s: f64, seconds: f64) -> Vec<Turnaround> {
+    let mut g = Gyro::new(noisy_params(), InputProfile::constant(5.0)).unwrap();
+    let mut k = 0;
+    let mut t = 0.0;
+    let mut turns: Vec<Turnaround> = Vec::new();
+    while t < seconds {
+        t = (t + step_s).min(seconds);
+        match feed {
+            Feed::Lead(lead_s) => {
+                while g.drive_known_until_s() < t + lead_s {
+                    g.push_drive(wobbling(drive, k)).unwrap();
+                    k += 1;
+                }
+            }
+            Feed::Minimal => {
+                while g.known_until_s() < t {
+                    let next = wobbling(drive, k);
+                    let half_way = 0.5 * (g.drive_known_until_s() + next.start_s);
+                    g.extend_drive_until(half_way).unwrap();
+                    g.push_drive(next).unwrap();
+                    k += 1;
+                }
+                assert!(g.known_until_s() <= g.drive_known_until_s());
+            }
+        }
+        g.advance_to(t);
+        turns.extend(g.take_traversals().iter().map(|x| x.turnaround));
+    }
+    turns
+}
+
+/// With the noise on, the noise steps snap to the drive's segment starts (`hal_sim::noise`)
+/// and a noise segment is used only once the drive decides its end: the results do not depend
+/// on the lead or on how the gyro is advanced, bit for bit, even with the drive fed only as far
+/// as the gyro's horizon (no piece is ever cut at a horizon: every piece ends at or before its
+/// noise segment's decided end). Both with the open-loop drive (segment starts ~3 ticks after
+/// the nominal noise grid: every boundary snaps) and with a drive at 392 Hz (its starts slide
+/// through the snap windows: about half of the boundaries snap).
+#[test]
+fn results_with_noise_do_not_depend_on_how_the_drive_is_fed() {
+    let p = noisy_params();
+    let r = *p.resonator().unwrap();
+    let seconds = 0.2;
+    let lead = 2.0 / 389.0;
+    for drive in [
+        p.open_loop_drive().unwrap(),
+        OpenLoopDrive::tuned(&r, 392.0, 450.0),
+    ] {
+        let a = run_noisy(&drive, Feed::Lead(lead), 0.5 / 389.0, seconds);
+        assert!(a.len() > 150, "{}", a.len());
+        for (feed, step) in [
+            (Feed::Lead(0.05), 0.0137),
+            (Feed::Minimal, 0.4 / 389.0),
+            (Feed::Minimal, 0.0137),
+        ] {
+            let b = run_noisy(&drive, feed, step, seconds);
+            assert_eq!(a.len(), b.len());
+            for (x, y) in a.iter().zip(&b) {
+                assert_eq!(x.time_s.to_bits(), y.time_s.to_bits());
+                assert_eq!(x.psi_rad.to_bits(), y.psi_rad.to_bits(), "{x:?} vs {y:?}");
+            }
+        }
+    }
+}
+
+/// With the noise on the gyro goes no further than its horizon: the drive's, or the noise
+/// horizon when a noise segment's end is not decided yet (less than 3/4 of a period before);
+/// it goes on when more drive decides it. Without noise the horizon is the drive's.
+#[test]
+fn the_noise_horizon_is_respected() {
+    let p = noisy_params();
+    let drive = p.open_loop_drive().unwrap();
+    let mut g = Gyro::new(p, InputProfile::constant(5.0)).unwrap();
+    assert_eq!(g.known_until_s(), 0.0);
+    g.push_drive(drive.segment(0)).unwrap();
+    g.extend_drive_until(0.0015).unwrap();
+    // The first noise boundary (nominal T/4 = 0.643 ms) waits for a drive start in
+    // [T/8, 3T/8) or for the drive to pass 3T/8 = 0.964 ms: decided at its nominal time.
+    let t4 = 0.25 / 389.0;
+    assert_eq!(g.known_until_s(), t4);
+    assert!(g.try_advance_to(0.001).is_err());
+    assert!(g.try_advance_to(t4).is_ok());
+    // Each start of the open-loop drive decides the noise boundary it lies near (3 ticks
+    // after the nominal one): the horizons coincide. A drive known past that start, but not
+    // up to the next one, leaves the next noise segment open.
+    let mut g = Gyro::new(p, InputProfile::constant(5.0)).unwrap();
+    let mut k = 0;
+    while g.drive_known_until_s() < 0.02 {
+        g.push_drive(drive.segment(k)).unwrap();
+        k += 1;
+    }
+    assert_eq!(g.known_until_s(), g.drive_known_until_s());
+    g.extend_drive_until(g.drive_known_until_s() + 1e-3)
+        .unwrap();
+    let (known, drive_known) = (g.known_until_s(), g.drive_known_until_s());
+    assert!(known < drive_known && known > drive_known - 0.75 / 389.0);
+    let err = g.try_advance_to(drive_known).unwrap_err();
+    assert_eq!(err.known_until_s, known);
+    g.advance_to(known);
+    // More drive decides the open segment.
+    g.push_drive(drive.segment(k)).unwrap();
+    g.push_drive(drive.segment(k + 1)).unwrap();
+    assert!(g.known_until_s() > known);
+    g.advance_to(g.known_until_s());
+    let quiet = Gyro::new(driven_params(), InputProfile::constant(5.0)).unwrap();
+    assert_eq!(quiet.known_until_s(), 0.0);
+}
+
 /// The fast integrator against the brute-force reference (RK4 on Eq. 6 with the exact
 /// driven dither at every stage, 0.01 rad of beat phase per step, itself converged: 0.02
 /// agrees to < 1e-10 rad), with drive segments starting at the turnarounds (inside the near

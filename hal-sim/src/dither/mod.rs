@@ -48,6 +48,17 @@
 //! ~1e-8 rad), but a turnaround whose piece is not complete is not reported until more drive
 //! arrives.
 //!
+//! With the angle random walk on, the noise steps snap to the drive's segment starts
+//! ([`crate::noise`]), and a noise segment is known once the drive decides its end: the gyro
+//! goes no further than the *noise horizon* (`Gyro::known_until_s`), less than 3/4 of a
+//! nominal period before the drive's. The lead argument above still holds: the next
+//! turnaround is at most half a period ahead, the noise segment containing it ends less than
+//! 3/4 of a period after it, and a drive known that far (1.25 periods) decides that end; so a
+//! caller keeping the two-period lead never meets the noise horizon. With a shorter lead the
+//! gyro refuses to pass it, but never cuts a piece: every piece ends at or before its noise
+//! segment's decided end, so with the noise on the results are the same bit for bit whatever
+//! the lead.
+//!
 //! # The pick-off
 //!
 //! The strain pick-off reports the body's dither angle (arcsec), in either model

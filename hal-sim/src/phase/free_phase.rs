@@ -10,8 +10,13 @@
 //!
 //! With the driven dither ([`crate::dither::driven`]) every drive segment start is a
 //! breakpoint too, a piece lasts at most one nominal dither period (the noise segments still
-//! split it when the noise is on), and no piece reaches beyond the time up to which the drive
-//! is known: [`FreePhase::piece_end`] says whether a piece is complete or cut at that horizon.
+//! split it when the noise is on; they snap to the drive's segment starts, so that a noise
+//! step and a drive start near it make one breakpoint, see [`crate::noise`]), and no piece
+//! reaches beyond [`FreePhase::known_until_s`]: the time up to which the drive is known, or
+//! with the noise on the noise horizon if that is earlier (the start of the first noise
+//! segment whose end the drive does not decide yet). [`FreePhase::piece_end`] says whether a
+//! piece is complete or cut at that horizon; with the noise on a piece always ends at or
+//! before its noise segment's decided end, so it is never cut.
 
 use crate::dither::{Dither, MAX_JET};
 use crate::input::InputProfile;
@@ -76,21 +81,41 @@ impl FreePhase {
     pub fn piece_at(&self, t_s: f64) -> PieceId {
         PieceId {
             input: self.input.piece_index(t_s),
-            noise: self.noise.segment_index(t_s),
+            noise: self.noise.segment_at(t_s, &self.dither),
             drive: self.dither.drive_index_at(t_s),
         }
     }
 
+    /// The time up to which the free phase is known, s: the driven dither's drive horizon, or
+    /// the noise horizon if the noise is on and that is earlier ([`Noise::known_until_s`]:
+    /// less than 3/4 of a nominal period earlier); infinite for the prescribed sine.
+    pub fn known_until_s(&self) -> f64 {
+        self.dither
+            .known_until_s()
+            .min(self.noise.known_until_s(&self.dither))
+    }
+
     /// End of the piece that starts at `t_s`, and whether it is complete: `false` when the
-    /// piece is cut at the horizon of the driven dither's known drive (the end returned is the
-    /// horizon, which may equal `t_s`: nothing can be planned until more drive comes).
+    /// piece is cut at the horizon ([`Self::known_until_s`]; the end returned is the horizon,
+    /// which may equal `t_s`: nothing can be planned until more drive comes).
     pub fn piece_end(&self, t_s: f64) -> (f64, bool) {
         let Some(d) = self.dither.driven() else {
             return (self.piece_end_after(t_s), true);
         };
         let mut end = t_s + 1.0 / d.nominal_hz();
+        let mut horizon = d.known_until_s();
         if self.noise.is_on() {
-            end = end.min(self.noise.segment_end_s(self.noise.segment_index(t_s)));
+            // The noise is known before its horizon only, where the segment containing `t_s`
+            // has a decided end (at or before the horizon: the piece is complete if the drive
+            // reaches it).
+            let noise_until = self.noise.known_until_s(&self.dither);
+            horizon = horizon.min(noise_until);
+            if t_s < noise_until {
+                let k = self.noise.segment_at(t_s, &self.dither);
+                if let Some(e) = self.noise.segment_end_known(k, &self.dither) {
+                    end = end.min(e);
+                }
+            }
         }
         if let Some(b) = self.input.breakpoint_after(t_s) {
             end = end.min(b);
@@ -98,10 +123,20 @@ impl FreePhase {
         if let Some(s) = d.segment_start_after(t_s) {
             end = end.min(s);
         }
-        if end <= d.known_until_s() {
+        if end <= horizon {
             (end, true)
         } else {
-            (d.known_until_s(), false)
+            (horizon, false)
+        }
+    }
+
+    /// Drops the driven dither's drive segments and the noise segments that ended at or before
+    /// `t_s` (the noise first decides what the drive decides: it needs the drive's segment
+    /// starts). Asking for earlier times then panics.
+    pub fn forget_before(&mut self, t_s: f64) {
+        self.noise.forget_before(t_s, &self.dither);
+        if let Some(d) = self.dither.driven_mut() {
+            d.forget_before(t_s);
         }
     }
 
@@ -139,7 +174,8 @@ impl FreePhase {
             out[k] = a[k] * self.input_scale + b[k];
         }
         if self.noise.is_on() {
-            self.noise.angle_jet(t_s, piece.noise, &mut a[..n.min(2)]);
+            self.noise
+                .angle_jet(t_s, piece.noise, &self.dither, &mut a[..n.min(2)]);
             for k in 0..n.min(2) {
                 out[k] += a[k];
             }

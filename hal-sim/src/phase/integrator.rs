@@ -482,9 +482,9 @@ impl Integrator {
             self.t_now
         );
         assert!(
-            t <= self.fp.dither().known_until_s(),
-            "asked {t} s beyond the drive known until {} s",
-            self.fp.dither().known_until_s()
+            t <= self.fp.known_until_s(),
+            "asked {t} s beyond the drive (and noise) known until {} s",
+            self.fp.known_until_s()
         );
         self.plan_past(t);
         while let Some(&tt) = self.planner.turnarounds.front() {
