@@ -493,7 +493,8 @@ impl Noise {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dither::drive::{DriveSegment, OpenLoopDrive};
+    use crate::dither::drive::DriveSegment;
+    use crate::dither::open_loop::OpenLoopDrive;
     use crate::dither::resonator::ResonatorParams;
 
     #[test]
