@@ -63,3 +63,14 @@ pub fn fitted_band_relative(
     );
     rel
 }
+
+/// Asserts that the beat phase at the "+" turnaround after `a` (`psi_a`, rad) and the one after
+/// `b` one second later (`psi_b`) are the same to 0.5 rad (modulo a fringe) and have not slipped:
+/// locked. Unlocked, even a tenth of the band of output would move it by more than 1 rad.
+pub fn assert_locked(psi_a: f64, psi_b: f64) {
+    let moved = psi_b - psi_a;
+    assert!(
+        (moved / TAU - (moved / TAU).round()).abs() * TAU < 0.5 && moved.abs() < 1.0,
+        "moved {moved}"
+    );
+}
