@@ -32,7 +32,7 @@
 
 use crate::board::SimBoard;
 use crate::dither::drive::{DacParams, DriveError, DriveSegment};
-use firmware::dither::{DitherConfig, DitherController, DitherState, Drive, Tick};
+use firmware::dither::{CommandError, DitherConfig, DitherController, DitherState, Drive, Tick};
 use firmware::profile::BoardProfile;
 use std::collections::VecDeque;
 
@@ -88,6 +88,26 @@ impl FirmwareDrive {
     /// next tick, as on the board).
     pub fn controller_mut(&mut self) -> (&mut DitherController, &DitherConfig) {
         (&mut self.controller, &self.config)
+    }
+
+    /// Sets the amplitude setpoint (arcsec), the noise dither's depth (percent of the drive
+    /// amplitude) and restarts its sequence from `seed`, as the serial commands `dither amp`
+    /// and `dither noise` do between ticks. The first refused value names itself in the error
+    /// (`"setpoint"` or `"noise depth"`); a refused setpoint changes nothing.
+    pub fn set_setpoints(
+        &mut self,
+        amplitude_arcsec: f32,
+        noise_percent: f32,
+        seed: u32,
+    ) -> Result<(), (&'static str, CommandError)> {
+        self.controller
+            .set_setpoint_arcsec(&self.config, amplitude_arcsec)
+            .map_err(|e| ("setpoint", e))?;
+        self.controller
+            .set_noise_depth_percent(noise_percent)
+            .map_err(|e| ("noise depth", e))?;
+        self.controller.set_noise_seed(seed);
+        Ok(())
     }
 
     /// The controller's settings.

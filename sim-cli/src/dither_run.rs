@@ -188,16 +188,13 @@ pub fn run(
         SimBoard::new(gyro, BoardConfig::for_gyro(&params)).map_err(|e| format!("{e:?}"))?;
     let mut drive =
         FirmwareDrive::new(&BoardProfile::F405, resonator.dac).map_err(|e| format!("{e:?}"))?;
-    {
-        let (controller, config) = drive.controller_mut();
-        controller
-            .set_setpoint_arcsec(config, options.setpoint_arcsec as f32)
-            .map_err(|e| format!("setpoint: {e:?}"))?;
-        controller
-            .set_noise_depth_percent(options.noise_percent as f32)
-            .map_err(|e| format!("noise depth: {e:?}"))?;
-        controller.set_noise_seed(options.seed as u32);
-    }
+    drive
+        .set_setpoints(
+            options.setpoint_arcsec as f32,
+            options.noise_percent as f32,
+            options.seed as u32,
+        )
+        .map_err(|(what, e)| format!("{what}: {e:?}"))?;
     let period_s = 1.0 / options.resonance_hz;
     let rows = (options.seconds / period_s).floor() as u64;
     let mut rows_seen: Vec<DitherRow> = Vec::with_capacity(rows as usize);

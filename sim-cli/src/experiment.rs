@@ -128,14 +128,12 @@ pub fn run_constant_rate(
         let fw = harness
             .firmware_drive_mut()
             .ok_or_else(|| simulator("no firmware drive".into()))?;
-        let (controller, config) = fw.controller_mut();
-        controller
-            .set_setpoint_arcsec(config, params.dither_amplitude_arcsec as f32)
-            .map_err(|e| simulator(format!("dither amplitude for the drive: {e:?}")))?;
-        controller
-            .set_noise_depth_percent(noise_percent as f32)
-            .map_err(|e| simulator(format!("noise dither depth: {e:?}")))?;
-        controller.set_noise_seed(params.seed as u32);
+        fw.set_setpoints(
+            params.dither_amplitude_arcsec as f32,
+            noise_percent as f32,
+            params.seed as u32,
+        )
+        .map_err(|(what, e)| simulator(format!("dither drive {what}: {e:?}")))?;
         while harness
             .firmware_drive()
             .is_some_and(|d| d.controller().state() != DitherState::Locked)
