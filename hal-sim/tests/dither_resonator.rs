@@ -337,6 +337,19 @@ fn extremes(d: &DrivenDither, t0: f64, t1: f64) -> Vec<(f64, f64)> {
     out
 }
 
+/// The resonator started in the steady state of `drive` (no start-up transient), its
+/// nominal frequency 389 Hz and its phase scale 1 (the angle read in arcsec).
+fn at_steady_state(params: &ResonatorParams, drive: &OpenLoopDrive) -> DrivenDither {
+    DrivenDither::new(
+        &ResonatorParams {
+            initial: drive.steady_state(params),
+            ..*params
+        },
+        389.0,
+        1.0,
+    )
+}
+
 /// Free ring-down: drive removed at t = 0 from the 450 arcsec steady state. The maxima decay
 /// as `e^{-t/tau}`, `tau = Q/(pi f0)` = 0.8183 s: the log-linear fit of 1 s of maxima (after
 /// the amplifier's low-pass has settled, 10 ms) gives tau to 1e-6 (rounding and the extremes'
@@ -349,14 +362,7 @@ fn ring_down_time_is_q_over_pi_f0() {
             ..Default::default()
         };
         let drive = OpenLoopDrive::tuned(&params, 389.0, 450.0);
-        let mut d = DrivenDither::new(
-            &ResonatorParams {
-                initial: drive.steady_state(&params),
-                ..params
-            },
-            389.0,
-            1.0,
-        );
+        let mut d = at_steady_state(&params, &drive);
         d.push(DriveSegment {
             amplitude_v: 0.0,
             ..drive.segment(0)
@@ -475,14 +481,7 @@ fn temperature_drift_moves_the_resonance() {
     };
     params.validate().unwrap();
     let drive = OpenLoopDrive::tuned(&params, 389.0, 450.0);
-    let mut d = DrivenDither::new(
-        &ResonatorParams {
-            initial: drive.steady_state(&params),
-            ..params
-        },
-        389.0,
-        1.0,
-    );
+    let mut d = at_steady_state(&params, &drive);
     d.push(drive.segment(0)).unwrap();
     d.extend_until(16.01).unwrap();
     // Split every 10 ms while the temperature changes (100 in the first second), not after.
