@@ -78,11 +78,7 @@ mod app {
         let dp = pac::Peripherals::take().unwrap();
         let counter = InstructionCounter::start(Timer::Tim5);
         init_core(&mut cp.SCB, &mut cp.NVIC, &mut cp.SYST);
-        let config = ReadoutConfig::for_board(
-            84e6,
-            389.0,
-            firmware::profile::BoardProfile::F405.counter_width,
-        );
+        let config = firmware::profile::BoardProfile::F405.readout_config(389.0);
         let _records = init_readout(
             config,
             Readout::new(&config, CompensationSettings::default()),

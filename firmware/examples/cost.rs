@@ -17,7 +17,7 @@
 #[cfg(target_os = "none")]
 mod app {
     use firmware::icount::{InstructionCounter, Timer};
-    use firmware::readout::{Readout, ReadoutConfig};
+    use firmware::readout::Readout;
     use firmware::sample::{TurnaroundKind, TurnaroundSample};
     use firmware::signal::compensation::{Coefficients, CompensationSettings};
     use micromath::F32Ext;
@@ -38,11 +38,7 @@ mod app {
         let counter = InstructionCounter::start(Timer::Tim2);
 
         // The readout: Lissajous samples until the first window is solved.
-        let config = ReadoutConfig::for_board(
-            TIMER_HZ,
-            DITHER_HZ,
-            firmware::profile::BoardProfile::F405.counter_width,
-        );
+        let config = firmware::profile::BoardProfile::F405.readout_config(DITHER_HZ);
         let settings = CompensationSettings {
             coefficients: Coefficients::from_rad_per_s(344.0, 579.0).unwrap(),
             enabled: true,

@@ -13,6 +13,8 @@
 use crate::readout::ReadoutConfig;
 use crate::sample::TurnaroundKind;
 use crate::signal::count::CounterWidth;
+use crate::signal::output::record::OutputConfig;
+use crate::signal::output::strip::StripConfig;
 use crate::signal::turnaround::SchedulerConfig;
 
 /// The facts of one readout board (immutable).
@@ -104,7 +106,16 @@ impl BoardProfile {
 
     /// The readout's settings on this board for a dither near `dither_hz`.
     pub fn readout_config(&self, dither_hz: f64) -> ReadoutConfig {
-        ReadoutConfig::for_board(self.timer_hz as f64, dither_hz, self.counter_width)
+        let output = OutputConfig {
+            strip: StripConfig::for_pickoff(
+                self.pickoff_arcsec_per_code,
+                self.scale_factor_arcsec,
+                self.pickoff_mid_code,
+            ),
+            timer_hz: self.timer_hz,
+            scale_factor_arcsec: self.scale_factor_arcsec as f32,
+        };
+        ReadoutConfig::for_board(self.timer_hz as f64, dither_hz, self.counter_width, output)
     }
 }
 

@@ -17,7 +17,7 @@
 //! at the next cycle boundary. Everything here is plain data in, data out: the host simulator
 //! calls exactly these functions.
 
-use crate::sample::TurnaroundSample;
+use crate::sample::{OutputSample, TurnaroundSample};
 use crate::signal::compensation::{CompensationSettings, Compensator};
 use crate::signal::count::{CountUpdate, CounterWidth, FringeCountConfig, FringeCounter};
 use crate::signal::fringe::{
@@ -26,6 +26,8 @@ use crate::signal::fringe::{
 use crate::signal::lockin::{
     CycleAssembler, CycleConfig, CycleFlags, CycleRecord, LevelPair, TurnaroundReading,
 };
+use crate::signal::output::record::{OutputConfig, OutputRecord, OutputRecorder, OutputStatus};
+use crate::signal::output::strip::{DitherStripper, StripStatus};
 
 /// Highest x4 edge rate the count extension accepts between reads, edges/s: above the
 /// 2.4 M edges/s of the docs/physics.md parameter set with margin.
@@ -42,13 +44,21 @@ pub struct ReadoutConfig {
     pub fringe_phase: FringePhaseConfig,
     /// Stage 4: the timer clock and the plausible half-period range.
     pub cycle: CycleConfig,
+    /// Stage 6a/6b: dither stripping and the fixed-rate output records.
+    pub output: OutputConfig,
 }
 
 impl ReadoutConfig {
     /// Settings for a board whose encoder register has `width`, with a capture timer at
-    /// `timer_hz` and a dither near `dither_hz` (+-20 % accepted). A board's own settings come
-    /// from its profile ([`crate::profile::BoardProfile::readout_config`]).
-    pub fn for_board(timer_hz: f64, dither_hz: f64, width: CounterWidth) -> Self {
+    /// `timer_hz`, a dither near `dither_hz` (+-20 % accepted) and the output stage's
+    /// `output` settings (pick-off, scale factor). A board's own settings come from its profile
+    /// ([`crate::profile::BoardProfile::readout_config`]).
+    pub fn for_board(
+        timer_hz: f64,
+        dither_hz: f64,
+        width: CounterWidth,
+        output: OutputConfig,
+    ) -> Self {
         let half_period_ticks = (timer_hz / (2.0 * dither_hz)) as u32;
         Self {
             counter: FringeCountConfig {
@@ -63,6 +73,7 @@ impl ReadoutConfig {
             lissajous: LissajousConfig::DEFAULT,
             fringe_phase: FringePhaseConfig::DEFAULT,
             cycle: CycleConfig::for_dither(timer_hz as f32, dither_hz as f32, 0.2),
+            output,
         }
     }
 }
@@ -95,11 +106,20 @@ pub struct Readout {
     cycles: CycleAssembler,
     compensator: Compensator,
     counters: ReadoutCounters,
+    stripper: DitherStripper,
+    recorder: OutputRecorder,
+    /// Sum of the lock-in corrections of the cycles closed so far, Q32 fringes (wrapping): the
+    /// output latch subtracts it from the counted phase.
+    correction_total_q32: i64,
+    /// Faults seen since the last output latch (at turnarounds or latches).
+    output_faults: OutputStatus,
+    /// Faults an output latch saw, for the cycle the next turnaround closes.
+    cycle_faults: CycleFlags,
 }
 
 impl Readout {
     /// A chain at rest: nominal Lissajous coefficients, no count yet, `settings` in force.
-    pub fn new(_config: &ReadoutConfig, settings: CompensationSettings) -> Self {
+    pub fn new(config: &ReadoutConfig, settings: CompensationSettings) -> Self {
         Self {
             counter: FringeCounter::new(),
             lissajous: LissajousTracker::new(LissajousCoefficients::NOMINAL),
@@ -107,6 +127,11 @@ impl Readout {
             cycles: CycleAssembler::new(),
             compensator: Compensator::new(settings),
             counters: ReadoutCounters::default(),
+            stripper: DitherStripper::new(&config.output.strip),
+            recorder: OutputRecorder::new(),
+            correction_total_q32: 0,
+            output_faults: OutputStatus::empty(),
+            cycle_faults: CycleFlags::empty(),
         }
     }
 
@@ -136,31 +161,17 @@ impl Readout {
         } else {
             CycleFlags::DRIVE_UNLOCKED
         };
-        match self.counter.update(&config.counter, sample.encoder_count) {
-            CountUpdate::Glitch(_) => flags = flags.union(CycleFlags::COUNTER_GLITCH),
-            CountUpdate::Resynced(_) => {
-                flags = flags.union(CycleFlags::COUNTER_GLITCH);
-                // The register moved under us: the count-to-phase relation must be learned anew.
-                self.resolver.realign();
-            }
-            CountUpdate::Initialised | CountUpdate::Step(_) => {}
-        }
-        if flags.contains(CycleFlags::COUNTER_GLITCH) {
-            self.counters.counter_glitches = self.counters.counter_glitches.saturating_add(1);
-        }
-        let levels = self
-            .lissajous
-            .normalise(sample.adc_a_code, sample.adc_b_code);
-        let reading = self
-            .resolver
-            .resolve(&config.fringe_phase, self.counter.count(), levels);
-        if reading.glitch {
-            flags = flags.union(CycleFlags::COUNTER_GLITCH);
-            self.counters.phase_glitches = self.counters.phase_glitches.saturating_add(1);
-        }
-        if reading.signal_lost {
-            self.counters.signal_lost = self.counters.signal_lost.saturating_add(1);
-        }
+        flags = flags.union(core::mem::replace(
+            &mut self.cycle_faults,
+            CycleFlags::empty(),
+        ));
+        let (reading, read_flags) = self.read_phase(
+            config,
+            sample.encoder_count,
+            sample.adc_a_code,
+            sample.adc_b_code,
+        );
+        flags = flags.union(read_flags);
         let turnaround = TurnaroundReading {
             kind: sample.kind,
             phase: reading.phase.total(),
@@ -174,7 +185,104 @@ impl Readout {
         let record = self.cycles.on_turnaround(&config.cycle, turnaround)?;
         let record = self.compensator.compensate(record);
         self.counters.cycles = self.counters.cycles.wrapping_add(1);
+        self.correction_total_q32 = self
+            .correction_total_q32
+            .wrapping_add(record.output.correction_q32);
         Some(record)
+    }
+
+    /// Stages 1 and 3 for one latch (turnaround or output): the count extended, the fractional
+    /// fringe resolved; the flags of what went wrong (also kept for the output period).
+    fn read_phase(
+        &mut self,
+        config: &ReadoutConfig,
+        encoder_count: u32,
+        adc_a_code: u16,
+        adc_b_code: u16,
+    ) -> (crate::signal::fringe::FringeReading, CycleFlags) {
+        let mut flags = CycleFlags::empty();
+        match self.counter.update(&config.counter, encoder_count) {
+            CountUpdate::Glitch(_) => flags = flags.union(CycleFlags::COUNTER_GLITCH),
+            CountUpdate::Resynced(_) => {
+                flags = flags.union(CycleFlags::COUNTER_GLITCH);
+                // The register moved under us: the count-to-phase relation must be learned anew.
+                self.resolver.realign();
+            }
+            CountUpdate::Initialised | CountUpdate::Step(_) => {}
+        }
+        if flags.contains(CycleFlags::COUNTER_GLITCH) {
+            self.counters.counter_glitches = self.counters.counter_glitches.saturating_add(1);
+        }
+        let levels = self.lissajous.normalise(adc_a_code, adc_b_code);
+        let reading = self
+            .resolver
+            .resolve(&config.fringe_phase, self.counter.count(), levels);
+        if reading.glitch {
+            flags = flags.union(CycleFlags::COUNTER_GLITCH);
+            self.counters.phase_glitches = self.counters.phase_glitches.saturating_add(1);
+        }
+        if flags.contains(CycleFlags::COUNTER_GLITCH) {
+            self.output_faults = self.output_faults.union(OutputStatus::COUNTER_GLITCH);
+        }
+        if reading.signal_lost {
+            self.counters.signal_lost = self.counters.signal_lost.saturating_add(1);
+            self.output_faults = self.output_faults.union(OutputStatus::SIGNAL_LOST);
+        }
+        (reading, flags)
+    }
+
+    /// One output latch (the sync input's edge, or the internal output timer): the counted
+    /// phase, less the lock-in corrections of the cycles closed so far (a cycle's correction
+    /// enters the output at the first latch after the cycle closes), stripped of the dither
+    /// (stage 6a), becomes the record of the period that ends here (stage 6b). A fault seen
+    /// here also flags the cycle the next turnaround closes.
+    pub fn on_output_latch(
+        &mut self,
+        config: &ReadoutConfig,
+        sample: OutputSample,
+    ) -> OutputRecord {
+        let (reading, read_flags) = self.read_phase(
+            config,
+            sample.encoder_count,
+            sample.adc_a_code,
+            sample.adc_b_code,
+        );
+        self.cycle_faults = self.cycle_faults.union(read_flags);
+        let mut status = core::mem::replace(&mut self.output_faults, OutputStatus::empty());
+        if config.output.strip.at_rail(sample.pickoff_code) {
+            status = status.union(OutputStatus::PICKOFF_RAIL);
+        }
+        if sample.drive_locked {
+            status = status.union(OutputStatus::DITHER_LOCKED);
+        }
+        if self.compensator.active().enabled {
+            status = status.union(OutputStatus::COMPENSATION_ON);
+        }
+        let learn = sample.drive_locked && !status.intersects(OutputStatus::FAULTS);
+        let phase_q32 = reading
+            .phase
+            .total()
+            .to_q32()
+            .wrapping_sub(self.correction_total_q32);
+        let stripped =
+            self.stripper
+                .strip(&config.output.strip, phase_q32, sample.pickoff_code, learn);
+        if self.stripper.status(&config.output.strip).converged {
+            status = status.union(OutputStatus::K_CONVERGED);
+        }
+        self.recorder
+            .record(&config.output, sample.timestamp_ticks, stripped, status)
+    }
+
+    /// The stripping coefficient K and the state of its fit.
+    pub fn strip_status(&self, config: &ReadoutConfig) -> StripStatus {
+        self.stripper.status(&config.output.strip)
+    }
+
+    /// Starts the stripping from `k` (fringes per pick-off code: the value stored with the
+    /// calibration), forgetting the fit.
+    pub fn restart_strip_from(&mut self, config: &ReadoutConfig, k: f32) {
+        self.stripper.restart_from(&config.output.strip, k);
     }
 
     /// Starts counting afresh after the readout was paused (a flash store stalls the CPU for up
@@ -185,6 +293,9 @@ impl Readout {
         self.counter = FringeCounter::new();
         self.resolver.realign();
         self.cycles = CycleAssembler::new();
+        // The output's chain of increments breaks too: the next record is a restart.
+        self.recorder.restart();
+        self.output_faults = self.output_faults.union(OutputStatus::RESTART);
     }
 
     /// Stages compensation settings; they apply whole from the next cycle boundary.

@@ -35,3 +35,24 @@ pub struct TurnaroundSample {
     /// board without a drive, or with the prescribed dither of the simulator, always true).
     pub drive_locked: bool,
 }
+
+/// What the output latch takes at the end of an output period (the sync input's edge, or the
+/// board's internal output timer): the registers of a turnaround latch plus the dither
+/// pick-off, converted at the same instant (docs/physics.md section 12).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct OutputSample {
+    /// Raw x4 up/down encoder register (wraps).
+    pub encoder_count: u32,
+    /// Photodiode channel A (~cos psi_H), 12-bit ADC code.
+    pub adc_a_code: u16,
+    /// Photodiode channel B (~sin psi_H), 12-bit ADC code.
+    pub adc_b_code: u16,
+    /// The dither pick-off, 12-bit ADC code (the dither angle at the latch).
+    pub pickoff_code: u16,
+    /// Capture timer value at the latch (free-running, wraps; extended to 64 bits downstream).
+    pub timestamp_ticks: u32,
+    /// The dither drive was locked and its supervisor saw no fault (as in
+    /// [`TurnaroundSample::drive_locked`]).
+    pub drive_locked: bool,
+}

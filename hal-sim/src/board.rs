@@ -54,7 +54,7 @@ use crate::photodiode::{PhotodiodeConfig, Photodiodes};
 use crate::pickoff::{Pickoff, PickoffConfig};
 use firmware::profile::BoardProfile;
 use firmware::readout::ReadoutConfig;
-use firmware::sample::{TurnaroundKind, TurnaroundSample};
+use firmware::sample::{OutputSample, TurnaroundKind, TurnaroundSample};
 use firmware::signal::lockin::CycleRecord;
 use firmware::signal::output::rate_shift_ticks;
 use firmware::signal::turnaround::{Edge, Scheduler, SchedulerConfig};
@@ -128,6 +128,9 @@ pub struct BoardConfig {
     pub eps_drift_until_s: f64,
     /// Seed of the board's noise (photodiodes, latch jitter).
     pub seed: u64,
+    /// The sync input: output latches at this rate, Hz (100..=2000 for a navigation
+    /// computer's sync; `None`: no output latches).
+    pub sync_hz: Option<f64>,
 }
 
 impl BoardConfig {
@@ -147,6 +150,7 @@ impl BoardConfig {
             eps_drift_rad_per_s: 0.0,
             eps_drift_until_s: 0.0,
             seed: params.seed ^ 0xB0A2_D5EE_D000_0001,
+            sync_hz: None,
         }
     }
 }
@@ -246,6 +250,20 @@ pub struct SimBoard {
     rate_shift_ticks: i32,
     stats: LatchStats,
     last_latch: Option<LatchRecord>,
+    /// The next sync edge, s, and the output latches taken since the last drain.
+    next_sync_s: f64,
+    outputs: Vec<OutputLatch>,
+}
+
+/// One output latch (a sync edge) and its truth.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OutputLatch {
+    /// What the latch took (the harness sets `drive_locked` from its drive).
+    pub sample: OutputSample,
+    /// When, s.
+    pub t_s: f64,
+    /// The true input angle since t = 0 at the latch, arcsec.
+    pub true_angle_arcsec: f64,
 }
 
 impl SimBoard {
@@ -264,6 +282,11 @@ impl SimBoard {
             return Err(BoardError::Config("latch timing must be finite"));
         }
         config.pickoff.validate().map_err(BoardError::Pickoff)?;
+        if let Some(hz) = config.sync_hz {
+            if !(hz.is_finite() && (1.0..=100_000.0).contains(&hz)) {
+                return Err(BoardError::Config("sync rate must be in 1..=100000 Hz"));
+            }
+        }
         let schedule = Self::schedule(&config)?;
         let eps_rad = gyro.params().eps_rad;
         let psi_h0 = gyro.advance_to(0.0) - eps_rad;
@@ -280,6 +303,8 @@ impl SimBoard {
             rate_shift_ticks: 0,
             stats: LatchStats::default(),
             last_latch: None,
+            next_sync_s: config.sync_hz.map_or(f64::INFINITY, |hz| 1.0 / hz),
+            outputs: Vec::new(),
             eps_rad,
             counter,
             config,
@@ -358,16 +383,44 @@ impl SimBoard {
         t_s + self.config.latch_offset_s + jitter
     }
 
-    /// The free-running conversions before `until_s`.
+    /// The free-running conversions and the output latches before `until_s`, in time order.
     fn sample_lissajous_until(&mut self, until_s: f64, lissajous: &mut Vec<(u16, u16)>) {
-        while self.next_lissajous_s < until_s {
-            let psi_h =
-                self.gyro.advance_to(self.next_lissajous_s) - self.eps_at(self.next_lissajous_s);
+        loop {
+            let sync_first = self.next_sync_s < self.next_lissajous_s;
+            let t = self.next_lissajous_s.min(self.next_sync_s);
+            if t >= until_s {
+                return;
+            }
+            let psi_h = self.gyro.advance_to(t) - self.eps_at(t);
             self.counter.advance_to(psi_h);
             let codes = self.photodiodes.sample_codes(psi_h);
-            lissajous.push((codes.a_code, codes.b_code));
-            self.next_lissajous_s += 1.0 / self.config.lissajous_rate_hz;
+            if sync_first {
+                self.outputs.push(OutputLatch {
+                    sample: OutputSample {
+                        encoder_count: self.counter.count(),
+                        adc_a_code: codes.a_code,
+                        adc_b_code: codes.b_code,
+                        pickoff_code: self.pickoff.sample_latch_code(&self.gyro, t),
+                        timestamp_ticks: self.timer.ticks_at(t),
+                        drive_locked: true,
+                    },
+                    t_s: t,
+                    true_angle_arcsec: self.gyro.input_angle_arcsec(t),
+                });
+                // From the sync count, not by adding periods: no drift of the edge times.
+                let hz = self.config.sync_hz.unwrap_or(f64::INFINITY);
+                self.next_sync_s = ((t * hz).round() + 1.0) / hz;
+            } else {
+                lissajous.push((codes.a_code, codes.b_code));
+                self.next_lissajous_s += 1.0 / self.config.lissajous_rate_hz;
+            }
         }
+    }
+
+    /// Hands over the output latches taken since the last call (a sync edge each, in order).
+    pub fn drain_outputs(&mut self, into: &mut Vec<OutputLatch>) {
+        into.clear();
+        into.append(&mut self.outputs);
     }
 
     /// The next pick-off edge, its capture and its schedule; the kind and instant of the latch.

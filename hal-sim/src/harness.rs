@@ -58,7 +58,7 @@
 //!   i.e. `firmware::profile::BoardProfile::F405` with the simulated board's timer and counter):
 //!   the firmware is configured for the board it runs on, never by a copy of its constants.
 
-use crate::board::{BoardConfig, BoardError, LatchRecord, LatchTiming, SimBoard};
+use crate::board::{BoardConfig, BoardError, LatchRecord, LatchTiming, OutputLatch, SimBoard};
 use crate::dither::drive::DriveError;
 use crate::dither::open_loop::OpenLoopDrive;
 use crate::drive_loop::FirmwareDrive;
@@ -71,6 +71,7 @@ use firmware::readout::{Readout, ReadoutConfig};
 use firmware::sample::TurnaroundSample;
 use firmware::signal::compensation::CompensationSettings;
 use firmware::signal::lockin::CycleRecord;
+use firmware::signal::output::record::OutputRecord;
 
 /// How far ahead of the board's time the harness feeds an open-loop drive at most while it
 /// looks for the next turnaround, s.
@@ -142,6 +143,12 @@ impl HarnessOptions {
     /// With the turnaround latch timed by `latch`.
     pub fn latch(mut self, latch: LatchTiming) -> Self {
         self.board.latch = latch;
+        self
+    }
+
+    /// With output latches on a sync at `sync_hz` ([`BoardConfig::sync_hz`]).
+    pub fn sync_hz(mut self, sync_hz: Option<f64>) -> Self {
+        self.board.sync_hz = sync_hz;
         self
     }
 
@@ -218,6 +225,10 @@ pub struct Harness {
     readout: Readout,
     /// The photodiode conversions of the last half cycle.
     lissajous: Vec<(u16, u16)>,
+    /// The output latches of the last half cycle, and the records the readout made of them
+    /// (none when stalled).
+    latches: Vec<OutputLatch>,
+    outputs: Vec<(OutputLatch, OutputRecord)>,
     /// What drives a driven dither.
     drive: DriveSource,
     /// How far ahead of the board's time the drive is kept known, s.
@@ -244,6 +255,8 @@ impl Harness {
             board,
             config,
             lissajous: Vec::new(),
+            latches: Vec::new(),
+            outputs: Vec::new(),
             last: None,
         })
     }
@@ -258,20 +271,29 @@ impl Harness {
     pub fn step_with(&mut self, feed: Feed) -> HalfCycle {
         self.feed_drive();
         let mut sample = self.board.next_half_cycle(&mut self.lissajous);
+        self.board.drain_outputs(&mut self.latches);
         if let DriveSource::Firmware(drive) = &self.drive {
             // The latch copies the drive tick's state, as `board::turnaround::latch` does.
             sample.drive_locked = drive.locked_at(self.board.time_s());
+            for latch in &mut self.latches {
+                latch.sample.drive_locked = drive.locked_at(latch.t_s);
+            }
         }
         let latch = self
             .board
             .last_latch()
             .expect("the board records every latch");
+        self.outputs.clear();
         let record = feed_readout(
             &mut self.readout,
             &self.config,
-            &self.lissajous,
-            sample,
-            feed,
+            Fed {
+                lissajous: &self.lissajous,
+                latches: &self.latches,
+                sample,
+                feed,
+            },
+            |latch, out| self.outputs.push((*latch, out)),
         );
         if let Some(record) = &record {
             self.board.on_cycle(record);
@@ -378,7 +400,19 @@ impl Harness {
     /// cycles do not go back to the board. Nothing happens before the first step.
     pub fn replay_into(&self, readout: &mut Readout) -> Option<CycleRecord> {
         let (sample, feed) = self.last?;
-        feed_readout(readout, &self.config, &self.lissajous, sample, feed)
+        let fed = Fed {
+            lissajous: &self.lissajous,
+            latches: &self.latches,
+            sample,
+            feed,
+        };
+        feed_readout(readout, &self.config, fed, |_, _| {})
+    }
+
+    /// The output latches of the last half cycle with the records the readout made of them
+    /// (empty without a sync, or when the CPU stalled).
+    pub fn outputs(&self) -> &[(OutputLatch, OutputRecord)] {
+        &self.outputs
     }
 
     /// Simulated time of the last latch, s.
@@ -428,23 +462,34 @@ impl Harness {
     }
 }
 
-/// The readout's two interrupts for one half cycle, as `feed` says: the conversions, then the
-/// latch. Returns the cycle the latch closes.
+/// What the board produced in one half cycle, and what the firmware sees of it.
+struct Fed<'a> {
+    lissajous: &'a [(u16, u16)],
+    latches: &'a [OutputLatch],
+    sample: TurnaroundSample,
+    feed: Feed,
+}
+
+/// The readout's interrupts for one half cycle, as `fed.feed` says: the conversions, the
+/// output latches (each record handed to `on_output`), then the turnaround latch. Returns the
+/// cycle the latch closes.
 fn feed_readout(
     readout: &mut Readout,
     config: &ReadoutConfig,
-    lissajous: &[(u16, u16)],
-    sample: TurnaroundSample,
-    feed: Feed,
+    fed: Fed<'_>,
+    mut on_output: impl FnMut(&OutputLatch, OutputRecord),
 ) -> Option<CycleRecord> {
-    if feed == Feed::Stalled {
+    if fed.feed == Feed::Stalled {
         return None;
     }
-    for &(a_code, b_code) in lissajous {
+    for &(a_code, b_code) in fed.lissajous {
         readout.on_lissajous_sample(config, a_code, b_code);
     }
-    match feed {
-        Feed::Everything => readout.on_turnaround(config, sample),
+    for latch in fed.latches {
+        on_output(latch, readout.on_output_latch(config, latch.sample));
+    }
+    match fed.feed {
+        Feed::Everything => readout.on_turnaround(config, fed.sample),
         Feed::MissTurnaround | Feed::Stalled => None,
     }
 }

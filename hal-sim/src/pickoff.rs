@@ -157,6 +157,9 @@ impl PickoffConfig {
 pub struct Pickoff {
     config: PickoffConfig,
     rng: ChaCha8Rng,
+    /// Noise of the conversions at output latches: a stream of its own, so that switching
+    /// the sync on leaves the drive loop's pick-off noise as it was.
+    latch_rng: ChaCha8Rng,
     lost: bool,
 }
 
@@ -166,6 +169,7 @@ impl Pickoff {
         Self {
             config,
             rng: ChaCha8Rng::seed_from_u64(seed),
+            latch_rng: ChaCha8Rng::seed_from_u64(seed ^ 0x4C41_5443_4845_5321),
             lost: false,
         }
     }
@@ -207,6 +211,16 @@ impl Pickoff {
     /// One ADC conversion at `t_s` (one noise draw): the 12-bit code, clipped at 0..=4095.
     pub fn sample_code(&mut self, gyro: &Gyro, t_s: f64) -> u16 {
         let v = self.sample_v(gyro, t_s);
+        self.config.adc.code(v)
+    }
+
+    /// One conversion at an output latch at `t_s` (its own noise stream), the 12-bit code.
+    pub fn sample_latch_code(&mut self, gyro: &Gyro, t_s: f64) -> u16 {
+        let mut v = self.clean_v(gyro, t_s);
+        if self.config.noise_rms_v > 0.0 {
+            let z: f64 = StandardNormal.sample(&mut self.latch_rng);
+            v += self.config.noise_rms_v * z;
+        }
         self.config.adc.code(v)
     }
 

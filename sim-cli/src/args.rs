@@ -45,6 +45,18 @@ pub enum DitherDrive {
     ClosedLoop,
 }
 
+/// How the turnarounds are latched.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LatchArg {
+    /// At the instants the firmware predicts from the pick-off's edges (a real board).
+    Scheduled,
+    /// At the simulator's exact turnaround (the paper's idealised case).
+    Exact,
+}
+
+/// Valid range of the sync rate, Hz.
+pub const SYNC_HZ_RANGE: std::ops::RangeInclusive<f64> = 100.0..=2000.0;
+
 #[derive(Args, Debug, Clone)]
 pub struct DitherArgs {
     /// Simulated seconds.
@@ -144,9 +156,18 @@ pub struct SweepArgs {
     /// Write the figure (both curves and the residuals) as SVG.
     #[arg(long)]
     pub svg: Option<PathBuf>,
-    /// How the dither is made: the prescribed sine, or the firmware's drive in the loop.
-    #[arg(long, value_enum, default_value_t = DitherDrive::Ideal)]
+    /// How the dither is made: the firmware's drive in the loop (what a board does), or the
+    /// prescribed sine (the paper's idealised experiment, with --latch exact).
+    #[arg(long, value_enum, default_value_t = DitherDrive::ClosedLoop)]
     pub dither_drive: DitherDrive,
+    /// How the turnarounds are latched: where the firmware schedules them from the pick-off
+    /// (what a board does), or at the simulator's exact turnaround (the paper's idealised case).
+    #[arg(long, value_enum, default_value_t = LatchArg::Scheduled)]
+    pub latch: LatchArg,
+    /// Rate of the sync pulses that end the board's fixed-rate output periods, Hz
+    /// (100..=2000); the compensated column is the least-squares rate of that output.
+    #[arg(long, default_value_t = 1000.0)]
+    pub sync_hz: f64,
     /// Random-noise dither depth, percent (0..=50; needs --dither-drive closed-loop: the noise
     /// dither is the firmware drive's).
     #[arg(long, default_value_t = 0.0)]
@@ -213,6 +234,12 @@ impl SweepArgs {
         }
         if !(0.0..=50.0).contains(&self.dither_noise_percent) {
             return Err("--dither-noise-percent must be in 0..=50".into());
+        }
+        if !SYNC_HZ_RANGE.contains(&self.sync_hz) {
+            return Err(format!(
+                "--sync-hz must be in 100..=2000 Hz, got {}",
+                self.sync_hz
+            ));
         }
         if self.dither_noise_percent > 0.0 && self.dither_drive == DitherDrive::Ideal {
             return Err(

@@ -15,10 +15,11 @@ use firmware::dither::DitherState;
 use firmware::readout::ReadoutConfig;
 use firmware::signal::compensation::{CoefficientError, Coefficients, CompensationSettings};
 use firmware::signal::lockin::{CycleOutput, CycleRecord};
+use firmware::signal::output::record::OutputRecord;
 use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
-use hal_sim::board::LatchTiming;
+use hal_sim::board::{LatchTiming, OutputLatch};
 use hal_sim::dither::resonator::ResonatorParams;
-use hal_sim::harness::{DriveSource, HarnessOptions};
+use hal_sim::harness::{DriveSource, Harness, HarnessOptions};
 use hal_sim::input::InputProfile;
 use hal_sim::params::GyroParams;
 
@@ -73,13 +74,67 @@ pub enum DitherDrive {
     Ideal,
     /// A driven resonator at the parameters' `dither_hz` (hal-sim's default resonator, Q 1000,
     /// started in its steady state) held by the firmware's drive at `dither_amplitude_arcsec`,
-    /// with random-noise dither of `noise_percent` (0 = off); the turnarounds latched where
-    /// the firmware schedules them from the pick-off (the board's way, never the simulator's
-    /// true turnaround).
+    /// with random-noise dither of `noise_percent` (0 = off).
     ClosedLoop {
         /// Random-noise dither depth, percent (0..=50).
         noise_percent: f64,
     },
+}
+
+/// How the turnarounds are latched.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Latch {
+    /// At the simulator's exact turnaround (the paper's idealised experiment).
+    #[default]
+    Exact,
+    /// Where the firmware schedules them from the pick-off's edges (what a board does).
+    Scheduled,
+}
+
+/// The simulated board of a run: the dither, the latch, the sync of the fixed-rate output.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BoardSetup {
+    /// How the dither is made.
+    pub drive: DitherDrive,
+    /// How the turnarounds are latched.
+    pub latch: Latch,
+    /// The sync of the fixed-rate output, Hz (`None`: no output records).
+    pub sync_hz: Option<f64>,
+}
+
+impl BoardSetup {
+    /// The paper's idealised experiment: the prescribed sine, the exact latch, no sync.
+    pub const IDEAL: Self = Self {
+        drive: DitherDrive::Ideal,
+        latch: Latch::Exact,
+        sync_hz: None,
+    };
+
+    /// What a board does: the firmware's drive (random-noise dither of `noise_percent`), the
+    /// latch scheduled from the pick-off, the output on a sync at `sync_hz`.
+    pub fn board(noise_percent: f64, sync_hz: f64) -> Self {
+        Self {
+            drive: DitherDrive::ClosedLoop { noise_percent },
+            latch: Latch::Scheduled,
+            sync_hz: Some(sync_hz),
+        }
+    }
+}
+
+/// A dither drive alone: the exact latch for the prescribed sine, the scheduled one for the
+/// firmware's drive, no sync (the runs before the fixed-rate output existed).
+impl From<DitherDrive> for BoardSetup {
+    fn from(drive: DitherDrive) -> Self {
+        let latch = match drive {
+            DitherDrive::Ideal => Latch::Exact,
+            DitherDrive::ClosedLoop { .. } => Latch::Scheduled,
+        };
+        Self {
+            drive,
+            latch,
+            sync_hz: None,
+        }
+    }
 }
 
 /// With the firmware's drive, recording starts this long after the drive locks (the locked
@@ -88,24 +143,22 @@ pub const DRIVE_SETTLE_S: f64 = 2.0;
 /// A closed-loop run whose drive has not locked after this long fails.
 pub const DRIVE_LOCK_TIMEOUT_S: f64 = 10.0;
 
-/// Runs the board at a constant input rate (hal-sim's
-/// [`Harness`](hal_sim::harness::Harness), firmware in the loop) and hands every cycle closed
-/// after the warm-up to `on_cycle` (with the firmware's drive: after the drive has locked and
-/// settled, [`DRIVE_SETTLE_S`]). The run's noise comes from [`run_seed`].
-pub fn run_constant_rate(
+/// A harness at a constant input rate on the board `setup` describes, run until it may
+/// record: returns it and the time recording may start (the warm-up; with the firmware's
+/// drive, [`DRIVE_SETTLE_S`] after the drive locked). The run's noise comes from [`run_seed`].
+pub fn start_constant_rate(
     params: &GyroParams,
-    drive: DitherDrive,
+    setup: BoardSetup,
     rate_deg_h: f64,
-    length: RunLength,
+    warmup_s: f64,
     settings: CompensationSettings,
-    mut on_cycle: impl FnMut(&ReadoutConfig, &CycleRecord),
-) -> Result<(), ExperimentError> {
+) -> Result<(Harness, f64), ExperimentError> {
     let params = GyroParams {
         seed: run_seed(params.seed, rate_deg_h),
         ..*params
     };
     let simulator = |e: String| ExperimentError::Simulator(e);
-    let (params, source) = match drive {
+    let (params, source) = match setup.drive {
         DitherDrive::Ideal => (params, None),
         DitherDrive::ClosedLoop { .. } => {
             let driven = params.with_steady_driven_dither(ResonatorParams {
@@ -116,15 +169,19 @@ pub fn run_constant_rate(
             (driven, Some(source))
         }
     };
-    let mut options =
-        HarnessOptions::new(params, InputProfile::constant(rate_deg_h)).compensation(settings);
+    let mut options = HarnessOptions::new(params, InputProfile::constant(rate_deg_h))
+        .compensation(settings)
+        .sync_hz(setup.sync_hz);
     if let Some(source) = source {
+        options = options.drive(source);
+    }
+    if setup.latch == Latch::Scheduled {
         // What a board does: the turnaround instants predicted from the pick-off's edges.
-        options = options.drive(source).latch(LatchTiming::scheduled(0.0));
+        options = options.latch(LatchTiming::scheduled(0.0));
     }
     let mut harness = options.build().map_err(|e| simulator(e.to_string()))?;
-    let mut start_s = length.warmup_s;
-    if let DitherDrive::ClosedLoop { noise_percent } = drive {
+    let mut start_s = warmup_s;
+    if let DitherDrive::ClosedLoop { noise_percent } = setup.drive {
         let fw = harness
             .firmware_drive_mut()
             .ok_or_else(|| simulator("no firmware drive".into()))?;
@@ -145,9 +202,38 @@ pub fn run_constant_rate(
         }
         start_s = start_s.max(harness.time_s() + DRIVE_SETTLE_S);
     }
+    Ok((harness, start_s))
+}
+
+/// Runs the board at a constant input rate (hal-sim's
+/// [`Harness`](hal_sim::harness::Harness), firmware in the loop) and hands every cycle closed
+/// after the warm-up to `on_cycle` (with the firmware's drive: after the drive has locked and
+/// settled, [`DRIVE_SETTLE_S`]), and every output record after it to `on_output`.
+pub fn run_constant_rate(
+    params: &GyroParams,
+    setup: impl Into<BoardSetup>,
+    rate_deg_h: f64,
+    length: RunLength,
+    settings: CompensationSettings,
+    mut on_cycle: impl FnMut(&ReadoutConfig, &CycleRecord),
+    mut on_output: impl FnMut(&OutputLatch, &OutputRecord),
+) -> Result<(), ExperimentError> {
+    let (mut harness, start_s) =
+        start_constant_rate(params, setup.into(), rate_deg_h, length.warmup_s, settings)?;
     let config = *harness.config();
-    harness.run_cycles(start_s, start_s + length.record_s, |record| {
-        on_cycle(&config, record)
+    let end_s = start_s + length.record_s;
+    harness.run_until(end_s, |h, half| {
+        for (latch, record) in h.outputs() {
+            if latch.t_s > start_s && latch.t_s <= end_s {
+                on_output(latch, record);
+            }
+        }
+        let t = half.latch_s();
+        if let Some(record) = &half.record {
+            if t > start_s && t <= end_s {
+                on_cycle(&config, record);
+            }
+        }
     });
     Ok(())
 }
@@ -156,16 +242,17 @@ pub fn run_constant_rate(
 /// output (count plus fractional fringe) regressed on [1, P1, P2], pooled over runs.
 pub fn calibrate(
     params: &GyroParams,
-    drive: DitherDrive,
+    setup: impl Into<BoardSetup>,
     rates_deg_h: &[f64],
     length: RunLength,
 ) -> Result<FitResult, ExperimentError> {
+    let setup = setup.into();
     let mut pooled = FitAccumulator::new();
     for &rate in rates_deg_h {
         let mut run = FitAccumulator::new();
         run_constant_rate(
             params,
-            drive,
+            setup,
             rate,
             length,
             CompensationSettings::default(),
@@ -174,6 +261,7 @@ pub fn calibrate(
                     run.push_cycle(c, c.duration_s(&config.cycle));
                 }
             },
+            |_, _| {},
         )?;
         run.end_run();
         pooled.pool(&run);
@@ -200,13 +288,28 @@ pub struct MeasuredRate {
     pub compensated_hz: f64,
     /// Dither cycles averaged: every cycle closed after the warm-up.
     pub cycles: u32,
+    /// The board's fixed-rate output (stripped and compensated): the least-squares slope of
+    /// its integrated angle over the record, fringes/s; `None` without a sync.
+    pub output_hz: Option<f64>,
+    /// Output records in the window, and how many of them were invalid.
+    pub records: u64,
+    /// Invalid output records in the window.
+    pub invalid_records: u64,
+}
+
+impl MeasuredRate {
+    /// The compensated output as a user reads it: the fixed-rate output where there is one,
+    /// otherwise the per-cycle compensated increments.
+    pub fn board_output_hz(&self) -> f64 {
+        self.output_hz.unwrap_or(self.compensated_hz)
+    }
 }
 
 /// One input rate with compensation on: both outputs from the same cycles, each averaged over
 /// whole output periods (falling back to the plain mean where it advances less than a fringe).
 pub fn measure_rate(
     params: &GyroParams,
-    drive: DitherDrive,
+    setup: impl Into<BoardSetup>,
     rate_deg_h: f64,
     length: RunLength,
     settings: CompensationSettings,
@@ -214,7 +317,18 @@ pub fn measure_rate(
     let mut raw = RateAverager::new();
     let mut compensated = RateAverager::new();
     let mut averager: Option<AveragerConfig> = None;
-    run_constant_rate(params, drive, rate_deg_h, length, settings, |config, c| {
+    let mut slope = SlopeFit::default();
+    let (mut records, mut invalid) = (0u64, 0u64);
+    let on_output = |latch: &OutputLatch, r: &OutputRecord| {
+        records += 1;
+        if r.is_valid() {
+            slope.push(latch.t_s, r.angle_q16 as f64 / 65536.0);
+        } else {
+            invalid += 1;
+            slope.break_segment();
+        }
+    };
+    let on_cycle = |config: &ReadoutConfig, c: &CycleRecord| {
         let cfg = averager.get_or_insert(AveragerConfig {
             window_cycles: u32::MAX,
             mode: AveragingMode::WholePeriods,
@@ -228,7 +342,10 @@ pub fn measure_rate(
         };
         raw.push(cfg, raw_cycle);
         compensated.push(cfg, c.output);
-    })?;
+    };
+    run_constant_rate(
+        params, setup, rate_deg_h, length, settings, on_cycle, on_output,
+    )?;
     let cfg = averager
         .ok_or_else(|| ExperimentError::Simulator("no complete dither cycle recorded".into()))?;
     let (u, c) = (raw.flush(&cfg), compensated.flush(&cfg));
@@ -236,5 +353,52 @@ pub fn measure_rate(
         uncompensated_hz: u.rate_fringes_per_s,
         compensated_hz: c.rate_fringes_per_s,
         cycles: c.cycles,
+        output_hz: slope.slope(),
+        records,
+        invalid_records: invalid,
     })
+}
+
+/// The least-squares slope of a series in contiguous segments, one intercept per segment
+/// (a segment ends at an invalid record: the angle of a lost period is not spliced across).
+/// Centred sums per segment (Welford), pooled when a segment closes.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SlopeFit {
+    n: f64,
+    mean_t: f64,
+    mean_y: f64,
+    stt: f64,
+    sty: f64,
+    pooled_tt: f64,
+    pooled_ty: f64,
+}
+
+impl SlopeFit {
+    /// Adds a point of the current segment.
+    pub fn push(&mut self, t: f64, y: f64) {
+        self.n += 1.0;
+        let dt = t - self.mean_t;
+        let dy = y - self.mean_y;
+        self.mean_t += dt / self.n;
+        self.mean_y += dy / self.n;
+        self.stt += dt * (t - self.mean_t);
+        self.sty += dt * (y - self.mean_y);
+    }
+
+    /// Closes the current segment.
+    pub fn break_segment(&mut self) {
+        self.pooled_tt += self.stt;
+        self.pooled_ty += self.sty;
+        *self = Self {
+            pooled_tt: self.pooled_tt,
+            pooled_ty: self.pooled_ty,
+            ..Self::default()
+        };
+    }
+
+    /// The pooled slope, if any segment had two points.
+    pub fn slope(&self) -> Option<f64> {
+        let tt = self.pooled_tt + self.stt;
+        (tt > 0.0).then(|| (self.pooled_ty + self.sty) / tt)
+    }
 }

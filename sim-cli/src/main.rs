@@ -14,7 +14,9 @@ use hal_sim::params::{AmplitudeModulation, GyroParams};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use rlg_sim::dither_run::{self, DitherRunOptions};
-use rlg_sim::experiment::{calibrate, measure_rate, settings_from_fit, DitherDrive, RunLength};
+use rlg_sim::experiment::{
+    calibrate, measure_rate, settings_from_fit, BoardSetup, DitherDrive, Latch, RunLength,
+};
 use rlg_sim::report::{self, SweepRow};
 use std::io::Write;
 use std::process::ExitCode;
@@ -98,13 +100,8 @@ fn sweep(args: &SweepArgs) -> Result<(), Failure> {
         warmup_s: args.warmup_seconds,
         record_s: args.calibration_seconds,
     };
-    let drive = match args.dither_drive {
-        args::DitherDrive::Ideal => DitherDrive::Ideal,
-        args::DitherDrive::ClosedLoop => DitherDrive::ClosedLoop {
-            noise_percent: args.dither_noise_percent,
-        },
-    };
-    let fit = calibrate(&params, drive, &cal_rates, cal_length)
+    let setup = args.board_setup();
+    let fit = calibrate(&params, setup, &cal_rates, cal_length)
         .map_err(|e| Failure::Run(e.to_string()))?;
     bar.inc(1);
     bar.finish_and_clear();
@@ -137,13 +134,13 @@ fn sweep(args: &SweepArgs) -> Result<(), Failure> {
         .par_iter()
         .map(|&rate| {
             let m =
-                measure_rate(&params, drive, rate, length, settings).map_err(|e| e.to_string())?;
+                measure_rate(&params, setup, rate, length, settings).map_err(|e| e.to_string())?;
             bar.inc(1);
             Ok(SweepRow {
                 input_deg_h: rate,
                 ideal_hz: rate / sf,
                 uncompensated_hz: m.uncompensated_hz,
-                compensated_hz: m.compensated_hz,
+                compensated_hz: m.board_output_hz(),
             })
         })
         .collect();
@@ -175,6 +172,25 @@ fn sweep(args: &SweepArgs) -> Result<(), Failure> {
         eprintln!("wrote {}", path.display());
     }
     Ok(())
+}
+
+impl SweepArgs {
+    /// The simulated board these flags describe.
+    fn board_setup(&self) -> BoardSetup {
+        BoardSetup {
+            drive: match self.dither_drive {
+                args::DitherDrive::Ideal => DitherDrive::Ideal,
+                args::DitherDrive::ClosedLoop => DitherDrive::ClosedLoop {
+                    noise_percent: self.dither_noise_percent,
+                },
+            },
+            latch: match self.latch {
+                args::LatchArg::Scheduled => Latch::Scheduled,
+                args::LatchArg::Exact => Latch::Exact,
+            },
+            sync_hz: Some(self.sync_hz),
+        }
+    }
 }
 
 fn speed(args: &SpeedArgs) -> Result<(), Failure> {

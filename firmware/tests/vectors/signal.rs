@@ -198,14 +198,10 @@ pub fn cycle_assembly(out: &mut Outputs) {
 /// slow input rate become compensated cycles.
 pub fn readout_chain(out: &mut Outputs) {
     use compensation::{Coefficients, CompensationSettings};
-    use firmware::readout::{Readout, ReadoutConfig};
+    use firmware::readout::Readout;
     use firmware::sample::TurnaroundSample;
     let mut rng = Rng::new(0x5eed_0014);
-    let config = ReadoutConfig::for_board(
-        84e6,
-        389.0,
-        firmware::profile::BoardProfile::F405.counter_width,
-    );
+    let config = firmware::profile::BoardProfile::F405.readout_config(389.0);
     let coefficients = Coefficients::from_rad_per_s(387.0, 383.0).unwrap_or_default();
     let settings = CompensationSettings {
         coefficients,

@@ -1,4 +1,4 @@
-//! Stage 6, the output: per-cycle compensated increments become the rate averaged over a window,
+//! Stage 6c, the averaged rate: per-cycle compensated increments become the rate averaged over a window,
 //! and the input-rate shift that the turnaround prediction (stage 2) needs.
 //!
 //! Each dither cycle yields a [`CycleOutput`]: the compensated phase increment in Q32 fringes
@@ -20,11 +20,11 @@
 //!
 //! [`rate_shift_ticks`] turns one cycle's rate and measured dither into the turnaround shift
 //! `Omega_i / |psi_ddot|` (docs/physics.md pitfall 3) for the next edges: the cycle task hands
-//! it to [`super::turnaround::Scheduler::on_edge`] as a plain number, so the schedule imports
+//! it to [`crate::signal::turnaround::Scheduler::on_edge`] as a plain number, so the schedule imports
 //! nothing from here.
 
-use super::lockin::{CycleFlags, CycleOutput, CycleRecord};
-use super::turnaround::shift_ticks_for_rate;
+use crate::signal::lockin::{CycleFlags, CycleOutput, CycleRecord};
+use crate::signal::turnaround::shift_ticks_for_rate;
 use crate::units::Q32_PER_FRINGE;
 
 /// How the averager forms a rate.

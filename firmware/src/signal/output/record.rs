@@ -1,0 +1,289 @@
+//! Stage 6b, the fixed-rate output: one [`OutputRecord`] per output period, ended by the sync
+//! input's edge (a navigation computer's sample instant) or the board's own output timer.
+//!
+//! A record carries the stripped, compensated angle increment since the previous latch (the
+//! navigation computer's input), the integrated angle, the rate over the period, a status word
+//! and a 64-bit sequence number; the wire frame adds a CRC (`protocol::output_frame`).
+//!
+//! # Formats
+//!
+//! - Angles are fringes in Q16 (LSB 2^-16 fringe = 2.85e-5 arcsec at the nominal 1.8655
+//!   arcsec per fringe): the increment in an `i32` (+-32768 fringes, 17 deg: 1700 deg/s at a
+//!   100 Hz sync), the integrated angle in an `i64` (2^47 fringes: never wraps in the field).
+//!   The integrated angle is kept exactly (Q32 in an `i128`) and each increment is the
+//!   difference of two rounded values, so the increments sum to the integrated angle without
+//!   drift.
+//! - Time is the capture timer extended to 64 bits (84 MHz: no wrap in 6900 years); an output
+//!   period must not exceed one wrap of the 32-bit register (51 s), far beyond the slowest sync.
+//! - The rate is `f32` deg/h over the period, with the configured scale factor.
+//!
+//! # Validity: never a silent wrong angle
+//!
+//! A period with a counter glitch, a lost photodiode signal, a pick-off at a rail, an unlocked
+//! or faulted dither drive, or no previous latch (start, or a resynchronisation after a stall)
+//! is invalid: its increment is 0, the integrated angle holds, and [`OutputStatus::VALID`] is
+//! clear. The angle of that period is lost, and says so; it is never replaced by a guess.
+
+use super::strip::StripConfig;
+
+/// The output stage's settings (immutable).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OutputConfig {
+    /// Dither stripping.
+    pub strip: StripConfig,
+    /// Capture-timer frequency, Hz.
+    pub timer_hz: u32,
+    /// Scale factor, arcsec per fringe (the rate in deg/h).
+    pub scale_factor_arcsec: f32,
+}
+
+/// The status word of a record (bits).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct OutputStatus(pub u16);
+
+impl OutputStatus {
+    /// The increment is good: none of the fault bits, a locked drive, a previous latch.
+    pub const VALID: Self = Self(1 << 0);
+    /// The dither drive was locked (and its supervisor saw no fault) at the latch.
+    pub const DITHER_LOCKED: Self = Self(1 << 1);
+    /// The lock-in compensation is on.
+    pub const COMPENSATION_ON: Self = Self(1 << 2);
+    /// The eps tracker is running (set by the command service).
+    pub const TRACKING: Self = Self(1 << 3);
+    /// The stripping coefficient K has converged.
+    pub const K_CONVERGED: Self = Self(1 << 4);
+    /// A counter or fringe-phase glitch in the period.
+    pub const COUNTER_GLITCH: Self = Self(1 << 5);
+    /// The photodiode signal was lost in the period.
+    pub const SIGNAL_LOST: Self = Self(1 << 6);
+    /// The pick-off read at a rail of its converter at the latch.
+    pub const PICKOFF_RAIL: Self = Self(1 << 7);
+    /// No previous latch to difference against (start, resynchronisation).
+    pub const RESTART: Self = Self(1 << 8);
+
+    /// Bits that make a period invalid.
+    pub const FAULTS: Self =
+        Self(Self::COUNTER_GLITCH.0 | Self::SIGNAL_LOST.0 | Self::PICKOFF_RAIL.0 | Self::RESTART.0);
+
+    /// No bit set.
+    pub const fn empty() -> Self {
+        Self(0)
+    }
+    /// Both sets of bits.
+    pub const fn union(self, other: Self) -> Self {
+        Self(self.0 | other.0)
+    }
+    /// True when every bit of `other` is set.
+    pub const fn contains(self, other: Self) -> bool {
+        self.0 & other.0 == other.0
+    }
+    /// True when any bit of `other` is set.
+    pub const fn intersects(self, other: Self) -> bool {
+        self.0 & other.0 != 0
+    }
+    /// With the bits of `other` cleared.
+    pub const fn without(self, other: Self) -> Self {
+        Self(self.0 & !other.0)
+    }
+}
+
+/// One output period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct OutputRecord {
+    /// +1 per record made (a gap on the host = records lost on the way).
+    pub sequence: u64,
+    /// The latch that ended the period, capture-timer ticks since start (64-bit).
+    pub time_ticks: u64,
+    /// The period's length, ticks (0 for the first record).
+    pub period_ticks: u32,
+    /// Stripped, compensated angle increment over the period, Q16 fringes (0 when invalid).
+    pub delta_angle_q16: i32,
+    /// Integrated angle of the valid periods, Q16 fringes.
+    pub angle_q16: i64,
+    /// Rate over the period, deg/h (0 when invalid).
+    pub rate_deg_per_h: f32,
+    /// Status bits.
+    pub status: OutputStatus,
+}
+
+impl OutputRecord {
+    /// The increment in fringes.
+    pub fn delta_angle_fringes(&self) -> f64 {
+        f64::from(self.delta_angle_q16) / 65536.0
+    }
+    /// True when the increment is good.
+    pub fn is_valid(&self) -> bool {
+        self.status.contains(OutputStatus::VALID)
+    }
+}
+
+/// The record builder's state.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct OutputRecorder {
+    sequence: u64,
+    /// Extended time of the last latch, and its raw register value.
+    clock: Option<(u64, u32)>,
+    /// The previous latch's stripped phase (Q32 fringes, wrapping), if the chain holds.
+    previous_q32: Option<i64>,
+    /// Integrated angle of the valid periods, Q32 fringes.
+    angle_q32: i128,
+}
+
+impl OutputRecorder {
+    /// No record made yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Breaks the chain (a resynchronised count): the next record is a restart.
+    pub fn restart(&mut self) {
+        self.previous_q32 = None;
+    }
+
+    /// The record of the period that the latch at `timestamp_ticks` ends, with the stripped
+    /// phase there and the status bits gathered over the period (`status` without VALID or
+    /// RESTART; they are set here).
+    pub fn record(
+        &mut self,
+        config: &OutputConfig,
+        timestamp_ticks: u32,
+        stripped_q32: i64,
+        status: OutputStatus,
+    ) -> OutputRecord {
+        let (time_ticks, period_ticks) = match self.clock {
+            Some((t, raw)) => {
+                let d = timestamp_ticks.wrapping_sub(raw);
+                (t + u64::from(d), d)
+            }
+            None => (u64::from(timestamp_ticks), 0),
+        };
+        self.clock = Some((time_ticks, timestamp_ticks));
+        let mut status = status.without(OutputStatus::VALID.union(OutputStatus::RESTART));
+        if self.previous_q32.is_none() {
+            status = status.union(OutputStatus::RESTART);
+        }
+        let valid = status.contains(OutputStatus::DITHER_LOCKED)
+            && !status.intersects(OutputStatus::FAULTS);
+        let before_q16 = (self.angle_q32 >> 16) as i64;
+        if valid {
+            if let Some(previous) = self.previous_q32 {
+                self.angle_q32 += i128::from(stripped_q32.wrapping_sub(previous));
+            }
+            status = status.union(OutputStatus::VALID);
+        }
+        // A faulted latch is no reference for the next period either.
+        let faulted = status.intersects(OutputStatus::FAULTS.without(OutputStatus::RESTART))
+            || !status.contains(OutputStatus::DITHER_LOCKED);
+        self.previous_q32 = if faulted { None } else { Some(stripped_q32) };
+        let angle_q16 = (self.angle_q32 >> 16) as i64;
+        let delta = angle_q16 - before_q16;
+        let delta_angle_q16 = delta.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
+        let rate_deg_per_h = if valid && period_ticks > 0 {
+            let fringes = delta as f64 / 65536.0;
+            let seconds = f64::from(period_ticks) / f64::from(config.timer_hz);
+            // 1 fringe/s = SF arcsec/s = SF deg/h.
+            (fringes / seconds * f64::from(config.scale_factor_arcsec)) as f32
+        } else {
+            0.0
+        };
+        let record = OutputRecord {
+            sequence: self.sequence,
+            time_ticks,
+            period_ticks,
+            delta_angle_q16,
+            angle_q16,
+            rate_deg_per_h,
+            status,
+        };
+        self.sequence += 1;
+        record
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::units::Q32_PER_FRINGE;
+
+    fn config() -> OutputConfig {
+        OutputConfig {
+            strip: StripConfig::for_pickoff(0.4, 1.8655, 2048),
+            timer_hz: 84_000_000,
+            scale_factor_arcsec: 1.8655,
+        }
+    }
+
+    const OK: OutputStatus = OutputStatus::DITHER_LOCKED;
+
+    /// Increments sum exactly to the integrated angle; a fault zeroes its period, holds the
+    /// angle, and the period after it restarts the chain.
+    #[test]
+    fn increments_sum_to_the_angle_and_faults_hold_it() {
+        let c = config();
+        let mut r = OutputRecorder::new();
+        let step = (1.25 * Q32_PER_FRINGE) as i64 + 12345;
+        let first = r.record(&c, 0, 0, OK);
+        assert!(!first.is_valid() && first.status.contains(OutputStatus::RESTART));
+        let mut sum = 0i64;
+        let mut phase = 0i64;
+        for i in 1..=10u32 {
+            phase += step;
+            let rec = r.record(&c, i * 84_000, phase, OK);
+            assert!(rec.is_valid(), "{rec:?}");
+            assert_eq!(rec.sequence, u64::from(i));
+            sum += i64::from(rec.delta_angle_q16);
+            assert_eq!(sum, rec.angle_q16);
+        }
+        // 1.25 fringes per ms at SF 1.8655: 1.25e3 * 1.8655 deg/h.
+        phase += step;
+        let rec = r.record(&c, 11 * 84_000, phase, OK);
+        let expected = (step as f64 / Q32_PER_FRINGE) * 1e3 * 1.8655;
+        // The increment is rounded to Q16: 2^-16 of 1.25 fringes, 1.2e-5.
+        assert!((f64::from(rec.rate_deg_per_h) / expected - 1.0).abs() < 2e-5);
+        let held = rec.angle_q16;
+        phase += 1 << 40; // a glitch jumps the phase
+        let bad = r.record(
+            &c,
+            12 * 84_000,
+            phase,
+            OK.union(OutputStatus::COUNTER_GLITCH),
+        );
+        assert!(!bad.is_valid() && bad.delta_angle_q16 == 0 && bad.angle_q16 == held);
+        phase += step;
+        let next = r.record(&c, 13 * 84_000, phase, OK);
+        assert!(!next.is_valid() && next.status.contains(OutputStatus::RESTART));
+        phase += step;
+        let good = r.record(&c, 14 * 84_000, phase, OK);
+        assert!(good.is_valid());
+        assert_eq!(good.angle_q16, held + i64::from(good.delta_angle_q16));
+    }
+
+    /// An unlocked drive invalidates the period.
+    #[test]
+    fn an_unlocked_drive_invalidates() {
+        let c = config();
+        let mut r = OutputRecorder::new();
+        r.record(&c, 0, 0, OK);
+        let rec = r.record(&c, 84_000, 1 << 32, OutputStatus::empty());
+        assert!(!rec.is_valid() && rec.delta_angle_q16 == 0);
+    }
+
+    /// The 32-bit capture register wraps; the record's time does not.
+    #[test]
+    fn time_extends_across_the_register_wrap() {
+        let c = config();
+        let mut r = OutputRecorder::new();
+        let mut raw = u32::MAX - 100_000;
+        let mut last = r.record(&c, raw, 0, OK).time_ticks;
+        for _ in 0..5 {
+            raw = raw.wrapping_add(84_000);
+            let rec = r.record(&c, raw, 0, OK);
+            assert_eq!(rec.time_ticks, last + 84_000);
+            assert_eq!(rec.period_ticks, 84_000);
+            last = rec.time_ticks;
+        }
+        assert!(last > u64::from(u32::MAX));
+    }
+}

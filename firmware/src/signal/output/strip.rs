@@ -1,0 +1,269 @@
+//! Stage 6a, dither stripping: the output angle is the counted (and compensated) beat phase
+//! minus `K` times the dither angle the pick-off reports at the same instant, so an output
+//! period may begin and end anywhere in the dither cycle (docs/physics.md section 12).
+//!
+//! # K, and how it is learned
+//!
+//! `K` is fringes per pick-off ADC code: the pick-off's sensitivity (nominally
+//! `BoardProfile::pickoff_arcsec_per_code`) over the gyro's scale factor. Neither is known to
+//! better than a few per cent on a real board (the gauge's gain, the amplifier, ageing), and a
+//! 1 % error leaves 1 % of the ~480-fringe dither in the output. So `K` is fitted online, from
+//! what the board measures: between two output latches the phase moves by
+//!
+//! ```text
+//! d_psi = Omega dt + K d_p + (lock-in, photodiode and pick-off noise)
+//! ```
+//!
+//! and the exponentially weighted least-squares fit of `d_psi` on `[1, d_p]` (an intercept for
+//! the input rate) gives the `K` that leaves the output uncorrelated with the pick-off.
+//! Increments at output latches (100 Hz - 2 kHz, incommensurate with the dither) sample every
+//! phase of the dither, so `d_p` spans +-2 amplitudes and the fit is well conditioned; the
+//! pick-off's noise in the regressor biases `K` by its variance over the dither's, about 1e-6.
+//!
+//! The sums are `f32` (IEEE on both the M4F's FPU and the host: the same bits) and decay by
+//! `1 - 1/memory` per update; the estimate replaces the starting `K` after
+//! [`StripConfig::min_updates`] increments, and counts as converged when its standard error
+//! (from the weighted residual) falls below [`StripConfig::converged_rel`] of `K`. An increment
+//! with a fault (counter glitch, signal lost, pick-off at a rail, drive not locked) is not
+//! learned from; the stripping itself goes on with the last `K`.
+//!
+//! # What it does not remove
+//!
+//! A pick-off whose output lags the dither (piezo and preamplifier phase) leaves the
+//! quadrature part, `K A w lag` in amplitude (0.1 % of the dither per 0.4 us of lag at
+//! 389 Hz); `K` absorbs gain errors only. The board's pick-off lag is part of its calibration
+//! (docs/physics.md section 12 gives the figure).
+
+use crate::units::Q32_PER_FRINGE;
+
+/// Settings of the stripper (immutable).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StripConfig {
+    /// The `K` to start from, fringes per pick-off code (the profile's nominal pick-off
+    /// sensitivity over the nominal scale factor, or the value stored with the calibration).
+    pub initial_k: f32,
+    /// The pick-off code of a zero dither angle.
+    pub mid_code: u16,
+    /// Memory of the fit, increments: the sums decay by `1 - 1/memory` per increment.
+    pub memory_updates: u32,
+    /// Increments before the fitted `K` replaces the starting one.
+    pub min_updates: u32,
+    /// Relative standard error of `K` below which it counts as converged.
+    pub converged_rel: f32,
+    /// Codes at (or beyond) which the pick-off counts as clipped: `0..rail_margin` and
+    /// `4095 - rail_margin..=4095` (a saturated pick-off does not report the dither angle).
+    pub rail_margin_codes: u16,
+}
+
+impl StripConfig {
+    /// For a pick-off of `arcsec_per_code` read by a gyro of `scale_factor_arcsec` per fringe,
+    /// centred at `mid_code`: memory 4096 increments (4 s at a 1 kHz sync), the fit in use
+    /// after 64, converged at 1e-4.
+    pub fn for_pickoff(arcsec_per_code: f64, scale_factor_arcsec: f64, mid_code: u16) -> Self {
+        Self {
+            initial_k: (arcsec_per_code / scale_factor_arcsec) as f32,
+            mid_code,
+            memory_updates: 4096,
+            min_updates: 64,
+            converged_rel: 1e-4,
+            rail_margin_codes: 2,
+        }
+    }
+
+    /// True when `code` is at a rail of the 12-bit converter.
+    pub fn at_rail(&self, code: u16) -> bool {
+        code < self.rail_margin_codes || code > 4095 - self.rail_margin_codes
+    }
+}
+
+/// The state of `K`'s fit, as `status` reports it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StripStatus {
+    /// `K` in use, fringes per pick-off code.
+    pub k: f32,
+    /// Relative standard error of the fitted `K` (infinite before the fit is in use).
+    pub k_std_rel: f32,
+    /// Increments learned from since start (saturating).
+    pub updates: u32,
+    /// The fit is in use and its standard error is below [`StripConfig::converged_rel`].
+    pub converged: bool,
+}
+
+/// The stripper's running state.
+#[derive(Clone, Copy, Debug)]
+pub struct DitherStripper {
+    k: f32,
+    /// Weighted sums of 1, d_p, d_p^2, d_psi, d_psi d_p (fringes and codes), and of the
+    /// squared a-priori residual (the prediction error before each update: no cancellation
+    /// between large sums).
+    s0: f32,
+    sp: f32,
+    spp: f32,
+    sy: f32,
+    syp: f32,
+    srr: f32,
+    sr0: f32,
+    updates: u32,
+    std_rel: f32,
+    /// The previous latch: phase (Q32 fringes, wrapping) and pick-off code, if usable.
+    previous: Option<(i64, u16)>,
+}
+
+impl DitherStripper {
+    /// A stripper starting from `config.initial_k`.
+    pub fn new(config: &StripConfig) -> Self {
+        Self {
+            k: config.initial_k,
+            s0: 0.0,
+            sp: 0.0,
+            spp: 0.0,
+            sy: 0.0,
+            syp: 0.0,
+            srr: 0.0,
+            sr0: 0.0,
+            updates: 0,
+            std_rel: f32::INFINITY,
+            previous: None,
+        }
+    }
+
+    /// Starts from `k` (a stored value) and forgets the fit.
+    pub fn restart_from(&mut self, config: &StripConfig, k: f32) {
+        *self = Self::new(&StripConfig {
+            initial_k: k,
+            ..*config
+        });
+    }
+
+    /// The stripped phase at one latch, Q32 fringes (wrapping like the phase): `phase_q32 - K
+    /// (pickoff - mid)`. `learn` false (a fault in the period) leaves the fit alone and breaks
+    /// the chain of increments.
+    pub fn strip(
+        &mut self,
+        config: &StripConfig,
+        phase_q32: i64,
+        pickoff_code: u16,
+        learn: bool,
+    ) -> i64 {
+        if learn {
+            if let Some((phase0, code0)) = self.previous {
+                let d_psi = (phase_q32.wrapping_sub(phase0) as f64 / Q32_PER_FRINGE) as f32;
+                let d_p = f32::from(pickoff_code) - f32::from(code0);
+                self.learn(config, d_psi, d_p);
+            }
+            self.previous = Some((phase_q32, pickoff_code));
+        } else {
+            self.previous = None;
+        }
+        let dither_fringes = self.k * (f32::from(pickoff_code) - f32::from(config.mid_code));
+        phase_q32.wrapping_sub((dither_fringes as f64 * Q32_PER_FRINGE) as i64)
+    }
+
+    fn learn(&mut self, config: &StripConfig, d_psi: f32, d_p: f32) {
+        let decay = 1.0 - 1.0 / config.memory_updates.max(2) as f32;
+        let in_use = self.updates >= config.min_updates.max(3);
+        if in_use {
+            let intercept = (self.sy - self.k * self.sp) / self.s0;
+            let r = d_psi - self.k * d_p - intercept;
+            self.srr = self.srr * decay + r * r;
+            self.sr0 = self.sr0 * decay + 1.0;
+        }
+        self.s0 = self.s0 * decay + 1.0;
+        self.sp = self.sp * decay + d_p;
+        self.spp = self.spp * decay + d_p * d_p;
+        self.sy = self.sy * decay + d_psi;
+        self.syp = self.syp * decay + d_psi * d_p;
+        self.updates = self.updates.saturating_add(1);
+        if self.updates < config.min_updates.max(3) {
+            return;
+        }
+        // Centred sums: the intercept (input rate) taken out.
+        let sxx = self.spp - self.sp * self.sp / self.s0;
+        let sxy = self.syp - self.sp * self.sy / self.s0;
+        if sxx.is_nan() || sxx <= 0.0 {
+            return;
+        }
+        let k = sxy / sxx;
+        if !k.is_finite() || k == 0.0 {
+            return;
+        }
+        self.k = k;
+        if in_use {
+            let residual_var = self.srr / self.sr0.max(1.0);
+            self.std_rel = libm::sqrtf(residual_var / sxx) / k.abs();
+        }
+    }
+
+    /// `K` and the state of its fit.
+    pub fn status(&self, config: &StripConfig) -> StripStatus {
+        let in_use = self.updates >= config.min_updates.max(3);
+        StripStatus {
+            k: self.k,
+            k_std_rel: if in_use { self.std_rel } else { f32::INFINITY },
+            updates: self.updates,
+            converged: in_use && self.std_rel < config.converged_rel,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn config(k: f32) -> StripConfig {
+        StripConfig {
+            initial_k: k,
+            ..StripConfig::for_pickoff(0.4, 1.8655, 2048)
+        }
+    }
+
+    /// A synthetic dither seen by the count (K_true fringes per code) and the pick-off: the
+    /// fit finds K_true from a 5 % error, and the stripped phase is the input angle alone.
+    #[test]
+    fn learns_k_and_strips_the_dither() {
+        let k_true = 0.4 / 1.8655 * 1.05;
+        let cfg = config(0.4 / 1.8655);
+        let mut s = DitherStripper::new(&cfg);
+        let rate_fringes_per_s = 3.0;
+        let (mut worst, mut n) = (0.0f64, 0);
+        for i in 0..20_000 {
+            let t = i as f64 * 1e-3;
+            let dither_codes = 1125.0 * (core::f64::consts::TAU * 389.0 * t).sin();
+            let code = (2048.0 + dither_codes).round();
+            let psi = rate_fringes_per_s * t + k_true * (code - 2048.0);
+            let out = s.strip(&cfg, (psi * Q32_PER_FRINGE) as i64, code as u16, true);
+            let err = out as f64 / Q32_PER_FRINGE - rate_fringes_per_s * t;
+            if i > 2000 {
+                worst = worst.max(err.abs());
+                n += 1;
+            }
+        }
+        let st = s.status(&cfg);
+        // The fit is exact on noise-free data up to f32 rounding of the sums (1e-6 relative).
+        assert!(((st.k as f64) / k_true - 1.0).abs() < 1e-5, "{st:?}");
+        assert!(st.converged, "{st:?}");
+        // Residual: the fit's f32 precision (~1e-5 of K) times the 240-fringe dither, 2.2e-3
+        // fringes measured; 0.004 arcsec, against 0.5 arcsec of pick-off noise on a board.
+        assert!(worst < 5e-3, "worst {worst} fringes over {n} latches");
+    }
+
+    /// A fault breaks the chain: the increment across it is not learned from.
+    #[test]
+    fn a_fault_is_not_learned_from() {
+        let cfg = config(0.2);
+        let mut s = DitherStripper::new(&cfg);
+        s.strip(&cfg, 0, 2048, true);
+        s.strip(&cfg, 1 << 40, 3000, false);
+        s.strip(&cfg, 1 << 41, 100, true);
+        assert_eq!(s.status(&cfg).updates, 0);
+        assert_eq!(s.status(&cfg).k, 0.2);
+        assert!(!s.status(&cfg).converged);
+    }
+
+    #[test]
+    fn rails_are_detected() {
+        let cfg = config(0.2);
+        assert!(cfg.at_rail(0) && cfg.at_rail(1) && cfg.at_rail(4095) && cfg.at_rail(4094));
+        assert!(!cfg.at_rail(2) && !cfg.at_rail(4093) && !cfg.at_rail(2048));
+    }
+}
