@@ -250,7 +250,7 @@ impl Readout {
         self.cycle_faults = self.cycle_faults.union(read_flags);
         let mut status = core::mem::replace(&mut self.output_faults, OutputStatus::empty());
         if config.output.strip.at_rail(sample.pickoff_code) {
-            status = status.union(OutputStatus::PICKOFF_RAIL);
+            status = status.union(OutputStatus::PICKOFF_FAULT);
         }
         if sample.drive_locked {
             status = status.union(OutputStatus::DITHER_LOCKED);
@@ -258,7 +258,7 @@ impl Readout {
         if self.compensator.active().enabled {
             status = status.union(OutputStatus::COMPENSATION_ON);
         }
-        let learn = sample.drive_locked && !status.intersects(OutputStatus::FAULTS);
+        let usable = sample.drive_locked && !status.intersects(OutputStatus::FAULTS);
         let phase_q32 = reading
             .phase
             .total()
@@ -266,12 +266,19 @@ impl Readout {
             .wrapping_sub(self.correction_total_q32);
         let stripped =
             self.stripper
-                .strip(&config.output.strip, phase_q32, sample.pickoff_code, learn);
+                .strip(&config.output.strip, phase_q32, sample.pickoff_code, usable);
+        if stripped.implausible {
+            status = status.union(OutputStatus::PICKOFF_FAULT);
+        }
         if self.stripper.status(&config.output.strip).converged {
             status = status.union(OutputStatus::K_CONVERGED);
         }
-        self.recorder
-            .record(&config.output, sample.timestamp_ticks, stripped, status)
+        self.recorder.record(
+            &config.output,
+            sample.timestamp_ticks,
+            stripped.phase_q32,
+            status,
+        )
     }
 
     /// The stripping coefficient K and the state of its fit.

@@ -32,6 +32,9 @@ pub enum Command {
     /// The dither drive: the firmware's controller starts the driven resonator from rest and
     /// holds it (amplitude, resonance, faults); one CSV row per dither cycle.
     Dither(DitherArgs),
+    /// The board's fixed-rate output at a constant input rate: calibrates as `sweep` does,
+    /// then writes one CSV row per sync period (the board's increment beside the true one).
+    Record(RecordArgs),
 }
 
 /// How the dither is made.
@@ -143,35 +146,16 @@ pub struct SweepArgs {
     /// Simulated seconds discarded before recording (lets the Lissajous fit settle).
     #[arg(long, default_value_t = 0.5)]
     pub warmup_seconds: f64,
-    /// Input rates of the calibration runs, deg/h (repeat the flag; default +-13.888, both ends
-    /// of the paper's range, outside the dead band).
-    #[arg(long, allow_negative_numbers = true, num_args = 1)]
-    pub calibration_rate_deg_h: Vec<f64>,
-    /// Simulated seconds per calibration run.
-    #[arg(long, default_value_t = 20.0)]
-    pub calibration_seconds: f64,
+    #[command(flatten)]
+    pub calibration: CalibrationArgs,
     /// Write the table as CSV (input_deg_h,ideal_hz,uncompensated_hz,compensated_hz).
     #[arg(long)]
     pub csv: Option<PathBuf>,
     /// Write the figure (both curves and the residuals) as SVG.
     #[arg(long)]
     pub svg: Option<PathBuf>,
-    /// How the dither is made: the firmware's drive in the loop (what a board does), or the
-    /// prescribed sine (the paper's idealised experiment, with --latch exact).
-    #[arg(long, value_enum, default_value_t = DitherDrive::ClosedLoop)]
-    pub dither_drive: DitherDrive,
-    /// How the turnarounds are latched: where the firmware schedules them from the pick-off
-    /// (what a board does), or at the simulator's exact turnaround (the paper's idealised case).
-    #[arg(long, value_enum, default_value_t = LatchArg::Scheduled)]
-    pub latch: LatchArg,
-    /// Rate of the sync pulses that end the board's fixed-rate output periods, Hz
-    /// (100..=2000); the compensated column is the least-squares rate of that output.
-    #[arg(long, default_value_t = 1000.0)]
-    pub sync_hz: f64,
-    /// Random-noise dither depth, percent (0..=50; needs --dither-drive closed-loop: the noise
-    /// dither is the firmware drive's).
-    #[arg(long, default_value_t = 0.0)]
-    pub dither_noise_percent: f64,
+    #[command(flatten)]
+    pub board: BoardArgs,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub jobs: Option<usize>,
@@ -192,15 +176,6 @@ impl SweepArgs {
             .collect()
     }
 
-    /// The calibration rates, defaulting to both ends of the paper's range.
-    pub fn calibration_rates_deg_h(&self) -> Vec<f64> {
-        if self.calibration_rate_deg_h.is_empty() {
-            vec![-PAPER_RANGE_DEG_H, PAPER_RANGE_DEG_H]
-        } else {
-            self.calibration_rate_deg_h.clone()
-        }
-    }
-
     /// Checks what clap cannot: ranges and finite values. The message names the flag.
     pub fn validate(&self) -> Result<(), String> {
         let finite = [
@@ -208,7 +183,6 @@ impl SweepArgs {
             ("--rate-max-deg-h", self.rate_max_deg_h),
             ("--seconds-per-point", self.seconds_per_point),
             ("--warmup-seconds", self.warmup_seconds),
-            ("--calibration-seconds", self.calibration_seconds),
         ];
         for (flag, v) in finite {
             if !v.is_finite() {
@@ -221,17 +195,81 @@ impl SweepArgs {
         if self.points == 0 {
             return Err("--points must be at least 1".into());
         }
-        if self.seconds_per_point <= 0.0 || self.calibration_seconds <= 0.0 {
-            return Err("--seconds-per-point and --calibration-seconds must be positive".into());
+        if self.seconds_per_point <= 0.0 {
+            return Err("--seconds-per-point must be positive".into());
         }
         if self.warmup_seconds < 0.0 {
             return Err("--warmup-seconds must not be negative".into());
+        }
+        self.calibration.validate()?;
+        self.board.validate()
+    }
+}
+
+/// How the board is calibrated before it measures: the paper's Step 2 (`sweep` and `record`
+/// share it).
+#[derive(Args, Debug, Clone)]
+pub struct CalibrationArgs {
+    /// Input rates of the calibration runs, deg/h (repeat the flag; default +-13.888, both ends
+    /// of the paper's range, outside the dead band).
+    #[arg(long, allow_negative_numbers = true, num_args = 1)]
+    pub calibration_rate_deg_h: Vec<f64>,
+    /// Simulated seconds per calibration run.
+    #[arg(long, default_value_t = 20.0)]
+    pub calibration_seconds: f64,
+}
+
+impl CalibrationArgs {
+    /// The calibration rates, defaulting to both ends of the paper's range.
+    pub fn rates_deg_h(&self) -> Vec<f64> {
+        if self.calibration_rate_deg_h.is_empty() {
+            vec![-PAPER_RANGE_DEG_H, PAPER_RANGE_DEG_H]
+        } else {
+            self.calibration_rate_deg_h.clone()
+        }
+    }
+
+    /// Finite rates, a positive duration.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.calibration_seconds.is_finite() && self.calibration_seconds > 0.0) {
+            return Err(format!(
+                "--calibration-seconds must be positive, got {}",
+                self.calibration_seconds
+            ));
         }
         if let Some(bad) = self.calibration_rate_deg_h.iter().find(|r| !r.is_finite()) {
             return Err(format!(
                 "--calibration-rate-deg-h must be finite, got {bad}"
             ));
         }
+        Ok(())
+    }
+}
+
+/// The simulated board: its dither, its latch, its sync (`sweep` and `record` share it).
+#[derive(Args, Debug, Clone)]
+pub struct BoardArgs {
+    /// How the dither is made: the firmware's drive in the loop (what a board does), or the
+    /// prescribed sine (the paper's idealised experiment, with --latch exact).
+    #[arg(long, value_enum, default_value_t = DitherDrive::ClosedLoop)]
+    pub dither_drive: DitherDrive,
+    /// How the turnarounds are latched: where the firmware schedules them from the pick-off
+    /// (what a board does), or at the simulator's exact turnaround (the paper's idealised case).
+    #[arg(long, value_enum, default_value_t = LatchArg::Scheduled)]
+    pub latch: LatchArg,
+    /// Rate of the sync pulses that end the board's fixed-rate output periods, Hz
+    /// (100..=2000).
+    #[arg(long, default_value_t = 1000.0)]
+    pub sync_hz: f64,
+    /// Random-noise dither depth, percent (0..=50; needs --dither-drive closed-loop: the noise
+    /// dither is the firmware drive's).
+    #[arg(long, default_value_t = 0.0)]
+    pub dither_noise_percent: f64,
+}
+
+impl BoardArgs {
+    /// Ranges, and the combinations that make sense.
+    pub fn validate(&self) -> Result<(), String> {
         if !(0.0..=50.0).contains(&self.dither_noise_percent) {
             return Err("--dither-noise-percent must be in 0..=50".into());
         }
@@ -249,6 +287,59 @@ impl SweepArgs {
             );
         }
         Ok(())
+    }
+}
+
+/// `rlg-sim record`: the board's fixed-rate output at a constant rate.
+#[derive(Args, Debug, Clone)]
+pub struct RecordArgs {
+    #[command(flatten)]
+    pub gyro: GyroArgs,
+    #[command(flatten)]
+    pub board: BoardArgs,
+    #[command(flatten)]
+    pub calibration: CalibrationArgs,
+    /// Constant input rate, deg/h (-1e6..=1e6).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub rate_deg_h: f64,
+    /// Simulated seconds recorded after the warm-up (0 < s <= 360000: 100 h).
+    #[arg(long, default_value_t = 10.0)]
+    pub seconds: f64,
+    /// Simulated seconds discarded before recording (0..=60).
+    #[arg(long, default_value_t = 0.5)]
+    pub warmup_seconds: f64,
+    /// Output CSV (t_s,delta_angle_arcsec,true_delta_angle_arcsec,valid), one row per sync
+    /// period, written as the rows come.
+    #[arg(long)]
+    pub csv: PathBuf,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+impl RecordArgs {
+    /// Ranges; the message names the flag.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.rate_deg_h.is_finite() && self.rate_deg_h.abs() <= 1e6) {
+            return Err(format!(
+                "--rate-deg-h must be in -1e6..=1e6, got {}",
+                self.rate_deg_h
+            ));
+        }
+        if !(self.seconds.is_finite() && self.seconds > 0.0 && self.seconds <= 360_000.0) {
+            return Err(format!(
+                "--seconds must be in (0, 360000], got {}",
+                self.seconds
+            ));
+        }
+        if !(self.warmup_seconds.is_finite() && (0.0..=60.0).contains(&self.warmup_seconds)) {
+            return Err(format!(
+                "--warmup-seconds must be in 0..=60, got {}",
+                self.warmup_seconds
+            ));
+        }
+        self.calibration.validate()?;
+        self.board.validate()
     }
 }
 

@@ -8,4 +8,5 @@
 pub mod dither_run;
 pub mod experiment;
 pub mod plot;
+pub mod record_run;
 pub mod report;

@@ -6,8 +6,12 @@
 
 mod args;
 
-use args::{Cli, Command, DitherArgs, GyroArgs, SpeedArgs, SweepArgs};
+use args::{
+    BoardArgs, CalibrationArgs, Cli, Command, DitherArgs, GyroArgs, RecordArgs, SpeedArgs,
+    SweepArgs,
+};
 use clap::Parser;
+use firmware::signal::compensation::CompensationSettings;
 use hal_sim::gyro::measure_speed;
 use hal_sim::input::InputProfile;
 use hal_sim::params::{AmplitudeModulation, GyroParams};
@@ -17,9 +21,13 @@ use rlg_sim::dither_run::{self, DitherRunOptions};
 use rlg_sim::experiment::{
     calibrate, measure_rate, settings_from_fit, BoardSetup, DitherDrive, Latch, RunLength,
 };
+use rlg_sim::record_run;
 use rlg_sim::report::{self, SweepRow};
 use std::io::Write;
+use std::ops::ControlFlow;
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -27,6 +35,7 @@ fn main() -> ExitCode {
         Command::Sweep(args) => sweep(&args),
         Command::Speed(args) => speed(&args),
         Command::Dither(args) => dither(&args),
+        Command::Record(args) => record(&args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
@@ -38,12 +47,17 @@ fn main() -> ExitCode {
             eprintln!("rlg-sim: {msg}");
             ExitCode::from(1)
         }
+        Err(Failure::Interrupted) => {
+            eprintln!("rlg-sim: interrupted; the rows so far are written");
+            ExitCode::from(130)
+        }
     }
 }
 
 enum Failure {
     Usage(String),
     Run(String),
+    Interrupted,
 }
 
 impl GyroArgs {
@@ -91,37 +105,16 @@ fn sweep(args: &SweepArgs) -> Result<(), Failure> {
             .build_global()
             .map_err(|e| Failure::Run(format!("thread pool: {e}")))?;
     }
-    let sf = params.scale_factor_arcsec;
-
     // Step 2 of the paper: calibrate outside the dead band.
-    let cal_rates = args.calibration_rates_deg_h();
-    let bar = progress(1, args.quiet, "calibration");
-    let cal_length = RunLength {
-        warmup_s: args.warmup_seconds,
-        record_s: args.calibration_seconds,
-    };
-    let setup = args.board_setup();
-    let fit = calibrate(&params, setup, &cal_rates, cal_length)
-        .map_err(|e| Failure::Run(e.to_string()))?;
-    bar.inc(1);
-    bar.finish_and_clear();
-    let settings = settings_from_fit(&fit).map_err(|e| Failure::Run(e.to_string()))?;
-    let truth = params
-        .derive()
-        .map_err(|e| Failure::Usage(format!("{e:?}")))?;
-    eprintln!(
-        "calibration at {:?} deg/h, {} cycles: a = {:.4} rad/s (+-{:.2e}), b = {:.4} rad/s (+-{:.2e})",
-        cal_rates, fit.cycles, fit.a_rad_per_s, fit.a_std_rad_per_s, fit.b_rad_per_s, fit.b_std_rad_per_s
-    );
-    eprintln!(
-        "  Omega_L = {:.3} deg/h (true {:.3}), eps = {:.5} rad (true {:.5}), variance reduction {:.6}, condition {:.3}",
-        fit.lock_in_rad_per_s * sf / std::f64::consts::TAU,
-        truth.omega_l_rad_per_s * sf / std::f64::consts::TAU,
-        fit.eps_rad,
-        params.eps_rad,
-        fit.variance_reduction,
-        fit.condition_number
-    );
+    let setup = args.board.setup();
+    let settings = calibrate_board(
+        &params,
+        &args.calibration,
+        setup,
+        args.warmup_seconds,
+        args.quiet,
+    )?;
+    let sf = params.scale_factor_arcsec;
 
     // Steps 3 and 4: record across the range with the fitted coefficients applied.
     let rates = args.rates_deg_h();
@@ -174,9 +167,150 @@ fn sweep(args: &SweepArgs) -> Result<(), Failure> {
     Ok(())
 }
 
-impl SweepArgs {
+/// The paper's Step 2 on the board `setup` describes (what `sweep` and `record` both do):
+/// prints the fit, returns the compensation settings it gives.
+fn calibrate_board(
+    params: &GyroParams,
+    cal: &CalibrationArgs,
+    setup: BoardSetup,
+    warmup_s: f64,
+    quiet: bool,
+) -> Result<CompensationSettings, Failure> {
+    let sf = params.scale_factor_arcsec;
+    let cal_rates = cal.rates_deg_h();
+    let bar = progress(1, quiet, "calibration");
+    let cal_length = RunLength {
+        warmup_s,
+        record_s: cal.calibration_seconds,
+    };
+    let fit = calibrate(params, setup, &cal_rates, cal_length)
+        .map_err(|e| Failure::Run(e.to_string()))?;
+    bar.inc(1);
+    bar.finish_and_clear();
+    let settings = settings_from_fit(&fit).map_err(|e| Failure::Run(e.to_string()))?;
+    let truth = params
+        .derive()
+        .map_err(|e| Failure::Usage(format!("{e:?}")))?;
+    eprintln!(
+        "calibration at {:?} deg/h, {} cycles: a = {:.4} rad/s (+-{:.2e}), b = {:.4} rad/s (+-{:.2e})",
+        cal_rates, fit.cycles, fit.a_rad_per_s, fit.a_std_rad_per_s, fit.b_rad_per_s, fit.b_std_rad_per_s
+    );
+    eprintln!(
+        "  Omega_L = {:.3} deg/h (true {:.3}), eps = {:.5} rad (true {:.5}), variance reduction {:.6}, condition {:.3}",
+        fit.lock_in_rad_per_s * sf / std::f64::consts::TAU,
+        truth.omega_l_rad_per_s * sf / std::f64::consts::TAU,
+        fit.eps_rad,
+        params.eps_rad,
+        fit.variance_reduction,
+        fit.condition_number
+    );
+    Ok(settings)
+}
+
+/// `rlg-sim record`: calibrate, then write the board's fixed-rate output as it comes. The CSV
+/// is created before the long work starts; rows are flushed at least once a second of wall
+/// time; Ctrl-C (SIGINT) stops the run cleanly with every row so far on disk (exit 130).
+fn record(args: &RecordArgs) -> Result<(), Failure> {
+    args.validate().map_err(Failure::Usage)?;
+    let params = args.gyro.params()?;
+    let file = std::fs::File::create(&args.csv)
+        .map_err(|e| Failure::Usage(format!("{}: {e}", args.csv.display())))?;
+    let mut out = std::io::BufWriter::new(file);
+    let io = |e: std::io::Error| Failure::Run(format!("{}: {e}", args.csv.display()));
+    writeln!(out, "t_s,delta_angle_arcsec,true_delta_angle_arcsec,valid").map_err(io)?;
+    let stop = interrupt_flag();
+    let setup = args.board.setup();
+    let settings = calibrate_board(
+        &params,
+        &args.calibration,
+        setup,
+        args.warmup_seconds,
+        args.quiet,
+    )?;
+    let bar = progress(
+        (args.seconds * 10.0).ceil() as u64,
+        args.quiet,
+        "record (0.1 s)",
+    );
+    let mut last_flush = std::time::Instant::now();
+    let mut write_error = None;
+    let summary = record_run::record(
+        &params,
+        setup,
+        args.rate_deg_h,
+        args.warmup_seconds,
+        args.seconds,
+        settings,
+        |row| {
+            let line = writeln!(
+                out,
+                "{:.6},{:.6},{:.6},{}",
+                row.t_s,
+                row.delta_angle_arcsec,
+                row.true_delta_angle_arcsec,
+                u8::from(row.valid)
+            );
+            if let Err(e) = line {
+                write_error = Some(e);
+                return ControlFlow::Break(());
+            }
+            if last_flush.elapsed().as_secs_f64() >= 1.0 {
+                last_flush = std::time::Instant::now();
+                bar.set_position((row.t_s * 10.0) as u64);
+                if let Err(e) = out.flush() {
+                    write_error = Some(e);
+                    return ControlFlow::Break(());
+                }
+            }
+            if stop.load(Ordering::Relaxed) {
+                ControlFlow::Break(())
+            } else {
+                ControlFlow::Continue(())
+            }
+        },
+    )
+    .map_err(|e| Failure::Run(e.to_string()))?;
+    bar.finish_and_clear();
+    out.flush().map_err(io)?;
+    if let Some(e) = write_error {
+        return Err(io(e));
+    }
+    let sf = params.scale_factor_arcsec;
+    println!(
+        "recorded {:.1} s: {} rows ({} invalid), rms(board - true) {:.4} arcsec per row",
+        summary.recorded_s, summary.rows, summary.invalid_rows, summary.rms_error_arcsec
+    );
+    println!(
+        "K = {:.6} fringes/code ({:.5} arcsec/code at {sf} arcsec/fringe), std {:.1e} relative, {}",
+        summary.strip.k,
+        f64::from(summary.strip.k) * sf,
+        summary.strip.k_std_rel,
+        if summary.strip.converged {
+            "converged"
+        } else {
+            "not converged"
+        }
+    );
+    eprintln!("wrote {}", args.csv.display());
+    if summary.interrupted && stop.load(Ordering::Relaxed) {
+        return Err(Failure::Interrupted);
+    }
+    Ok(())
+}
+
+/// A flag set by SIGINT or SIGTERM (the run then stops between half cycles).
+fn interrupt_flag() -> Arc<AtomicBool> {
+    let flag = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        // Registration fails only for forbidden signals; these two are allowed.
+        let _ = signal_hook::flag::register(signal, Arc::clone(&flag));
+    }
+    flag
+}
+
+impl BoardArgs {
     /// The simulated board these flags describe.
-    fn board_setup(&self) -> BoardSetup {
+    fn setup(&self) -> BoardSetup {
         BoardSetup {
             drive: match self.dither_drive {
                 args::DitherDrive::Ideal => DitherDrive::Ideal,

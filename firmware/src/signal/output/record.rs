@@ -19,7 +19,8 @@
 //!
 //! # Validity: never a silent wrong angle
 //!
-//! A period with a counter glitch, a lost photodiode signal, a pick-off at a rail, an unlocked
+//! A period with a counter glitch, a lost photodiode signal, a pick-off at a rail or failing the
+//! innovation gate (`strip`), an unlocked
 //! or faulted dither drive, or no previous latch (start, or a resynchronisation after a stall)
 //! is invalid: its increment is 0, the integrated angle holds, and [`OutputStatus::VALID`] is
 //! clear. The angle of that period is lost, and says so; it is never replaced by a guess.
@@ -57,14 +58,16 @@ impl OutputStatus {
     pub const COUNTER_GLITCH: Self = Self(1 << 5);
     /// The photodiode signal was lost in the period.
     pub const SIGNAL_LOST: Self = Self(1 << 6);
-    /// The pick-off read at a rail of its converter at the latch.
-    pub const PICKOFF_RAIL: Self = Self(1 << 7);
+    /// The pick-off read at a rail of its converter at the latch, or its increment disagreed
+    /// with the count's (the innovation gate, `strip`): it did not report the dither angle.
+    pub const PICKOFF_FAULT: Self = Self(1 << 7);
     /// No previous latch to difference against (start, resynchronisation).
     pub const RESTART: Self = Self(1 << 8);
 
     /// Bits that make a period invalid.
-    pub const FAULTS: Self =
-        Self(Self::COUNTER_GLITCH.0 | Self::SIGNAL_LOST.0 | Self::PICKOFF_RAIL.0 | Self::RESTART.0);
+    pub const FAULTS: Self = Self(
+        Self::COUNTER_GLITCH.0 | Self::SIGNAL_LOST.0 | Self::PICKOFF_FAULT.0 | Self::RESTART.0,
+    );
 
     /// No bit set.
     pub const fn empty() -> Self {

@@ -50,6 +50,12 @@ pub struct StripConfig {
     pub min_updates: u32,
     /// Relative standard error of `K` below which it counts as converged.
     pub converged_rel: f32,
+    /// Innovation gate, fringes: a latch whose stripped increment departs from the recent
+    /// increments by more than this is implausible (a pick-off that stopped reporting the
+    /// dither leaves the dither itself, hundreds of fringes, in the increment). It tolerates an
+    /// angular acceleration of `limit / (2 dt^2)`: 26000 deg/s^2 at a 1 kHz sync, 260 deg/s^2
+    /// at 100 Hz, for the default 100 fringes (187 arcsec).
+    pub innovation_limit_fringes: f32,
     /// Codes at (or beyond) which the pick-off counts as clipped: `0..rail_margin` and
     /// `4095 - rail_margin..=4095` (a saturated pick-off does not report the dither angle).
     pub rail_margin_codes: u16,
@@ -66,6 +72,7 @@ impl StripConfig {
             memory_updates: 4096,
             min_updates: 64,
             converged_rel: 1e-4,
+            innovation_limit_fringes: 100.0,
             rail_margin_codes: 2,
         }
     }
@@ -107,6 +114,24 @@ pub struct DitherStripper {
     std_rel: f32,
     /// The previous latch: phase (Q32 fringes, wrapping) and pick-off code, if usable.
     previous: Option<(i64, u16)>,
+    /// The recent stripped increment, fringes (the innovation gate's prediction: an average
+    /// with gain 1/2, so it follows a changing rate within two latches).
+    recent_increment: Option<f32>,
+    /// Consecutive increments the gate rejected.
+    rejections: u32,
+}
+
+/// Consecutive rejections after which the gate's prediction is learned anew.
+const MAX_REJECTIONS: u32 = 16;
+
+/// One stripped latch.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Stripped {
+    /// The phase without the dither, Q32 fringes (wrapping like the phase).
+    pub phase_q32: i64,
+    /// The increment since the previous latch broke the innovation gate: the pick-off and the
+    /// count disagree about the dither.
+    pub implausible: bool,
 }
 
 impl DitherStripper {
@@ -124,6 +149,8 @@ impl DitherStripper {
             updates: 0,
             std_rel: f32::INFINITY,
             previous: None,
+            recent_increment: None,
+            rejections: 0,
         }
     }
 
@@ -135,28 +162,53 @@ impl DitherStripper {
         });
     }
 
-    /// The stripped phase at one latch, Q32 fringes (wrapping like the phase): `phase_q32 - K
-    /// (pickoff - mid)`. `learn` false (a fault in the period) leaves the fit alone and breaks
-    /// the chain of increments.
+    /// The stripped phase at one latch: `phase_q32 - K (pickoff - mid)`, and whether the
+    /// increment since the previous latch passes the innovation gate. `usable` false (a fault
+    /// in the period) leaves the fit alone and breaks the chain of increments; an implausible
+    /// increment is not learned from either.
     pub fn strip(
         &mut self,
         config: &StripConfig,
         phase_q32: i64,
         pickoff_code: u16,
-        learn: bool,
-    ) -> i64 {
-        if learn {
+        usable: bool,
+    ) -> Stripped {
+        let mut implausible = false;
+        if usable {
             if let Some((phase0, code0)) = self.previous {
                 let d_psi = (phase_q32.wrapping_sub(phase0) as f64 / Q32_PER_FRINGE) as f32;
                 let d_p = f32::from(pickoff_code) - f32::from(code0);
-                self.learn(config, d_psi, d_p);
+                let increment = d_psi - self.k * d_p;
+                if let Some(recent) = self.recent_increment {
+                    implausible = (increment - recent).abs() > config.innovation_limit_fringes;
+                }
+                if implausible {
+                    // The prediction stays; after a run of rejections (a real change of rate
+                    // beyond the gate) it is learned anew.
+                    self.rejections = self.rejections.saturating_add(1);
+                    if self.rejections >= MAX_REJECTIONS {
+                        self.recent_increment = None;
+                        self.rejections = 0;
+                    }
+                } else {
+                    self.rejections = 0;
+                    self.learn(config, d_psi, d_p);
+                    self.recent_increment = Some(match self.recent_increment {
+                        Some(recent) => recent + 0.5 * (increment - recent),
+                        None => increment,
+                    });
+                }
             }
             self.previous = Some((phase_q32, pickoff_code));
         } else {
             self.previous = None;
+            self.recent_increment = None;
         }
         let dither_fringes = self.k * (f32::from(pickoff_code) - f32::from(config.mid_code));
-        phase_q32.wrapping_sub((dither_fringes as f64 * Q32_PER_FRINGE) as i64)
+        Stripped {
+            phase_q32: phase_q32.wrapping_sub((dither_fringes as f64 * Q32_PER_FRINGE) as i64),
+            implausible,
+        }
     }
 
     fn learn(&mut self, config: &StripConfig, d_psi: f32, d_p: f32) {
@@ -231,7 +283,9 @@ mod tests {
             let dither_codes = 1125.0 * (core::f64::consts::TAU * 389.0 * t).sin();
             let code = (2048.0 + dither_codes).round();
             let psi = rate_fringes_per_s * t + k_true * (code - 2048.0);
-            let out = s.strip(&cfg, (psi * Q32_PER_FRINGE) as i64, code as u16, true);
+            let out = s
+                .strip(&cfg, (psi * Q32_PER_FRINGE) as i64, code as u16, true)
+                .phase_q32;
             let err = out as f64 / Q32_PER_FRINGE - rate_fringes_per_s * t;
             if i > 2000 {
                 worst = worst.max(err.abs());
@@ -258,6 +312,32 @@ mod tests {
         assert_eq!(s.status(&cfg).updates, 0);
         assert_eq!(s.status(&cfg).k, 0.2);
         assert!(!s.status(&cfg).converged);
+    }
+
+    /// A pick-off that stops reporting the dither (it reads its offset) breaks the gate at
+    /// once: the increment then carries the dither itself.
+    #[test]
+    fn a_silent_pickoff_breaks_the_innovation_gate() {
+        let cfg = config(0.2144);
+        let mut s = DitherStripper::new(&cfg);
+        let mut flagged = 0;
+        for i in 0..2000 {
+            let t = i as f64 * 1e-3;
+            let lost = i >= 1000;
+            let dither_codes = 1125.0 * (core::f64::consts::TAU * 389.0 * t).sin();
+            let psi = 0.2144 * dither_codes;
+            let code = if lost {
+                2048.0
+            } else {
+                2048.0 + dither_codes.round()
+            };
+            let out = s.strip(&cfg, (psi * Q32_PER_FRINGE) as i64, code as u16, true);
+            assert!(lost || !out.implausible, "latch {i}");
+            flagged += usize::from(out.implausible);
+        }
+        // 389 Hz seen at 1 kHz: the dither increment exceeds the 100-fringe gate at most
+        // latches (the rest pass with an error inside the gate).
+        assert!(flagged > 600, "{flagged} of 1000 flagged");
     }
 
     #[test]
