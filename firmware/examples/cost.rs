@@ -8,7 +8,10 @@
 //!   Lissajous window solve (the 5x5 fit, once per 4096 samples);
 //! - one turnaround (`Readout::on_turnaround`: count extension, normalisation, CORDIC, fringe
 //!   phase, P1/P2 share), averaged over "-" turnarounds, and one cycle-closing "+" turnaround
-//!   (adds cycle assembly and compensation).
+//!   (adds cycle assembly and compensation);
+//! - one output latch (`Readout::on_output_latch`: count extension, normalisation, CORDIC,
+//!   dither stripping and K's fit, the record) and its wire frame (`encode_output_frame`: COBS
+//!   and CRC-32): the work between a sync edge and the record's first byte on the UART.
 //!
 //! These are instructions, not cycles: on the M4 at 168 MHz with flash wait states a cycle
 //! count is some 1.2 to 1.6 times higher; the board's DWT.CYCCNT gives the real figure.
@@ -18,7 +21,8 @@
 mod app {
     use firmware::icount::{InstructionCounter, Timer};
     use firmware::readout::Readout;
-    use firmware::sample::{TurnaroundKind, TurnaroundSample};
+    use firmware::protocol::output_frame::{encode_output_frame, MAX_OUTPUT_FRAME};
+    use firmware::sample::{OutputSample, TurnaroundKind, TurnaroundSample};
     use firmware::signal::compensation::{Coefficients, CompensationSettings};
     use micromath::F32Ext;
 
@@ -95,6 +99,39 @@ mod app {
                 }
             }
         }
+        // Output latches at 1 kHz on the same steady dither (the count and pick-off follow it).
+        let (mut latch_total, mut frame_total, mut latch_n) = (0u32, 0u32, 0u32);
+        let mut frame = [0u8; MAX_OUTPUT_FRAME];
+        for i in 0..300u32 {
+            let t = i as f32 * 1e-3;
+            let dither = (core::f32::consts::TAU * DITHER_HZ as f32 * t).sin();
+            let count = 100_000 + (dither * EXCURSION_COUNTS as f32 / 2.0) as i32 as u32;
+            let (a, b) = codes(count as f32 * core::f32::consts::FRAC_PI_2 + 0.3);
+            let sample = OutputSample {
+                encoder_count: count,
+                adc_a_code: a,
+                adc_b_code: b,
+                pickoff_code: (2048.0 + 1125.0 * dither) as u16,
+                timestamp_ticks: i * 84_000,
+                drive_locked: true,
+            };
+            let mut record = None;
+            let n = counter.count(|| record = Some(readout.on_output_latch(&config, sample)));
+            let m = match record {
+                Some(r) => counter.count(|| {
+                    encode_output_frame(&r, &mut frame);
+                }),
+                None => 0,
+            };
+            if i >= 100 {
+                latch_total += n;
+                frame_total += m;
+                latch_n += 1;
+            }
+        }
+        let per_latch = latch_total / latch_n.max(1);
+        let per_frame = frame_total / latch_n.max(1);
+
         let per_minus = minus_total / minus_n.max(1);
         let per_plus = plus_total / plus_n.max(1);
 
@@ -107,7 +144,8 @@ mod app {
         defmt::info!("turnaround (-): {=u32} instructions; cycle-closing turnaround (+): {=u32} instructions ({=u32} cycles closed)", per_minus, per_plus, plus_n);
         let per_cycle = per_minus + per_plus;
         defmt::info!("per dither cycle: {=u32} instructions = {=u32} per mille of 168 M instructions/s at 389 Hz, {=u32} per mille at 1 kHz", per_cycle, per_cycle * 389 / 168_000, per_cycle * 1000 / 168_000);
-        semihosting::process::exit(if plus_n > 100 { 0 } else { 1 })
+        defmt::info!("output latch: {=u32} instructions; its frame (COBS + CRC-32): {=u32}; sync edge to frame ready: {=u32} instructions = {=u32} ns at 168 MHz and 1 instruction per cycle", per_latch, per_frame, per_latch + per_frame, (per_latch + per_frame) * 1000 / 168);
+        semihosting::process::exit(if plus_n > 100 && latch_n == 200 { 0 } else { 1 })
     }
 }
 

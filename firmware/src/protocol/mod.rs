@@ -10,11 +10,13 @@
 //! interrupt, whose state it changes only through staged settings.
 
 pub mod access;
+pub mod cobs;
 pub mod commands;
 pub mod endpoint;
 pub mod execute;
 pub mod line;
 pub mod link;
+pub mod output_frame;
 pub mod parse;
 pub mod respond;
 pub mod stream;

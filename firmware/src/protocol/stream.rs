@@ -20,15 +20,14 @@
 //! 460800 baud or more (the F405's USART does 10 Mbit/s); slower links use a divider. The host
 //! decodes with the same [`decode_frame`]; the CRC is the same CRC-32 as the flash records.
 
+use super::cobs;
+pub use super::cobs::FrameError;
 use crate::signal::lockin::CycleRecord;
-use crate::storage::crc::crc32;
 
 /// Payload bytes.
 pub const FRAME_PAYLOAD: usize = 41;
-/// Payload plus CRC.
-const FRAME_BODY: usize = FRAME_PAYLOAD + 4;
-/// Largest encoded frame, delimiter included: COBS adds one byte per 254 (one here).
-pub const MAX_FRAME: usize = FRAME_BODY + 2;
+/// Largest encoded frame, delimiter included: payload, CRC, one COBS byte, the delimiter.
+pub const MAX_FRAME: usize = FRAME_PAYLOAD + 6;
 
 /// One streamed cycle.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -101,76 +100,13 @@ impl StreamRecord {
 
 /// Encodes a frame into `out`; returns its length (delimiter included).
 pub fn encode_frame(record: &StreamRecord, out: &mut [u8; MAX_FRAME]) -> usize {
-    let mut body = [0u8; FRAME_BODY];
-    let payload = record.to_bytes();
-    body[..FRAME_PAYLOAD].copy_from_slice(&payload);
-    body[FRAME_PAYLOAD..].copy_from_slice(&crc32(&payload).to_le_bytes());
-    // COBS: each zero is replaced by the distance to the next zero (or the end).
-    let mut code_at = 0;
-    let mut code: u8 = 1;
-    let mut n = 1;
-    for &byte in &body {
-        if byte == 0 {
-            out[code_at] = code;
-            code_at = n;
-            code = 1;
-        } else {
-            out[n] = byte;
-            code += 1;
-        }
-        n += 1;
-    }
-    out[code_at] = code;
-    out[n] = 0;
-    n + 1
-}
-
-/// Why a frame was dropped.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum FrameError {
-    /// Wrong length or broken COBS structure.
-    Malformed,
-    /// The CRC-32 does not match the payload.
-    BadCrc,
+    cobs::encode(&record.to_bytes(), out)
 }
 
 /// Decodes one frame (without its 0x00 delimiter).
 pub fn decode_frame(encoded: &[u8]) -> Result<StreamRecord, FrameError> {
-    let mut body = [0u8; FRAME_BODY];
-    let mut n = 0;
-    let mut i = 0;
-    while i < encoded.len() {
-        let code = encoded[i] as usize;
-        // A block is its code byte plus code - 1 data bytes, and must end inside the frame.
-        if code == 0 || i + code > encoded.len() {
-            return Err(FrameError::Malformed);
-        }
-        for &byte in &encoded[i + 1..i + code] {
-            if byte == 0 || n >= FRAME_BODY {
-                return Err(FrameError::Malformed);
-            }
-            body[n] = byte;
-            n += 1;
-        }
-        i += code;
-        // Every block but the last and but a full 0xFF block stands for a following zero.
-        if i < encoded.len() && code != 0xFF {
-            if n >= FRAME_BODY {
-                return Err(FrameError::Malformed);
-            }
-            body[n] = 0;
-            n += 1;
-        }
-    }
-    if n != FRAME_BODY {
-        return Err(FrameError::Malformed);
-    }
     let mut payload = [0u8; FRAME_PAYLOAD];
-    payload.copy_from_slice(&body[..FRAME_PAYLOAD]);
-    let crc = u32::from_le_bytes([body[41], body[42], body[43], body[44]]);
-    if crc != crc32(&payload) {
-        return Err(FrameError::BadCrc);
-    }
+    cobs::decode(encoded, &mut payload)?;
     Ok(StreamRecord::from_bytes(&payload))
 }
 
