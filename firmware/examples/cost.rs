@@ -20,8 +20,8 @@
 #[cfg(target_os = "none")]
 mod app {
     use firmware::icount::{InstructionCounter, Timer};
-    use firmware::readout::Readout;
     use firmware::protocol::output_frame::{encode_output_frame, MAX_OUTPUT_FRAME};
+    use firmware::readout::Readout;
     use firmware::sample::{OutputSample, TurnaroundKind, TurnaroundSample};
     use firmware::signal::compensation::{Coefficients, CompensationSettings};
     use micromath::F32Ext;

@@ -265,6 +265,14 @@ pub struct BoardArgs {
     /// dither is the firmware drive's).
     #[arg(long, default_value_t = 0.0)]
     pub dither_noise_percent: f64,
+    /// The pick-off's gain error against its nominal 0.4 arcsec per code (-0.2..=0.2): the
+    /// stripping fits it.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub pickoff_gain_error: f64,
+    /// The pick-off's lag behind the dither angle, us (0..=100): the stripping's second tap
+    /// fits it.
+    #[arg(long, default_value_t = 0.0)]
+    pub pickoff_lag_us: f64,
 }
 
 impl BoardArgs {
@@ -277,6 +285,18 @@ impl BoardArgs {
             return Err(format!(
                 "--sync-hz must be in 100..=2000 Hz, got {}",
                 self.sync_hz
+            ));
+        }
+        if !(-0.2..=0.2).contains(&self.pickoff_gain_error) {
+            return Err(format!(
+                "--pickoff-gain-error must be in -0.2..=0.2, got {}",
+                self.pickoff_gain_error
+            ));
+        }
+        if !(0.0..=100.0).contains(&self.pickoff_lag_us) {
+            return Err(format!(
+                "--pickoff-lag-us must be in 0..=100 us, got {}",
+                self.pickoff_lag_us
             ));
         }
         if self.dither_noise_percent > 0.0 && self.dither_drive == DitherDrive::Ideal {

@@ -92,7 +92,7 @@ pub enum Latch {
 }
 
 /// The simulated board of a run: the dither, the latch, the sync of the fixed-rate output.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BoardSetup {
     /// How the dither is made.
     pub drive: DitherDrive,
@@ -100,6 +100,10 @@ pub struct BoardSetup {
     pub latch: Latch,
     /// The sync of the fixed-rate output, Hz (`None`: no output records).
     pub sync_hz: Option<f64>,
+    /// The pick-off's gain error against its nominal sensitivity (0 = nominal).
+    pub pickoff_gain_error: f64,
+    /// The pick-off's lag behind the dither angle, s (0 = in phase).
+    pub pickoff_lag_s: f64,
 }
 
 impl BoardSetup {
@@ -108,6 +112,8 @@ impl BoardSetup {
         drive: DitherDrive::Ideal,
         latch: Latch::Exact,
         sync_hz: None,
+        pickoff_gain_error: 0.0,
+        pickoff_lag_s: 0.0,
     };
 
     /// What a board does: the firmware's drive (random-noise dither of `noise_percent`), the
@@ -117,6 +123,8 @@ impl BoardSetup {
             drive: DitherDrive::ClosedLoop { noise_percent },
             latch: Latch::Scheduled,
             sync_hz: Some(sync_hz),
+            pickoff_gain_error: 0.0,
+            pickoff_lag_s: 0.0,
         }
     }
 }
@@ -132,7 +140,7 @@ impl From<DitherDrive> for BoardSetup {
         Self {
             drive,
             latch,
-            sync_hz: None,
+            ..Self::IDEAL
         }
     }
 }
@@ -175,6 +183,8 @@ pub fn start_constant_rate(
     if let Some(source) = source {
         options = options.drive(source);
     }
+    options.board.pickoff.gain_error = setup.pickoff_gain_error;
+    options.board.pickoff.lag_s = setup.pickoff_lag_s;
     if setup.latch == Latch::Scheduled {
         // What a board does: the turnaround instants predicted from the pick-off's edges.
         options = options.latch(LatchTiming::scheduled(0.0));

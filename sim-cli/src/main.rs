@@ -323,6 +323,8 @@ impl BoardArgs {
                 args::LatchArg::Exact => Latch::Exact,
             },
             sync_hz: Some(self.sync_hz),
+            pickoff_gain_error: self.pickoff_gain_error,
+            pickoff_lag_s: self.pickoff_lag_us * 1e-6,
         }
     }
 }
