@@ -80,9 +80,22 @@ fn progress(len: u64, quiet: bool, what: &str) -> ProgressBar {
     bar
 }
 
+/// A precondition of a long run: the output file can be created (it is, empty, and written at
+/// the end), so a bad path is a usage error at once, not after the run.
+fn check_output(path: Option<&std::path::PathBuf>) -> Result<(), Failure> {
+    match path {
+        Some(path) => std::fs::File::create(path)
+            .map(drop)
+            .map_err(|e| Failure::Usage(format!("cannot create {}: {e}", path.display()))),
+        None => Ok(()),
+    }
+}
+
 fn sweep(args: &SweepArgs) -> Result<(), Failure> {
     args.validate().map_err(Failure::Usage)?;
     let params = args.gyro.params()?;
+    check_output(args.csv.as_ref())?;
+    check_output(args.svg.as_ref())?;
     if let Some(jobs) = args.jobs {
         rayon::ThreadPoolBuilder::new()
             .num_threads(jobs.max(1))
