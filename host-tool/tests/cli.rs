@@ -44,7 +44,9 @@ fn help_documents_commands_and_exit_codes() {
         "sweep",
         "serve-sim",
         "Exit status",
-        "3  connection",
+        "3    connection",
+        "130  stopped by Ctrl-C",
+        "RLG_TCP",
     ] {
         assert!(out.contains(word), "{word} in --help");
     }
@@ -110,10 +112,15 @@ fn calibrate_with_accept_and_store() {
     ]);
     assert_eq!(code, 0, "{err}");
     assert!(
-        out.contains("lock_in_deg_h=") && out.contains("comp=on"),
+        out.contains("\nlock_in_deg_h=") && out.contains("\naccept.comp=on"),
         "{out}"
     );
-    assert!(out.contains("stored seq=1"), "{out}");
+    // Every line of the result is key=value (the board's `stored seq=1 ...` included).
+    assert!(
+        out.contains("\nstore.result=stored\nstore.seq=1\n"),
+        "{out}"
+    );
+    assert!(out.lines().all(|l| l.contains('=')), "{out}");
 }
 
 #[test]
@@ -132,7 +139,7 @@ fn stream_writes_csv_and_svg() {
         svg.to_str().unwrap(),
     ]);
     assert_eq!(code, 0, "{err}");
-    assert!(out.contains("lost=0 bad=0"), "{out}");
+    assert!(out.contains("\nlost=0\nbad=0\n"), "{out}");
     let rows = std::fs::read_to_string(&csv).unwrap().lines().count();
     assert!((190..=200).contains(&rows), "{rows} rows");
     assert!(std::fs::read_to_string(&svg).unwrap().starts_with("<svg"));

@@ -7,5 +7,6 @@
 
 pub mod dither_run;
 pub mod experiment;
+pub mod interrupt;
 pub mod plot;
 pub mod report;
