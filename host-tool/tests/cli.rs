@@ -212,3 +212,26 @@ fn a_served_board_talks_to_a_second_process() {
     assert_eq!(over_pty.0, 0, "{}", over_pty.2);
     assert!(over_pty.1.contains("serial=4242"), "{}", over_pty.1);
 }
+
+/// A calibration the board refuses ends the sweep with the board's reason in words, exit 1:
+/// at azimuth 90 deg the axis sees no Earth rate, inside the dead band.
+#[test]
+fn sweep_refused_calibration_exits_1_with_the_reason() {
+    let (code, out, err) = run(&[
+        "sweep",
+        "--calibrate",
+        "--cal-azimuth",
+        "90",
+        "--azimuths",
+        "0",
+    ]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("ERR 12 fit refused reason=1 mean rate inside the dynamic dead band"),
+        "{err}"
+    );
+    assert!(
+        !out.contains("azimuth_deg"),
+        "no sweep after a refused fit: {out}"
+    );
+}

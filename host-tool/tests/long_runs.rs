@@ -341,3 +341,43 @@ fn results_for_scripts() {
         "{out}"
     );
 }
+
+/// Ctrl-C during `rlg-cal sweep`: the azimuths done are kept (printed and in the CSV, the same
+/// rows), exit 130.
+#[test]
+fn sigint_during_a_sweep_keeps_the_azimuths_done() {
+    let csv = scratch("sweep-int.csv");
+    let azimuths: Vec<String> = (0..36).map(|i| (i * 10).to_string()).collect();
+    let azimuths = azimuths.join(",");
+    let mut child = rlg_cal(
+        &[
+            "sweep",
+            "--azimuths",
+            &azimuths,
+            "--csv",
+            csv.to_str().unwrap(),
+        ],
+        &[],
+    )
+    .stdout(Stdio::piped())
+    .stderr(Stdio::piped())
+    .spawn()
+    .unwrap();
+    // The first azimuth measured (a progress line on stderr), then Ctrl-C.
+    let mut stderr = BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    while !line.contains("measured") {
+        line.clear();
+        assert!(stderr.read_line(&mut line).unwrap() > 0);
+    }
+    interrupt(&child);
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(130), "{rest}");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let printed = stdout.lines().filter(|l| !l.starts_with('#')).count() - 1;
+    let written = std::fs::read_to_string(&csv).unwrap().lines().count() - 1;
+    assert!((1..36).contains(&printed), "{stdout}");
+    assert_eq!(printed, written);
+}

@@ -36,12 +36,18 @@ fn main() -> ExitCode {
             eprintln!("rlg-sim: {msg}");
             ExitCode::from(1)
         }
+        Err(Failure::Interrupted(msg)) => {
+            eprintln!("rlg-sim: interrupted: {msg}");
+            ExitCode::from(rlg_sim::interrupt::EXIT_STATUS)
+        }
     }
 }
 
 enum Failure {
     Usage(String),
     Run(String),
+    /// Ctrl-C or SIGTERM (exit 130), after what was done is written.
+    Interrupted(String),
 }
 
 impl GyroArgs {
@@ -96,6 +102,8 @@ fn sweep(args: &SweepArgs) -> Result<(), Failure> {
     let params = args.gyro.params()?;
     check_output(args.csv.as_ref())?;
     check_output(args.svg.as_ref())?;
+    // Ctrl-C: the points under way finish, the rest are skipped, and what was done is written.
+    let stop = rlg_sim::interrupt::install();
     if let Some(jobs) = args.jobs {
         rayon::ThreadPoolBuilder::new()
             .num_threads(jobs.max(1))
@@ -121,6 +129,11 @@ fn sweep(args: &SweepArgs) -> Result<(), Failure> {
         .map_err(|e| Failure::Run(e.to_string()))?;
     bar.inc(1);
     bar.finish_and_clear();
+    if stop.load(std::sync::atomic::Ordering::SeqCst) {
+        return Err(Failure::Interrupted(
+            "during the calibration: nothing measured".into(),
+        ));
+    }
     let settings = settings_from_fit(&fit).map_err(|e| Failure::Run(e.to_string()))?;
     let truth = params
         .derive()
@@ -146,22 +159,25 @@ fn sweep(args: &SweepArgs) -> Result<(), Failure> {
         warmup_s: args.warmup_seconds,
         record_s: args.seconds_per_point,
     };
-    let rows: Result<Vec<SweepRow>, String> = rates
+    let rows: Result<Vec<Option<SweepRow>>, String> = rates
         .par_iter()
         .map(|&rate| {
+            if stop.load(std::sync::atomic::Ordering::SeqCst) {
+                return Ok(None);
+            }
             let m =
                 measure_rate(&params, drive, rate, length, settings).map_err(|e| e.to_string())?;
             bar.inc(1);
-            Ok(SweepRow {
+            Ok(Some(SweepRow {
                 input_deg_h: rate,
                 ideal_hz: rate / sf,
                 uncompensated_hz: m.uncompensated_hz,
                 compensated_hz: m.compensated_hz,
-            })
+            }))
         })
         .collect();
     bar.finish_and_clear();
-    let rows = rows.map_err(Failure::Run)?;
+    let rows: Vec<SweepRow> = rows.map_err(Failure::Run)?.into_iter().flatten().collect();
     print!("{}", report::table(&rows, sf));
     let worst = |f: fn(&SweepRow) -> f64| {
         rows.iter()
@@ -186,6 +202,13 @@ fn sweep(args: &SweepArgs) -> Result<(), Failure> {
         std::fs::write(path, report::figure(&rows, sf, &title).to_svg())
             .map_err(|e| Failure::Run(format!("{}: {e}", path.display())))?;
         eprintln!("wrote {}", path.display());
+    }
+    if rows.len() < rates.len() {
+        return Err(Failure::Interrupted(format!(
+            "{} of {} input rates done (those are written)",
+            rows.len(),
+            rates.len()
+        )));
     }
     Ok(())
 }

@@ -75,3 +75,46 @@ fn a_bad_output_path_fails_before_the_run() {
         assert!(took < Duration::from_millis(500), "{flag}: {took:?}");
     }
 }
+
+/// Ctrl-C after the calibration: the input rates under way finish, the rest are skipped; the
+/// table and the CSV hold the rates done (the same rows), and the exit status is 130.
+#[test]
+fn sigint_keeps_the_points_done() {
+    use std::io::{BufRead, BufReader};
+    let csv = std::env::temp_dir().join(format!("rlg-sim-int-{}.csv", std::process::id()));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_rlg-sim"))
+        .args(["sweep", "--quiet", "--calibration-seconds", "5", "--csv"])
+        .arg(&csv)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    while !line.contains("Omega_L") {
+        line.clear();
+        assert!(stderr.read_line(&mut line).unwrap() > 0, "calibration line");
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    // SAFETY: a signal to our own child process.
+    assert_eq!(
+        unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) },
+        0
+    );
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(130), "{rest}");
+    assert!(rest.contains("input rates done"), "{rest}");
+    let rows = std::fs::read_to_string(&csv).unwrap().lines().count() - 1;
+    assert!((1..41).contains(&rows), "{rows} rows");
+    let table_rows = text(&out.stdout)
+        .lines()
+        .filter(|l| {
+            l.trim_start()
+                .starts_with(['-', '0', '1', '2', '3', '4', '5', '6', '7', '8', '9'])
+        })
+        .count();
+    assert_eq!(table_rows, rows, "{}", text(&out.stdout));
+}
