@@ -20,6 +20,9 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+/// Longest wait for the board's `id` before a long run.
+const PROBE_TIMEOUT: Duration = Duration::from_secs(1);
+
 /// An output file, created before the run.
 pub struct Output {
     pub path: PathBuf,
@@ -106,6 +109,17 @@ impl<'a, L: Link> Device<'a, L> {
         );
     }
 
+    /// A precondition of a long run: the board answers `id`, within a second at most (a board
+    /// answers in milliseconds; a silent port is a connection error, exit 3, before the run).
+    fn probe(&mut self) -> Result<(), Failure> {
+        let timeout = self.client.timeout();
+        self.client.set_timeout(timeout.min(PROBE_TIMEOUT));
+        let answered = self.client.command("id");
+        self.client.set_timeout(timeout);
+        answered?;
+        Ok(())
+    }
+
     /// Unlocks first when a key was given.
     fn unlocked(&mut self) -> Result<&mut Self, Failure> {
         if let Some(key) = &self.session.key {
@@ -152,7 +166,7 @@ impl<'a, L: Link> Device<'a, L> {
     fn calibrate(&mut self, args: &CalibrateArgs) -> Result<(), Failure> {
         let stop = interrupt::install();
         // The board answers, and a wrong key is refused, before the run.
-        self.client.command("id")?;
+        self.probe()?;
         if args.accept {
             self.unlocked()?;
         }
@@ -190,6 +204,7 @@ impl<'a, L: Link> Device<'a, L> {
         let stop = interrupt::install();
         let outputs = std::mem::take(&mut self.session.outputs);
         let csv = outputs.csv.expect("prepared");
+        self.probe()?;
         let scale = ops::rate_scale(self.client, args.timer_hz)?;
         let write_failed = |path: &Path, e: std::io::Error| {
             Failure::Run(format!("cannot write {}: {e}", path.display()))

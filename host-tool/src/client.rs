@@ -307,6 +307,16 @@ impl<L: Link> Client<L> {
         self
     }
 
+    /// The answer timeout.
+    pub fn timeout(&self) -> Duration {
+        self.timeout
+    }
+
+    /// Changes the answer timeout.
+    pub fn set_timeout(&mut self, timeout: Duration) {
+        self.timeout = timeout;
+    }
+
     /// The link underneath.
     pub fn link(&self) -> &L {
         &self.link

@@ -381,3 +381,54 @@ fn sigint_during_a_sweep_keeps_the_azimuths_done() {
     assert!((1..36).contains(&printed), "{stdout}");
     assert_eq!(printed, written);
 }
+
+/// A port that accepts the connection and never answers: `stream` and `calibrate` fail as a
+/// connection error (3) within a second (plus start-up), before the run, although the answer
+/// timeout is 2 s.
+#[test]
+fn a_silent_board_fails_before_the_run() {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let address = listener.local_addr().unwrap().to_string();
+    let accepting = std::thread::spawn(move || {
+        // Hold the connections open, answer nothing.
+        let held: Vec<_> = listener.incoming().take(2).collect();
+        std::thread::sleep(Duration::from_secs(3));
+        drop(held);
+    });
+    for args in [
+        &[
+            "--tcp",
+            address.as_str(),
+            "stream",
+            "--seconds",
+            "60",
+            "--csv",
+            "/dev/null",
+        ][..],
+        &["--tcp", address.as_str(), "calibrate"][..],
+    ] {
+        let (code, _, err, took) = run(args, &[]);
+        assert_eq!(code, 3, "{args:?}: {err}");
+        assert!(err.contains("no answer to `id`"), "{err}");
+        assert!(took < Duration::from_millis(1500), "{args:?}: {took:?}");
+    }
+    accepting.join().unwrap();
+}
+
+/// `serve-sim --tcp 127.0.0.1:0` with nothing else starts and prints its address; Ctrl-C
+/// stops it with exit status 130.
+#[test]
+fn serve_sim_starts_with_an_address_alone_and_stops_on_ctrl_c() {
+    let mut child = rlg_cal(&["serve-sim", "--tcp", "127.0.0.1:0"], &[])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut address = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut address)
+        .unwrap();
+    assert!(address.trim().starts_with("127.0.0.1:"), "{address}");
+    interrupt(&child);
+    assert_eq!(child.wait().unwrap().code(), Some(130));
+}
