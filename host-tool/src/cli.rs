@@ -80,8 +80,13 @@ pub struct ConnectionArgs {
     /// Serial port or pty (or RLG_PORT).
     #[arg(long, value_name = "PATH", global = true)]
     pub port: Option<String>,
-    /// Baud rate of --port (or RLG_BAUD; default: the board's, 460800).
-    #[arg(long, value_name = "N", global = true)]
+    /// Baud rate of --port (or RLG_BAUD; default: the board's, `SERIAL_BAUD`).
+    #[arg(
+        long,
+        value_name = "N",
+        global = true,
+        help = format!("Baud rate of --port (or RLG_BAUD; default: the board's, {SERIAL_BAUD})")
+    )]
     pub baud: Option<u32>,
     /// A board served on TCP (or RLG_TCP); for `serve-sim`, the address to listen on.
     #[arg(long, value_name = "HOST:PORT", global = true)]

@@ -43,9 +43,19 @@ impl From<ClientError> for Failure {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    let json = cli.json;
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(failure) => {
+            if let (true, Failure::Client(ClientError::Device(e))) = (json, &failure) {
+                // Scripts get the board's refusal on stdout too, as the command's one object.
+                let object = serde_json::json!({
+                    "command": e.command,
+                    "error": e.code,
+                    "error_text": e.text,
+                });
+                println!("{object}");
+            }
             let (message, code) = match failure {
                 Failure::Usage(m) => (format!("error: {m}"), 2),
                 Failure::Connect(m) => (m, 3),

@@ -333,6 +333,12 @@ fn results_for_scripts() {
         line.contains("\"result\":\"stored\"") && line.contains("\"seq\":1"),
         "{line}"
     );
+    let (code, out, _, _) = run(&["--sim", "--json", "set", "a", "1"], &[]);
+    assert_eq!(code, 1);
+    assert_eq!(
+        out.trim(),
+        r#"{"command":"set a 1","error":9,"error_text":"locked (unlock first)"}"#
+    );
     let (code, out, err, _) = run(&["--sim", "status"], &[]);
     assert_eq!(code, 0, "{err}");
     assert!(
