@@ -178,10 +178,20 @@ impl<'a, L: Link> Device<'a, L> {
             ProgressStyle::with_template("{bar:40} {pos}/{len} cycles, {elapsed} (eta {eta})")
                 .expect("valid template"),
         );
+        let mut announced = false;
         let result = ops::calibrate_until(
             self.client,
             &options,
             &mut |done, total| {
+                if !std::mem::replace(&mut announced, true) {
+                    bar.suspend(|| {
+                        eprintln!(
+                            "rlg-cal: the calibration runs on the board: {} cycles after {} of \
+                             warm-up (Ctrl-C aborts it there).",
+                            args.cycles, args.warmup
+                        )
+                    });
+                }
                 bar.set_length(total);
                 bar.set_position(done);
             },
@@ -212,6 +222,13 @@ impl<'a, L: Link> Device<'a, L> {
         let mut rows =
             CsvRows::new(csv.file, args.divider, scale).map_err(|e| write_failed(&csv.path, e))?;
         let mut row_error = None;
+        eprintln!(
+            "rlg-cal: streaming every {} cycle(s) for {} s into {} (Ctrl-C stops and keeps \
+             every frame received).",
+            args.divider,
+            args.seconds,
+            csv.path.display()
+        );
         let bar = ProgressBar::new(1000).with_style(
             ProgressStyle::with_template("{bar:40} streaming {elapsed}").expect("valid template"),
         );
