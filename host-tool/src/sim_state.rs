@@ -157,3 +157,37 @@ pub fn restore_settings<L: Link>(
     client.command("lock")?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> std::path::PathBuf {
+        std::env::temp_dir().join(format!("rlg-sim-state-{}-{name}", std::process::id()))
+    }
+
+    /// What is saved is loaded back byte for byte; no file is no state; a file that is not a
+    /// state file is refused with its path in the error (nothing is overwritten by loading).
+    #[test]
+    fn save_load_round_trip_and_refusals() {
+        let path = scratch("round");
+        let state = SimState {
+            boot_count: 7,
+            settings: vec![("a".into(), "12.5".into()), ("comp".into(), "on".into())],
+            flash: (0..=255u8).cycle().take(4096).collect(),
+        };
+        save(&path, &state).unwrap();
+        assert_eq!(load(&path).unwrap(), Some(state));
+        assert_eq!(load(&scratch("missing")).unwrap(), None);
+        std::fs::write(&path, b"something else\n\nbytes").unwrap();
+        let e = load(&path).unwrap_err();
+        assert_eq!(e.kind(), io::ErrorKind::InvalidData);
+        assert!(
+            e.to_string()
+                .contains("not an rlg-cal sim-board state file"),
+            "{e}"
+        );
+        assert_eq!(std::fs::read(&path).unwrap(), b"something else\n\nbytes");
+        std::fs::remove_file(&path).unwrap();
+    }
+}
