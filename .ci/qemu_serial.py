@@ -3,6 +3,7 @@
 
 Usage: python3 .ci/qemu_serial.py target/thumbv7em-none-eabihf/release/examples/serial_protocol
        python3 .ci/qemu_serial.py --board target/thumbv7em-none-eabihf/release/examples/board
+       python3 .ci/qemu_serial.py --help      (this text; starts nothing)
 
 Starts qemu-system-arm (netduinoplus2) with USART1 on a TCP socket (server, wait=on: the CPU
 starts only once this script is connected, so nothing is lost), waits for the firmware's banner,
@@ -216,8 +217,12 @@ def main(elf: str, board: bool) -> int:
 
 if __name__ == "__main__":
     args = sys.argv[1:]
+    if "-h" in args or "--help" in args:
+        print(__doc__)
+        sys.exit(0)
     board_mode = "--board" in args
     args = [a for a in args if a != "--board"]
-    if len(args) != 1:
-        sys.exit(__doc__)
+    if len(args) != 1 or args[0].startswith("-"):
+        print(__doc__, file=sys.stderr)
+        sys.exit(2)
     sys.exit(main(args[0], board_mode))

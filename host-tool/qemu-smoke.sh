@@ -51,14 +51,14 @@ check "wrong key is ERR 15"         1 "ERR 15 wrong key" unlock 1234
 check "set with the key"            0 "a=344.12344" --key c0ffee42 set a 344.123456
 check "get applied value"           0 "a=344.12344" get a
 check "comp on"                     0 "comp=on" --key c0ffee42 comp on
-check "store"                       0 "stored seq=1" --key c0ffee42 store
+check "store"                       0 "result=stored" --key c0ffee42 store
 check "defaults"                    0 "comp=off" --key c0ffee42 defaults
 check "reload"                      0 "coeffs=flash:1" --key c0ffee42 reload
 check "reloaded value"              0 "a=344.12344" get a
 check "NaN is ERR 4"                1 "ERR 4" --key c0ffee42 set b NaN
 check "cal result without a run"    1 "ERR 11" send cal result
-check "help"                        0 "commands:" send help
-check "lock"                        0 "locked" lock
+check "help"                        0 "commands=id status" send help
+check "lock"                        0 "result=locked" lock
 
 echo "qemu-rlg-cal: $passed passed, $failed failed"
 [ "$failed" -eq 0 ]

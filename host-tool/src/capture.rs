@@ -3,8 +3,10 @@
 //! Frames are decoded with the firmware's own [`decode_frame`] (COBS + CRC-32); a chunk that
 //! fails is counted as a bad frame, and a gap in the sequence numbers as lost frames
 //! ([`GapCounter`]). Frames carry no timestamp: the time of a record is its sequence distance
-//! from the first one times the divider times the mean cycle duration, which counts lost frames
-//! in and is exact to the dither period's stability.
+//! from the first one times the divider times the mean cycle duration of the records up to it
+//! ([`FrameClock`]), which counts lost frames in, is exact to the dither period's stability and
+//! is known the moment the record arrives: [`CsvRows`] writes each row as it comes (buffered,
+//! flushed at least once a second), so an interrupted run keeps every frame received.
 //!
 //! Rates: a cycle's increment in Q32 fringes times the scale factor (arcsec per fringe) over
 //! its duration (capture-timer ticks over the timer frequency) is arcsec/s, which is deg/h.
@@ -13,6 +15,7 @@ use firmware::protocol::stream::{decode_frame, GapCounter, StreamRecord};
 use firmware::units::Q32_PER_FRINGE;
 use rlg_sim::plot::{Figure, Panel, Series, Style};
 use std::io::{self, Write};
+use std::time::{Duration, Instant};
 
 /// Capture-timer frequency of the board (the F405's TIM2/TIM5 at 84 MHz), Hz.
 pub const DEFAULT_TIMER_HZ: f64 = 84e6;
@@ -71,14 +74,18 @@ impl Capture {
         }
     }
 
-    /// One 0x00-delimited chunk from the link.
-    pub fn push_chunk(&mut self, chunk: &[u8]) {
+    /// One 0x00-delimited chunk from the link; the record, if it was a valid frame.
+    pub fn push_chunk(&mut self, chunk: &[u8]) -> Option<&StreamRecord> {
         match decode_frame(chunk) {
             Ok(record) => {
                 self.gaps.observe(record.sequence);
                 self.records.push(record);
+                self.records.last()
             }
-            Err(_) => self.bad_frames += 1,
+            Err(_) => {
+                self.bad_frames += 1;
+                None
+            }
         }
     }
 
@@ -87,28 +94,10 @@ impl Capture {
         self.gaps.lost
     }
 
-    /// Mean duration of a streamed cycle, s.
-    fn mean_cycle_s(&self, scale: &RateScale) -> f64 {
-        let ticks: f64 = self.records.iter().map(|r| r.duration_ticks as f64).sum();
-        ticks / self.records.len().max(1) as f64 / scale.timer_hz
-    }
-
-    /// Each record's time from the first record, s (lost frames counted in).
+    /// Each record's time from the first record, s (lost frames counted in; [`FrameClock`]).
     pub fn times_s(&self, scale: &RateScale) -> Vec<f64> {
-        let step_s = self.mean_cycle_s(scale) * self.divider as f64;
-        let Some(first) = self.records.first() else {
-            return Vec::new();
-        };
-        let mut frames_since_first: u64 = 0;
-        let mut last = first.sequence;
-        self.records
-            .iter()
-            .map(|r| {
-                frames_since_first += r.sequence.wrapping_sub(last) as u64;
-                last = r.sequence;
-                frames_since_first as f64 * step_s
-            })
-            .collect()
+        let mut clock = FrameClock::new(self.divider, scale.timer_hz);
+        self.records.iter().map(|r| clock.time_s(r)).collect()
     }
 
     /// Mean compensated and raw rates over the whole capture, deg/h.
@@ -137,29 +126,12 @@ impl Capture {
     }
 
     /// One row per record: the frame's fields exactly, plus time and compensated rate.
-    pub fn write_csv(&self, mut out: impl Write, scale: &RateScale) -> io::Result<()> {
-        writeln!(
-            out,
-            "sequence,time_s,end_phase_q32,raw_increment_q32,compensated_increment_q32,\
-p1_s,p2_s,duration_ticks,flags,compensated_rate_deg_h"
-        )?;
-        for (r, t) in self.records.iter().zip(self.times_s(scale)) {
-            let rate =
-                scale.rate_deg_per_h(r.compensated_increment_q32 as f64, r.duration_ticks as f64);
-            writeln!(
-                out,
-                "{},{t:.6},{},{},{},{},{},{},{},{rate:.6}",
-                r.sequence,
-                r.end_phase_q32,
-                r.raw_increment_q32,
-                r.compensated_increment_q32,
-                r.p1_s,
-                r.p2_s,
-                r.duration_ticks,
-                r.flags
-            )?;
+    pub fn write_csv(&self, out: impl Write, scale: &RateScale) -> io::Result<()> {
+        let mut rows = CsvRows::new(out, self.divider, *scale)?;
+        for r in &self.records {
+            rows.push(r)?;
         }
-        out.flush()
+        rows.finish().map(drop)
     }
 
     /// The streamed rate over time, averaged per second, as an SVG document.
@@ -206,4 +178,111 @@ fn mean_rates(records: &[StreamRecord], scale: &RateScale) -> (f64, f64) {
         scale.rate_deg_per_h(comp, ticks),
         scale.rate_deg_per_h(raw, ticks),
     )
+}
+
+/// The time of each record as it arrives: its sequence distance from the first record times
+/// the divider times the mean cycle duration of the records so far, s.
+#[derive(Clone, Debug)]
+pub struct FrameClock {
+    divider: f64,
+    timer_hz: f64,
+    last_sequence: Option<u32>,
+    frames_since_first: u64,
+    ticks: f64,
+    records: u64,
+}
+
+impl FrameClock {
+    /// A clock for a stream of every `divider`-th cycle, capture timer at `timer_hz`.
+    pub fn new(divider: u16, timer_hz: f64) -> Self {
+        Self {
+            divider: divider.max(1) as f64,
+            timer_hz,
+            last_sequence: None,
+            frames_since_first: 0,
+            ticks: 0.0,
+            records: 0,
+        }
+    }
+
+    /// The next record's time, s from the first record.
+    pub fn time_s(&mut self, record: &StreamRecord) -> f64 {
+        if let Some(last) = self.last_sequence {
+            self.frames_since_first += record.sequence.wrapping_sub(last) as u64;
+        }
+        self.last_sequence = Some(record.sequence);
+        self.ticks += record.duration_ticks as f64;
+        self.records += 1;
+        let mean_cycle_s = self.ticks / self.records as f64 / self.timer_hz;
+        self.frames_since_first as f64 * self.divider * mean_cycle_s
+    }
+}
+
+/// The CSV of a stream, written row by row as the records arrive: buffered, flushed at least
+/// once a second, so a run that is interrupted (or crashes) leaves every row received.
+pub struct CsvRows<W: Write> {
+    out: io::BufWriter<W>,
+    clock: FrameClock,
+    scale: RateScale,
+    rows: u64,
+    last_flush: Instant,
+}
+
+/// Longest time a written row may wait in the buffer.
+pub const CSV_FLUSH_INTERVAL: Duration = Duration::from_secs(1);
+
+impl<W: Write> CsvRows<W> {
+    /// Writes the header.
+    pub fn new(out: W, divider: u16, scale: RateScale) -> io::Result<Self> {
+        let mut out = io::BufWriter::new(out);
+        writeln!(
+            out,
+            "sequence,time_s,end_phase_q32,raw_increment_q32,compensated_increment_q32,\
+p1_s,p2_s,duration_ticks,flags,compensated_rate_deg_h"
+        )?;
+        Ok(Self {
+            out,
+            clock: FrameClock::new(divider, scale.timer_hz),
+            scale,
+            rows: 0,
+            last_flush: Instant::now(),
+        })
+    }
+
+    /// One row: the frame's fields exactly, plus time and compensated rate.
+    pub fn push(&mut self, r: &StreamRecord) -> io::Result<()> {
+        let t = self.clock.time_s(r);
+        let rate = self
+            .scale
+            .rate_deg_per_h(r.compensated_increment_q32 as f64, r.duration_ticks as f64);
+        writeln!(
+            self.out,
+            "{},{t:.6},{},{},{},{},{},{},{},{rate:.6}",
+            r.sequence,
+            r.end_phase_q32,
+            r.raw_increment_q32,
+            r.compensated_increment_q32,
+            r.p1_s,
+            r.p2_s,
+            r.duration_ticks,
+            r.flags
+        )?;
+        self.rows += 1;
+        if self.last_flush.elapsed() >= CSV_FLUSH_INTERVAL {
+            self.out.flush()?;
+            self.last_flush = Instant::now();
+        }
+        Ok(())
+    }
+
+    /// Rows written.
+    pub fn rows(&self) -> u64 {
+        self.rows
+    }
+
+    /// Flushes; returns the row count.
+    pub fn finish(mut self) -> io::Result<u64> {
+        self.out.flush()?;
+        Ok(self.rows)
+    }
 }

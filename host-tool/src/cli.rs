@@ -1,70 +1,204 @@
-//! Command-line arguments.
+//! Command-line arguments, and where the connection and the key come from.
+//!
+//! The connection options, the key, `--timeout-ms` and `--json` are global: they may stand
+//! before or after the subcommand. What is not on the command line comes from the environment
+//! (`RLG_PORT`, `RLG_TCP`, `RLG_BAUD`, `RLG_KEY`, `RLG_SIM_STATE`; the command line wins), read
+//! here by hand rather than by clap's `env` so that `serve-sim` and `sweep`, which run their
+//! own board, never pick up a connection from the environment. The baud rate defaults to the
+//! board's own ([`SERIAL_BAUD`], the firmware's constant).
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use firmware::protocol::SERIAL_BAUD;
 use std::path::PathBuf;
 
 const AFTER_HELP: &str = "\
-Connections (one of, before the subcommand):
-  --port /dev/ttyUSB0 --baud 460800    a serial port, or a pty served by `rlg-cal serve-sim --pty`
+Connections (one of, before or after the subcommand):
+  --port /dev/ttyUSB0                  a serial port (default 460800 Bd, the board's), or a pty
+                                       served by `rlg-cal serve-sim --pty`
   --tcp 127.0.0.1:7878                 the simulated board served by `rlg-cal serve-sim --tcp`
-  --sim                                a simulated board inside this process (for trying things)
+  --sim                                a simulated board inside this process; with
+                                       --sim-state FILE it lasts from one call to the next
+
+Environment (used when the command line does not say):
+  RLG_PORT, RLG_TCP, RLG_BAUD          the connection
+  RLG_KEY                              the unlock key (or --key-file FILE; a --key shows in the
+                                       process list)
+  RLG_SIM_STATE                        the --sim board's state file
 
 Examples:
   rlg-cal --tcp 127.0.0.1:7878 status
-  rlg-cal --tcp 127.0.0.1:7878 --key c0ffee42 set a 344.25
-  rlg-cal --port /dev/ttyUSB0 --key c0ffee42 calibrate --cycles 4000 --warmup 400 --accept --store
-  rlg-cal --port /dev/ttyUSB0 --baud 460800 stream --seconds 10 --csv run.csv --svg run.svg
+  RLG_TCP=127.0.0.1:7878 RLG_KEY=c0ffee42 rlg-cal set a 344.25
+  rlg-cal console --tcp 127.0.0.1:7878
+  rlg-cal --port /dev/ttyUSB0 --key-file key.txt calibrate --cycles 4000 --warmup 400 --accept --store
+  rlg-cal --port /dev/ttyUSB0 stream --seconds 10 --csv run.csv --svg run.svg
+  rlg-cal --sim --sim-state board.state --key c0ffee42 store
   rlg-cal sweep --calibrate --svg sweep.svg
   rlg-cal serve-sim --pty
 
+Long runs (stream, calibrate, sweep) check their output files, the key and the board (`id`)
+before they start. Ctrl-C (or SIGTERM) stops them cleanly: a stream keeps every frame received
+in its CSV and draws its SVG, a calibration is aborted on the board (`cal abort`), a sweep keeps
+the azimuths done; the summary is printed and the exit status is 130.
+
 Exit status:
-  0  success
-  1  the board answered ERR, or a run failed (fit refused, calibration made no progress)
-  2  usage error (bad arguments)
-  3  connection failed, no answer within the timeout, or a corrupted answer (bad CRC)";
+  0    success
+  1    the board answered ERR, or a run failed (fit refused, calibration made no progress)
+  2    usage error (bad arguments, an output file that cannot be created, no key for a
+       protected step)
+  3    connection failed, no answer within the timeout, or a corrupted answer (bad CRC)
+  130  stopped by Ctrl-C or SIGTERM";
 
 /// Host tool for the ring-laser-gyro readout board's calibration protocol.
 ///
 /// Every command goes out with its CRC suffix and gets exactly one checked answer. Results go
-/// to stdout (`key=value`), progress and errors to stderr.
+/// to stdout (`key=value` lines, or one JSON object per command with `--json`), progress and
+/// errors to stderr.
 #[derive(Debug, Parser)]
 #[command(name = "rlg-cal", version, after_help = AFTER_HELP)]
 pub struct Cli {
     #[command(flatten)]
     pub connection: ConnectionArgs,
     /// Unlock key (hex) sent before protected commands (set, comp, track, store, reload,
-    /// defaults, calibrate --accept).
-    #[arg(long, value_name = "KEY")]
+    /// defaults, calibrate --accept). Also from --key-file or RLG_KEY.
+    #[arg(long, value_name = "KEY", global = true)]
     pub key: Option<String>,
+    /// A file holding the unlock key (first line; keeps it out of the process list).
+    #[arg(long, value_name = "PATH", global = true, conflicts_with = "key")]
+    pub key_file: Option<PathBuf>,
     /// How long to wait for an answer, ms.
-    #[arg(long, default_value_t = 2000, value_name = "MS")]
+    #[arg(long, default_value_t = 2000, value_name = "MS", global = true)]
     pub timeout_ms: u64,
+    /// Results as one JSON object per command (for scripts) instead of `key=value` lines.
+    #[arg(long, global = true)]
+    pub json: bool,
     #[command(subcommand)]
     pub command: Command,
 }
 
 #[derive(Debug, Args)]
 pub struct ConnectionArgs {
-    /// Serial port or pty.
-    #[arg(long, value_name = "PATH")]
+    /// Serial port or pty (or RLG_PORT).
+    #[arg(long, value_name = "PATH", global = true)]
     pub port: Option<String>,
-    /// Baud rate of --port.
-    #[arg(long, default_value_t = 115_200, value_name = "N")]
-    pub baud: u32,
-    /// A board served on TCP.
-    #[arg(long, value_name = "HOST:PORT")]
+    /// Baud rate of --port (or RLG_BAUD; default: the board's, `SERIAL_BAUD`).
+    #[arg(
+        long,
+        value_name = "N",
+        global = true,
+        help = format!("Baud rate of --port (or RLG_BAUD; default: the board's, {SERIAL_BAUD})")
+    )]
+    pub baud: Option<u32>,
+    /// A board served on TCP (or RLG_TCP); for `serve-sim`, the address to listen on.
+    #[arg(long, value_name = "HOST:PORT", global = true)]
     pub tcp: Option<String>,
-    /// A simulated board in this process (its state lasts for this invocation).
-    #[arg(long)]
+    /// A simulated board in this process. Without --sim-state it lasts for this call only.
+    #[arg(long, global = true)]
     pub sim: bool,
     /// Input rate of the --sim board, deg/h.
     #[arg(
         long,
         default_value_t = 13.888,
         value_name = "DEG_H",
-        allow_negative_numbers = true
+        allow_negative_numbers = true,
+        global = true
     )]
     pub sim_rate: f64,
+    /// The --sim board's state file (or RLG_SIM_STATE): read at start, written at exit. What
+    /// lasts: the flash (stored calibrations, boot count) and the settings in force (a, b,
+    /// compensation on/off, dither amplitude and noise). What does not: the unlock, a
+    /// calibration run, tracking and the stream (each call is a reset of the board).
+    #[arg(long, value_name = "PATH", global = true)]
+    pub sim_state: Option<PathBuf>,
+}
+
+/// Where the commands go, resolved from the command line and the environment.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Target {
+    /// A serial port or pty at this baud rate.
+    Port { path: String, baud: u32 },
+    /// TCP.
+    Tcp(String),
+    /// The simulated board in this process, with its state file if any.
+    Sim { state: Option<PathBuf> },
+}
+
+impl ConnectionArgs {
+    /// Whether a connection was given on the command line.
+    pub fn given(&self) -> bool {
+        self.port.is_some() || self.tcp.is_some() || self.sim
+    }
+
+    /// The connection: the command line's, else the environment's (`env` looks a variable
+    /// up); exactly one. The error is a usage message.
+    pub fn resolve(&self, env: &dyn Fn(&str) -> Option<String>) -> Result<Target, String> {
+        let from_line = self.given();
+        let port = if from_line {
+            self.port.clone()
+        } else {
+            env("RLG_PORT")
+        };
+        let tcp = if from_line {
+            self.tcp.clone()
+        } else {
+            env("RLG_TCP")
+        };
+        let chosen = port.is_some() as u8 + tcp.is_some() as u8 + self.sim as u8;
+        if chosen != 1 {
+            return Err(format!(
+                "give exactly one connection: --port PATH, --tcp HOST:PORT or --sim \
+                 (or RLG_PORT / RLG_TCP){}",
+                if chosen > 1 {
+                    "; got more than one"
+                } else {
+                    ""
+                }
+            ));
+        }
+        if let Some(path) = port {
+            let baud = match (self.baud, env("RLG_BAUD")) {
+                (Some(baud), _) => baud,
+                (None, Some(text)) => text
+                    .trim()
+                    .parse()
+                    .map_err(|_| format!("RLG_BAUD is not a baud rate: {text:?}"))?,
+                (None, None) => SERIAL_BAUD,
+            };
+            return Ok(Target::Port { path, baud });
+        }
+        if let Some(address) = tcp {
+            return Ok(Target::Tcp(address));
+        }
+        let state = self
+            .sim_state
+            .clone()
+            .or_else(|| env("RLG_SIM_STATE").map(PathBuf::from));
+        Ok(Target::Sim { state })
+    }
+}
+
+impl Cli {
+    /// The unlock key: `--key`, else the first line of `--key-file`, else `RLG_KEY`. The error
+    /// is a usage message.
+    pub fn resolve_key(
+        &self,
+        env: &dyn Fn(&str) -> Option<String>,
+    ) -> Result<Option<String>, String> {
+        if let Some(key) = &self.key {
+            return Ok(Some(key.clone()));
+        }
+        if let Some(path) = &self.key_file {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| format!("cannot read the key file {}: {e}", path.display()))?;
+            let key = text.lines().next().unwrap_or("").trim();
+            if key.is_empty() {
+                return Err(format!("the key file {} is empty", path.display()));
+            }
+            return Ok(Some(key.to_owned()));
+        }
+        Ok(env("RLG_KEY")
+            .filter(|k| !k.trim().is_empty())
+            .map(|k| k.trim().to_owned()))
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -134,6 +268,9 @@ pub enum Command {
     Calibrate(CalibrateArgs),
     /// Streams per-cycle frames to CSV (and an SVG plot of the rate); reports lost frames.
     Stream(StreamArgs),
+    /// An interactive console: line editing, history, completion of command names (Tab); the
+    /// CRC is added to each line and every answer shown, an error with its code in words.
+    Console,
     /// Sends any protocol line (e.g. `cal abort`, `help`) and prints the answer.
     Send {
         #[arg(required = true, num_args = 1.., allow_hyphen_values = true)]
@@ -232,15 +369,8 @@ pub struct SweepArgs {
 
 #[derive(Debug, Args)]
 pub struct ServeArgs {
-    /// Listen on this TCP address (port 0: any free port; the address is printed).
-    #[arg(
-        long,
-        value_name = "HOST:PORT",
-        required_unless_present = "pty",
-        conflicts_with = "pty"
-    )]
-    pub tcp: Option<String>,
-    /// Serve on a new pty; its path is printed on stdout.
+    /// Serve on a new pty; its path is printed on stdout. (Or `--tcp HOST:PORT`: listen there;
+    /// port 0 takes any free port, and the address is printed.)
     #[arg(long)]
     pub pty: bool,
     /// Simulated seconds per wall-clock second.
@@ -267,4 +397,86 @@ fn finite_or_not(s: &str) -> Result<String, String> {
     s.parse::<f32>()
         .map(|_| s.to_owned())
         .map_err(|_| format!("not a number: {s}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(args: &[&str]) -> Cli {
+        Cli::try_parse_from(std::iter::once("rlg-cal").chain(args.iter().copied())).unwrap()
+    }
+
+    fn env_of(vars: &'static [(&'static str, &'static str)]) -> impl Fn(&str) -> Option<String> {
+        move |name| {
+            vars.iter()
+                .find(|(k, _)| *k == name)
+                .map(|(_, v)| v.to_string())
+        }
+    }
+
+    /// `--port` talks at the board's rate unless told otherwise: the firmware's constant.
+    #[test]
+    fn the_baud_rate_defaults_to_the_boards() {
+        let cli = parse(&["--port", "/dev/ttyUSB0", "status"]);
+        let target = cli.connection.resolve(&env_of(&[])).unwrap();
+        assert_eq!(
+            target,
+            Target::Port {
+                path: "/dev/ttyUSB0".into(),
+                baud: SERIAL_BAUD
+            }
+        );
+        let from_env = cli.connection.resolve(&env_of(&[("RLG_BAUD", "115200")]));
+        assert!(matches!(from_env, Ok(Target::Port { baud: 115_200, .. })));
+        let cli = parse(&["status", "--port", "/dev/x", "--baud", "9600"]);
+        let line_wins = cli.connection.resolve(&env_of(&[("RLG_BAUD", "115200")]));
+        assert!(matches!(line_wins, Ok(Target::Port { baud: 9600, .. })));
+    }
+
+    /// Connection options on either side of the subcommand, or from the environment; the
+    /// command line wins; two connections are a usage error.
+    #[test]
+    fn the_connection_from_anywhere() {
+        for args in [&["--tcp", "h:1", "status"][..], &["status", "--tcp", "h:1"]] {
+            let target = parse(args).connection.resolve(&env_of(&[])).unwrap();
+            assert_eq!(target, Target::Tcp("h:1".into()), "{args:?}");
+        }
+        let cli = parse(&["status"]);
+        assert_eq!(
+            cli.connection.resolve(&env_of(&[("RLG_TCP", "e:2")])),
+            Ok(Target::Tcp("e:2".into()))
+        );
+        let cli = parse(&["status", "--sim"]);
+        assert_eq!(
+            cli.connection
+                .resolve(&env_of(&[("RLG_TCP", "e:2"), ("RLG_SIM_STATE", "s")])),
+            Ok(Target::Sim {
+                state: Some("s".into())
+            })
+        );
+        let cli = parse(&["status"]);
+        assert!(cli
+            .connection
+            .resolve(&env_of(&[("RLG_TCP", "e:2"), ("RLG_PORT", "/dev/x")]))
+            .is_err());
+        assert!(cli.connection.resolve(&env_of(&[])).is_err());
+    }
+
+    #[test]
+    fn the_key_from_the_line_a_file_or_the_environment() {
+        let env = env_of(&[("RLG_KEY", " c0ffee42 ")]);
+        assert_eq!(
+            parse(&["status"]).resolve_key(&env),
+            Ok(Some("c0ffee42".into()))
+        );
+        assert_eq!(
+            parse(&["status", "--key", "ab"]).resolve_key(&env),
+            Ok(Some("ab".into()))
+        );
+        assert_eq!(parse(&["status"]).resolve_key(&env_of(&[])), Ok(None));
+        assert!(parse(&["status", "--key-file", "/nonexistent"])
+            .resolve_key(&env)
+            .is_err());
+    }
 }

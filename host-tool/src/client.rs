@@ -65,14 +65,14 @@ impl Answer {
             })
     }
 
-    /// The fields one per line when every word is `key=value`, else the text as it is.
+    /// The answer as `key=value` pairs ([`crate::output::fields`]).
+    pub fn fields(&self) -> Vec<(String, String)> {
+        crate::output::fields(&self.text)
+    }
+
+    /// The answer as `key=value` lines, one field a line.
     pub fn display_lines(&self) -> String {
-        let words: Vec<&str> = self.text.split(' ').filter(|w| !w.is_empty()).collect();
-        if !words.is_empty() && words.iter().all(|w| w.contains('=')) {
-            words.join("\n")
-        } else {
-            self.text.clone()
-        }
+        crate::output::key_value_lines(&self.fields())
     }
 }
 
@@ -114,6 +114,12 @@ pub enum ClientError {
     Link(io::Error),
     /// The command cannot be sent (too long, line break or `*` in it).
     BadCommand(String),
+    /// The run was stopped by SIGINT or SIGTERM (the board was told: `cal abort`, `stream
+    /// off`).
+    Interrupted {
+        /// What was running.
+        what: String,
+    },
     /// An answer without a field this tool needs, or a run that did not go as it should.
     Unexpected {
         /// The command text sent.
@@ -134,6 +140,7 @@ impl ClientError {
             Self::Device(e) if (6..=8).contains(&e.code) => 3,
             Self::Device(_) | Self::Unexpected { .. } | Self::BadCommand(_) => 1,
             Self::Timeout { .. } | Self::Corrupt { .. } | Self::Link(_) => 3,
+            Self::Interrupted { .. } => rlg_sim::interrupt::EXIT_STATUS,
         }
     }
 
@@ -164,6 +171,7 @@ impl fmt::Display for ClientError {
             } => write!(f, "corrupted answer to `{command}` ({reason}): {line:?}"),
             Self::Link(e) => write!(f, "link: {e}"),
             Self::BadCommand(why) => write!(f, "cannot send: {why}"),
+            Self::Interrupted { what } => write!(f, "interrupted: {what}"),
             Self::Unexpected {
                 command,
                 answer,
@@ -297,6 +305,16 @@ impl<L: Link> Client<L> {
     pub fn with_timeout(mut self, timeout: Duration) -> Self {
         self.timeout = timeout;
         self
+    }
+
+    /// The answer timeout.
+    pub fn timeout(&self) -> Duration {
+        self.timeout
+    }
+
+    /// Changes the answer timeout.
+    pub fn set_timeout(&mut self, timeout: Duration) {
+        self.timeout = timeout;
     }
 
     /// The link underneath.

@@ -4,11 +4,13 @@
 //!   board in this process ([`link::SimLink`], on simulated time).
 //! - [`client`]: one command out with its CRC suffix, exactly one checked answer back; `ERR`
 //!   answers become typed errors with the code and text; timeouts; stream frames kept apart.
-//! - [`ops`]: calibration runs with progress, streaming sessions.
+//! - [`ops`]: calibration runs with progress, streaming sessions (both stop when asked).
+//! - [`output`]: answers as `key=value` pairs, printed as lines or JSON.
+//! - [`console`]: the interactive console (line editing, history, completion, CRC added).
 //! - [`capture`]: stream frames to records, lost-frame counts, CSV and SVG.
 //! - [`sweep`]: a rotary-table sweep on the simulated board, through the protocol.
 //! - [`serve`]: the simulated board served on TCP or a pty for any serial client.
-//! - [`sim`]: booting the simulated board.
+//! - [`sim`]: booting the simulated board; [`sim_state`]: its state file (`--sim-state`).
 //!
 //! The protocol itself (commands, answers, error codes, frames, access control) is described
 //! in `docs/protocol.md`; its implementation is the firmware's `protocol` module, which this
@@ -18,8 +20,11 @@
 
 pub mod capture;
 pub mod client;
+pub mod console;
 pub mod link;
 pub mod ops;
+pub mod output;
 pub mod serve;
 pub mod sim;
+pub mod sim_state;
 pub mod sweep;

@@ -3,7 +3,12 @@
 use crate::capture::{Capture, RateScale};
 use crate::client::{Answer, Client, ClientError};
 use crate::link::Link;
+use firmware::protocol::stream::StreamRecord;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
+
+/// A stop flag that is never set, for runs nobody interrupts.
+pub static NEVER: AtomicBool = AtomicBool::new(false);
 
 /// Unlocks protected commands with `key` (hex, as the board expects it).
 pub fn unlock<L: Link>(client: &mut Client<L>, key: &str) -> Result<Answer, ClientError> {
@@ -86,8 +91,28 @@ pub fn calibrate<L: Link>(
     options: &CalibrateOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Answer, ClientError> {
+    calibrate_until(client, options, progress, &NEVER)
+}
+
+/// [`calibrate`], stopped when `stop` is set: a run already started is abandoned on the board
+/// (`cal abort`, so it does not go on calibrating for nobody), then
+/// [`ClientError::Interrupted`].
+pub fn calibrate_until<L: Link>(
+    client: &mut Client<L>,
+    options: &CalibrateOptions,
+    progress: &mut dyn FnMut(u64, u64),
+    stop: &AtomicBool,
+) -> Result<Answer, ClientError> {
+    let interrupted = || ClientError::Interrupted {
+        what: "the calibration (the board was sent `cal abort`)".into(),
+    };
     let total = options.cycles as u64 + options.warmup_cycles as u64;
     wait_for_drive_lock(client, DRIVE_LOCK_TIMEOUT, options.poll)?;
+    if stop.load(Ordering::SeqCst) {
+        return Err(ClientError::Interrupted {
+            what: "before the calibration started".into(),
+        });
+    }
     client.command(&format!(
         "cal start {} {}",
         options.cycles, options.warmup_cycles
@@ -95,6 +120,10 @@ pub fn calibrate<L: Link>(
     let (mut last_done, mut last_change) = (u64::MAX, client.elapsed());
     loop {
         client.pause(options.poll)?;
+        if stop.load(Ordering::SeqCst) {
+            client.command("cal abort")?;
+            return Err(interrupted());
+        }
         let status = client.command("cal status")?;
         match status.field("cal") {
             Some("running") => {
@@ -137,29 +166,49 @@ pub fn stream<L: Link>(
     duration: Duration,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Capture, ClientError> {
+    stream_until(client, divider, duration, progress, &mut |_| {}, &NEVER)
+}
+
+/// [`stream`], handing each valid record to `on_record` as it arrives, and ending early (as if
+/// the time were up: the stream stopped, the frames in flight kept) when `stop` is set; the
+/// caller tells an interrupted capture by the flag.
+pub fn stream_until<L: Link>(
+    client: &mut Client<L>,
+    divider: u16,
+    duration: Duration,
+    progress: &mut dyn FnMut(f64),
+    on_record: &mut dyn FnMut(&StreamRecord),
+    stop: &AtomicBool,
+) -> Result<Capture, ClientError> {
     client.command(&format!("stream on {divider}"))?;
     let mut capture = Capture::new(divider);
     let start = client.elapsed();
     let result = (|| -> Result<(), ClientError> {
         loop {
             let elapsed = client.elapsed().saturating_sub(start);
-            if elapsed >= duration {
+            if elapsed >= duration || stop.load(Ordering::SeqCst) {
                 return Ok(());
             }
             progress(elapsed.as_secs_f64() / duration.as_secs_f64());
             client.poll((duration - elapsed).min(Duration::from_millis(100)))?;
-            drain_frames(client, &mut capture);
+            drain_frames(client, &mut capture, on_record);
         }
     })();
     let stopped = client.command("stream off");
-    drain_frames(client, &mut capture);
+    drain_frames(client, &mut capture, on_record);
     result?;
     stopped?;
     Ok(capture)
 }
 
-fn drain_frames<L: Link>(client: &mut Client<L>, capture: &mut Capture) {
+fn drain_frames<L: Link>(
+    client: &mut Client<L>,
+    capture: &mut Capture,
+    on_record: &mut dyn FnMut(&StreamRecord),
+) {
     for chunk in client.take_frames() {
-        capture.push_chunk(&chunk);
+        if let Some(record) = capture.push_chunk(&chunk) {
+            on_record(record);
+        }
     }
 }

@@ -7,7 +7,11 @@
 //! its rate read from the stream (mean compensated and raw rate over the streamed cycles) or
 //! from `status` (the board's own one-second averages). With a calibration, the board is first
 //! calibrated at one azimuth through the protocol (`unlock`, `cal start`, `cal result`,
-//! `cal accept`, `store`), so every later boot runs with the stored coefficients.
+//! `cal accept`, `store`), so every later boot runs with the stored coefficients; a fit the
+//! board refuses ends the sweep with the board's `ERR 12` and its reason.
+//!
+//! A stop request (Ctrl-C) ends the sweep after the azimuth being measured: the report holds
+//! the points done and says it was interrupted.
 
 use crate::capture::RateScale;
 use crate::client::{Answer, Client, ClientError};
@@ -19,6 +23,7 @@ use hal_sim::input::earth_rate_on_horizontal_axis_deg_per_h;
 use hal_sim::units::EARTH_RATE_SOLAR_DEG_PER_H;
 use rlg_sim::plot::{Figure, Panel, Series, Style};
 use std::io::{self, Write};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 /// Between two `status` polls while waiting for the dither drive to lock (simulated time).
@@ -78,14 +83,18 @@ pub struct SweepReport {
     pub latitude_deg: f64,
     /// `cal result` of the calibration run, if one was made.
     pub calibration: Option<Answer>,
-    /// One point per azimuth, in the order of [`SweepOptions::azimuths_deg`].
+    /// One point per azimuth, in the order of [`SweepOptions::azimuths_deg`] (the first ones
+    /// only, when interrupted).
     pub points: Vec<SweepPoint>,
+    /// A stop request ended the sweep before its last azimuth.
+    pub interrupted: bool,
 }
 
-/// Runs the sweep; `progress` gets a line per step.
+/// Runs the sweep; `progress` gets a line per step; `stop` ends it after the current azimuth.
 pub fn sweep(
     options: &SweepOptions,
     progress: &mut dyn FnMut(&str),
+    stop: &AtomicBool,
 ) -> Result<SweepReport, ClientError> {
     let mut flash = CalibrationFlash::default();
     let mut boot_count = 0;
@@ -102,13 +111,21 @@ pub fn sweep(
         ops::wait_for_drive_lock(&mut client, ops::DRIVE_LOCK_TIMEOUT, LOCK_POLL)?;
         client.pause(options.settle)?;
         ops::unlock(&mut client, &sim::sim_key())?;
-        calibration = Some(ops::calibrate(&mut client, cal, &mut |_, _| {})?);
+        calibration = Some(ops::calibrate_until(
+            &mut client,
+            cal,
+            &mut |_, _| {},
+            stop,
+        )?);
         client.command("cal accept")?;
         client.command("store")?;
         flash = client.into_link().into_device().power_off();
     }
     let mut points = Vec::new();
     for &azimuth_deg in &options.azimuths_deg {
+        if stop.load(Ordering::SeqCst) {
+            break;
+        }
         let device = sim::boot(table(azimuth_deg), options.seed, flash, boot_count)?;
         boot_count += 1;
         let mut client = Client::new(SimLink::new(device));
@@ -131,6 +148,7 @@ pub fn sweep(
     Ok(SweepReport {
         latitude_deg: options.latitude_deg,
         calibration,
+        interrupted: points.len() < options.azimuths_deg.len(),
         points,
     })
 }

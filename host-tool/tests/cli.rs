@@ -44,7 +44,9 @@ fn help_documents_commands_and_exit_codes() {
         "sweep",
         "serve-sim",
         "Exit status",
-        "3  connection",
+        "3    connection",
+        "130  stopped by Ctrl-C",
+        "RLG_TCP",
     ] {
         assert!(out.contains(word), "{word} in --help");
     }
@@ -110,10 +112,15 @@ fn calibrate_with_accept_and_store() {
     ]);
     assert_eq!(code, 0, "{err}");
     assert!(
-        out.contains("lock_in_deg_h=") && out.contains("comp=on"),
+        out.contains("\nlock_in_deg_h=") && out.contains("\naccept.comp=on"),
         "{out}"
     );
-    assert!(out.contains("stored seq=1"), "{out}");
+    // Every line of the result is key=value (the board's `stored seq=1 ...` included).
+    assert!(
+        out.contains("\nstore.result=stored\nstore.seq=1\n"),
+        "{out}"
+    );
+    assert!(out.lines().all(|l| l.contains('=')), "{out}");
 }
 
 #[test]
@@ -132,7 +139,7 @@ fn stream_writes_csv_and_svg() {
         svg.to_str().unwrap(),
     ]);
     assert_eq!(code, 0, "{err}");
-    assert!(out.contains("lost=0 bad=0"), "{out}");
+    assert!(out.contains("\nlost=0\nbad=0\n"), "{out}");
     let rows = std::fs::read_to_string(&csv).unwrap().lines().count();
     assert!((190..=200).contains(&rows), "{rows} rows");
     assert!(std::fs::read_to_string(&svg).unwrap().starts_with("<svg"));
@@ -204,4 +211,27 @@ fn a_served_board_talks_to_a_second_process() {
     assert_eq!((again.0, again.1.trim()), (0, "a=12.5"), "{}", again.2);
     assert_eq!(over_pty.0, 0, "{}", over_pty.2);
     assert!(over_pty.1.contains("serial=4242"), "{}", over_pty.1);
+}
+
+/// A calibration the board refuses ends the sweep with the board's reason in words, exit 1:
+/// at azimuth 90 deg the axis sees no Earth rate, inside the dead band.
+#[test]
+fn sweep_refused_calibration_exits_1_with_the_reason() {
+    let (code, out, err) = run(&[
+        "sweep",
+        "--calibrate",
+        "--cal-azimuth",
+        "90",
+        "--azimuths",
+        "0",
+    ]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("ERR 12 fit refused reason=1 mean rate inside the dynamic dead band"),
+        "{err}"
+    );
+    assert!(
+        !out.contains("azimuth_deg"),
+        "no sweep after a refused fit: {out}"
+    );
 }

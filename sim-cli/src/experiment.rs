@@ -6,11 +6,18 @@
 //! top of runs:
 //!
 //! - [`calibrate`]: the paper's Step 2, runs at rates outside the dead band with compensation off,
-//!   pooled into the least-squares fit of a and b (one intercept per run);
+//!   fed to the firmware's own [`CalibrationSession`] (the one behind `cal start` / `cal result`
+//!   on the board): pooled into the least-squares fit of a and b (one intercept per run) and
+//!   judged by the board's validity checks, so a fit the board would refuse is refused here with
+//!   the same [`Refusal`] (reason code and text). The cycles of a run are buffered (about
+//!   100 bytes each: 0.8 MB for the default 20 s) so the session can be told the run's length,
+//!   which the board knows from `cal start <cycles>`;
 //! - [`measure_rate`]: one input rate with the compensation on, giving the uncompensated and the
 //!   compensated output of the same cycles, each averaged over whole output periods.
 
-use firmware::calibration::fit::{FitAccumulator, FitResult, SolveError};
+use firmware::calibration::fit::FitResult;
+use firmware::calibration::session::{CalibrationSession, SessionState};
+use firmware::calibration::validation::{AcceptanceLimits, Refusal};
 use firmware::dither::DitherState;
 use firmware::readout::ReadoutConfig;
 use firmware::signal::compensation::{CoefficientError, Coefficients, CompensationSettings};
@@ -38,8 +45,9 @@ pub enum ExperimentError {
     /// The simulated board refused its parameters (the text says why), or a run closed no
     /// dither cycle.
     Simulator(String),
-    /// The calibration fit has too few cycles, or P1 and P2 cannot be separated.
-    Fit(SolveError),
+    /// The board's calibration checks refused the fit (the reason `cal result` answers with
+    /// `ERR 12` on the board).
+    Refused(Refusal),
     /// The fitted a or b is not finite or out of the coefficients' range.
     Coefficients(CoefficientError),
 }
@@ -48,7 +56,12 @@ impl std::fmt::Display for ExperimentError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Self::Simulator(e) => write!(f, "simulator: {e}"),
-            Self::Fit(e) => write!(f, "calibration fit refused: {e:?}"),
+            Self::Refused(r) => write!(
+                f,
+                "calibration refused by the board's checks: reason={} ({})",
+                r.code(),
+                r.text()
+            ),
             Self::Coefficients(e) => write!(f, "fitted coefficients not representable: {e:?}"),
         }
     }
@@ -248,8 +261,10 @@ pub fn run_constant_rate(
     Ok(())
 }
 
-/// The paper's Step 2: runs at each calibration rate with compensation off; the per-cycle
-/// output (count plus fractional fringe) regressed on [1, P1, P2], pooled over runs.
+/// The paper's Step 2: runs at each calibration rate with compensation off, every cycle after the
+/// warm-up fed to the firmware's [`CalibrationSession`] with the board's
+/// [`AcceptanceLimits::DEFAULT`] (flagged cycles counted and left out, as on the board); the
+/// pooled fit is returned when it passes the board's checks, else [`ExperimentError::Refused`].
 pub fn calibrate(
     params: &GyroParams,
     setup: impl Into<BoardSetup>,
@@ -257,26 +272,33 @@ pub fn calibrate(
     length: RunLength,
 ) -> Result<FitResult, ExperimentError> {
     let setup = setup.into();
-    let mut pooled = FitAccumulator::new();
+    let mut session = CalibrationSession::new(AcceptanceLimits::DEFAULT);
     for &rate in rates_deg_h {
-        let mut run = FitAccumulator::new();
+        let mut cycles = Vec::new();
         run_constant_rate(
             params,
             setup,
             rate,
             length,
             CompensationSettings::default(),
-            |config, c| {
-                if c.output.flags.is_empty() {
-                    run.push_cycle(c, c.duration_s(&config.cycle));
-                }
-            },
+            |config, c| cycles.push((*c, c.duration_s(&config.cycle))),
             |_, _| {},
         )?;
-        run.end_run();
-        pooled.pool(&run);
+        let count = u32::try_from(cycles.len()).unwrap_or(u32::MAX);
+        // A run of no cycle cannot be started on the board either; the fit then has too few.
+        if session.start_run(0, count).is_err() {
+            return Err(ExperimentError::Refused(Refusal::TooFewCycles));
+        }
+        for (record, cycle_s) in &cycles[..count as usize] {
+            session.on_cycle(record, *cycle_s);
+        }
     }
-    pooled.solve().map_err(ExperimentError::Fit)
+    match session.finish() {
+        Ok(SessionState::Ready(fit)) => Ok(fit),
+        Ok(SessionState::Refused(reason)) => Err(ExperimentError::Refused(reason)),
+        // No run at all (no calibration rate).
+        _ => Err(ExperimentError::Refused(Refusal::TooFewCycles)),
+    }
 }
 
 /// The compensation settings a fit gives (rounded to the Q15.16 format of the flash).

@@ -7,6 +7,7 @@
 
 pub mod dither_run;
 pub mod experiment;
+pub mod interrupt;
 pub mod plot;
 pub mod record_run;
 pub mod report;

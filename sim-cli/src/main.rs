@@ -26,8 +26,7 @@ use rlg_sim::report::{self, SweepRow};
 use std::io::Write;
 use std::ops::ControlFlow;
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::Ordering;
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -47,9 +46,9 @@ fn main() -> ExitCode {
             eprintln!("rlg-sim: {msg}");
             ExitCode::from(1)
         }
-        Err(Failure::Interrupted) => {
-            eprintln!("rlg-sim: interrupted; the rows so far are written");
-            ExitCode::from(130)
+        Err(Failure::Interrupted(msg)) => {
+            eprintln!("rlg-sim: interrupted: {msg}");
+            ExitCode::from(rlg_sim::interrupt::EXIT_STATUS)
         }
     }
 }
@@ -57,7 +56,8 @@ fn main() -> ExitCode {
 enum Failure {
     Usage(String),
     Run(String),
-    Interrupted,
+    /// Ctrl-C or SIGTERM (exit 130), after what was done is written.
+    Interrupted(String),
 }
 
 impl GyroArgs {
@@ -96,9 +96,24 @@ fn progress(len: u64, quiet: bool, what: &str) -> ProgressBar {
     bar
 }
 
+/// A precondition of a long run: the output file can be created (it is, empty, and written at
+/// the end), so a bad path is a usage error at once, not after the run.
+fn check_output(path: Option<&std::path::PathBuf>) -> Result<(), Failure> {
+    match path {
+        Some(path) => std::fs::File::create(path)
+            .map(drop)
+            .map_err(|e| Failure::Usage(format!("cannot create {}: {e}", path.display()))),
+        None => Ok(()),
+    }
+}
+
 fn sweep(args: &SweepArgs) -> Result<(), Failure> {
     args.validate().map_err(Failure::Usage)?;
     let params = args.gyro.params()?;
+    check_output(args.csv.as_ref())?;
+    check_output(args.svg.as_ref())?;
+    // Ctrl-C: the points under way finish, the rest are skipped, and what was done is written.
+    let stop = rlg_sim::interrupt::install();
     if let Some(jobs) = args.jobs {
         rayon::ThreadPoolBuilder::new()
             .num_threads(jobs.max(1))
@@ -114,6 +129,11 @@ fn sweep(args: &SweepArgs) -> Result<(), Failure> {
         args.warmup_seconds,
         args.quiet,
     )?;
+    if stop.load(std::sync::atomic::Ordering::SeqCst) {
+        return Err(Failure::Interrupted(
+            "during the calibration: nothing measured".into(),
+        ));
+    }
     let sf = params.scale_factor_arcsec;
 
     // Steps 3 and 4: record across the range with the fitted coefficients applied.
@@ -123,22 +143,25 @@ fn sweep(args: &SweepArgs) -> Result<(), Failure> {
         warmup_s: args.warmup_seconds,
         record_s: args.seconds_per_point,
     };
-    let rows: Result<Vec<SweepRow>, String> = rates
+    let rows: Result<Vec<Option<SweepRow>>, String> = rates
         .par_iter()
         .map(|&rate| {
+            if stop.load(std::sync::atomic::Ordering::SeqCst) {
+                return Ok(None);
+            }
             let m =
                 measure_rate(&params, setup, rate, length, settings).map_err(|e| e.to_string())?;
             bar.inc(1);
-            Ok(SweepRow {
+            Ok(Some(SweepRow {
                 input_deg_h: rate,
                 ideal_hz: rate / sf,
                 uncompensated_hz: m.uncompensated_hz,
                 compensated_hz: m.board_output_hz(),
-            })
+            }))
         })
         .collect();
     bar.finish_and_clear();
-    let rows = rows.map_err(Failure::Run)?;
+    let rows: Vec<SweepRow> = rows.map_err(Failure::Run)?.into_iter().flatten().collect();
     print!("{}", report::table(&rows, sf));
     let worst = |f: fn(&SweepRow) -> f64| {
         rows.iter()
@@ -163,6 +186,13 @@ fn sweep(args: &SweepArgs) -> Result<(), Failure> {
         std::fs::write(path, report::figure(&rows, sf, &title).to_svg())
             .map_err(|e| Failure::Run(format!("{}: {e}", path.display())))?;
         eprintln!("wrote {}", path.display());
+    }
+    if rows.len() < rates.len() {
+        return Err(Failure::Interrupted(format!(
+            "{} of {} input rates done (those are written)",
+            rows.len(),
+            rates.len()
+        )));
     }
     Ok(())
 }
@@ -218,7 +248,7 @@ fn record(args: &RecordArgs) -> Result<(), Failure> {
     let mut out = std::io::BufWriter::new(file);
     let io = |e: std::io::Error| Failure::Run(format!("{}: {e}", args.csv.display()));
     writeln!(out, "t_s,delta_angle_arcsec,true_delta_angle_arcsec,valid").map_err(io)?;
-    let stop = interrupt_flag();
+    let stop = rlg_sim::interrupt::install();
     let setup = args.board.setup();
     let settings = calibrate_board(
         &params,
@@ -293,19 +323,13 @@ fn record(args: &RecordArgs) -> Result<(), Failure> {
     );
     eprintln!("wrote {}", args.csv.display());
     if summary.interrupted && stop.load(Ordering::Relaxed) {
-        return Err(Failure::Interrupted);
+        return Err(Failure::Interrupted(format!(
+            "{} rows written to {}",
+            summary.rows,
+            args.csv.display()
+        )));
     }
     Ok(())
-}
-
-/// A flag set by SIGINT or SIGTERM (the run then stops between half cycles).
-fn interrupt_flag() -> Arc<AtomicBool> {
-    let flag = Arc::new(AtomicBool::new(false));
-    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        // Registration fails only for forbidden signals; these two are allowed.
-        let _ = signal_hook::flag::register(signal, Arc::clone(&flag));
-    }
-    flag
 }
 
 impl BoardArgs {

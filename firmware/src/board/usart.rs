@@ -34,8 +34,8 @@ use heapless::spsc::{Consumer, Producer, Queue};
 use super::{pac, Owned};
 use pac::Interrupt;
 
-/// Line rate.
-pub const BAUD: u32 = 460_800;
+/// Line rate: the protocol's (the host tool's default too).
+pub const BAUD: u32 = crate::protocol::SERIAL_BAUD;
 /// Receive queue, bytes (N - 1 usable): several command lines.
 pub const RX_QUEUE_BYTES: usize = 512;
 /// Transmit queue, bytes (N - 1 usable).

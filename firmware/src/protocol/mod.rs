@@ -21,6 +21,10 @@ pub mod parse;
 pub mod respond;
 pub mod stream;
 
+/// Line rate of the serial protocol (USART1, 8N1), Bd: the board's (`board::usart::BAUD`) and
+/// the host tool's default for `--port`, one constant for both.
+pub const SERIAL_BAUD: u32 = 460_800;
+
 /// Why a command was refused. The discriminant is the number after `ERR`; nothing changes
 /// when a command is refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -1,0 +1,292 @@
+//! The subcommands that talk to a board, on any link: one exchange with its answer printed, or
+//! the long runs (`calibrate`, `stream`, `console`).
+//!
+//! The long runs check their preconditions first ([`prepare`]: output files created, the key
+//! present for a protected step), then ask the board `id`, and stop cleanly on Ctrl-C or
+//! SIGTERM (`rlg_sim::interrupt`): `calibrate` sends `cal abort`, `stream` keeps every frame
+//! received (its CSV is written row by row), draws its SVG and prints its summary; exit 130.
+
+use crate::cli::{CalibrateArgs, Command, OnOff, StreamArgs};
+use crate::Failure;
+use indicatif::{ProgressBar, ProgressStyle};
+use rlg_cal::capture::CsvRows;
+use rlg_cal::client::{Client, ClientError};
+use rlg_cal::link::Link;
+use rlg_cal::ops::{self, CalibrateOptions};
+use rlg_cal::output::Format;
+use rlg_sim::interrupt;
+use std::fs::File;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// Longest wait for the board's `id` before a long run.
+const PROBE_TIMEOUT: Duration = Duration::from_secs(1);
+
+/// An output file, created before the run.
+pub struct Output {
+    pub path: PathBuf,
+    pub file: File,
+}
+
+/// The output files of a long run, created before it starts.
+#[derive(Default)]
+pub struct Outputs {
+    pub csv: Option<Output>,
+    pub svg: Option<Output>,
+}
+
+/// Creates `path` (truncating it): a bad path is a usage error before any work.
+pub fn create_output(path: &Path) -> Result<Output, Failure> {
+    File::create(path)
+        .map(|file| Output {
+            path: path.to_owned(),
+            file,
+        })
+        .map_err(|e| Failure::Usage(format!("cannot create {}: {e}", path.display())))
+}
+
+/// The preconditions that need no board: arguments, output files, the key for a protected
+/// step. Exit 2 on any.
+pub fn prepare(command: &Command, have_key: bool) -> Result<Outputs, Failure> {
+    match command {
+        Command::Stream(args) => {
+            if !(args.seconds > 0.0 && args.seconds.is_finite()) {
+                return Err(Failure::Usage("--seconds must be positive".into()));
+            }
+            Ok(Outputs {
+                csv: Some(create_output(&args.csv)?),
+                svg: args.svg.as_deref().map(create_output).transpose()?,
+            })
+        }
+        Command::Calibrate(args) if args.accept && !have_key => Err(Failure::Usage(
+            "calibrate --accept needs the unlock key (--key, --key-file or RLG_KEY): \
+             `cal accept` is protected"
+                .into(),
+        )),
+        _ => Ok(Outputs::default()),
+    }
+}
+
+/// What a session with a board carries besides the client.
+pub struct Session {
+    pub key: Option<String>,
+    pub format: Format,
+    pub outputs: Outputs,
+}
+
+/// The commands that talk to a board.
+pub struct Device<'a, L: Link> {
+    client: &'a mut Client<L>,
+    session: Session,
+}
+
+fn on_off(state: OnOff) -> &'static str {
+    match state {
+        OnOff::On => "on",
+        OnOff::Off => "off",
+    }
+}
+
+fn value_name<T: clap::ValueEnum>(v: &T) -> String {
+    v.to_possible_value()
+        .map(|p| p.get_name().to_owned())
+        .unwrap_or_default()
+}
+
+impl<'a, L: Link> Device<'a, L> {
+    pub fn new(client: &'a mut Client<L>, session: Session) -> Self {
+        Self { client, session }
+    }
+
+    /// Prints one command's result (its fields and sections) in the session's format.
+    fn print(&self, fields: &[(String, String)], sections: &[(&str, Vec<(String, String)>)]) {
+        // A closed stdout (`| head`) is not an error of the run.
+        let _ = writeln!(
+            std::io::stdout(),
+            "{}",
+            self.session.format.render(fields, sections)
+        );
+    }
+
+    /// A precondition of a long run: the board answers `id`, within a second at most (a board
+    /// answers in milliseconds; a silent port is a connection error, exit 3, before the run).
+    fn probe(&mut self) -> Result<(), Failure> {
+        let timeout = self.client.timeout();
+        self.client.set_timeout(timeout.min(PROBE_TIMEOUT));
+        let answered = self.client.command("id");
+        self.client.set_timeout(timeout);
+        answered?;
+        Ok(())
+    }
+
+    /// Unlocks first when a key was given.
+    fn unlocked(&mut self) -> Result<&mut Self, Failure> {
+        if let Some(key) = &self.session.key {
+            ops::unlock(self.client, key)?;
+        }
+        Ok(self)
+    }
+
+    /// One exchange, answer printed.
+    fn ask(&mut self, line: &str) -> Result<(), Failure> {
+        let answer = self.client.command(line)?;
+        self.print(&answer.fields(), &[]);
+        Ok(())
+    }
+
+    pub fn run(&mut self, command: &Command) -> Result<(), Failure> {
+        match command {
+            Command::Id => self.ask("id"),
+            Command::Status => self.ask("status"),
+            Command::Get { which } => self.ask(&format!("get {}", value_name(which))),
+            Command::Set { which, value } => self
+                .unlocked()?
+                .ask(&format!("set {} {value}", value_name(which))),
+            Command::Comp { state } => self.unlocked()?.ask(&format!("comp {}", on_off(*state))),
+            Command::Track { state } => self.unlocked()?.ask(&format!("track {}", on_off(*state))),
+            Command::Unlock { key } => self.ask(&format!("unlock {key}")),
+            Command::Lock => self.ask("lock"),
+            Command::Store => self.unlocked()?.ask("store"),
+            Command::Reload => self.unlocked()?.ask("reload"),
+            Command::Defaults => self.unlocked()?.ask("defaults"),
+            Command::Send { words } => self.ask(&words.join(" ")),
+            Command::Calibrate(args) => self.calibrate(args),
+            Command::Stream(args) => self.stream(args),
+            Command::Console => {
+                if let Some(key) = &self.session.key {
+                    ops::unlock(self.client, key)?;
+                }
+                rlg_cal::console::run(self.client).map_err(Failure::from)
+            }
+            Command::Sweep(_) | Command::ServeSim(_) => unreachable!("handled before connecting"),
+        }
+    }
+
+    fn calibrate(&mut self, args: &CalibrateArgs) -> Result<(), Failure> {
+        let stop = interrupt::install();
+        // The board answers, and a wrong key is refused, before the run.
+        self.probe()?;
+        if args.accept {
+            self.unlocked()?;
+        }
+        let options = CalibrateOptions {
+            poll: Duration::from_millis(args.poll_ms.max(10)),
+            ..CalibrateOptions::new(args.cycles, args.warmup)
+        };
+        let bar = ProgressBar::new(args.cycles as u64 + args.warmup as u64).with_style(
+            ProgressStyle::with_template("{bar:40} {pos}/{len} cycles, {elapsed} (eta {eta})")
+                .expect("valid template"),
+        );
+        let mut announced = false;
+        let result = ops::calibrate_until(
+            self.client,
+            &options,
+            &mut |done, total| {
+                if !std::mem::replace(&mut announced, true) {
+                    bar.suspend(|| {
+                        eprintln!(
+                            "rlg-cal: the calibration runs on the board: {} cycles after {} of \
+                             warm-up (Ctrl-C aborts it there).",
+                            args.cycles, args.warmup
+                        )
+                    });
+                }
+                bar.set_length(total);
+                bar.set_position(done);
+            },
+            stop,
+        );
+        bar.finish_and_clear();
+        let fit = result?;
+        let mut sections = Vec::new();
+        if args.accept {
+            sections.push(("accept", self.client.command("cal accept")?.fields()));
+        }
+        if args.store {
+            sections.push(("store", self.client.command("store")?.fields()));
+        }
+        self.print(&fit.fields(), &sections);
+        Ok(())
+    }
+
+    fn stream(&mut self, args: &StreamArgs) -> Result<(), Failure> {
+        let stop = interrupt::install();
+        let outputs = std::mem::take(&mut self.session.outputs);
+        let csv = outputs.csv.expect("prepared");
+        self.probe()?;
+        let scale = ops::rate_scale(self.client, args.timer_hz)?;
+        let write_failed = |path: &Path, e: std::io::Error| {
+            Failure::Run(format!("cannot write {}: {e}", path.display()))
+        };
+        let mut rows =
+            CsvRows::new(csv.file, args.divider, scale).map_err(|e| write_failed(&csv.path, e))?;
+        let mut row_error = None;
+        eprintln!(
+            "rlg-cal: streaming every {} cycle(s) for {} s into {} (Ctrl-C stops and keeps \
+             every frame received).",
+            args.divider,
+            args.seconds,
+            csv.path.display()
+        );
+        let bar = ProgressBar::new(1000).with_style(
+            ProgressStyle::with_template("{bar:40} streaming {elapsed}").expect("valid template"),
+        );
+        let capture = ops::stream_until(
+            self.client,
+            args.divider,
+            Duration::from_secs_f64(args.seconds),
+            &mut |fraction| bar.set_position((fraction * 1000.0) as u64),
+            &mut |record| {
+                if let Err(e) = rows.push(record) {
+                    row_error.get_or_insert(e);
+                }
+            },
+            stop,
+        );
+        bar.finish_and_clear();
+        let capture = capture?;
+        if let Some(e) = row_error {
+            return Err(write_failed(&csv.path, e));
+        }
+        rows.finish().map_err(|e| write_failed(&csv.path, e))?;
+        if let Some(svg) = outputs.svg {
+            let plot = capture.svg(&scale, "Streamed rate");
+            let mut file = svg.file;
+            file.write_all(plot.as_bytes())
+                .and_then(|_| file.flush())
+                .map_err(|e| write_failed(&svg.path, e))?;
+        }
+        let (compensated, raw) = capture.mean_rates(&scale);
+        let interrupted = interrupt::requested();
+        let summary = [
+            ("frames", capture.records.len().to_string()),
+            ("lost", capture.lost().to_string()),
+            ("bad", capture.bad_frames.to_string()),
+            ("mean_compensated_deg_h", format!("{compensated:.4}")),
+            ("mean_raw_deg_h", format!("{raw:.4}")),
+            (
+                "interrupted",
+                if interrupted { "yes" } else { "no" }.to_owned(),
+            ),
+        ]
+        .map(|(k, v)| (k.to_owned(), v));
+        self.print(&summary, &[]);
+        if capture.lost() > 0 {
+            eprintln!(
+                "rlg-cal: {} frames lost (sequence gaps): use a faster link or a larger --divider",
+                capture.lost()
+            );
+        }
+        if interrupted {
+            return Err(Failure::Client(ClientError::Interrupted {
+                what: format!(
+                    "the stream after {} frames (all of them in {})",
+                    capture.records.len(),
+                    csv.path.display()
+                ),
+            }));
+        }
+        Ok(())
+    }
+}
