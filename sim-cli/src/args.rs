@@ -57,32 +57,59 @@ pub enum LatchArg {
     Exact,
 }
 
+/// `value` inside `lo..=hi`, or an error naming `flag` and the range.
+fn in_range(flag: &str, value: f64, lo: f64, hi: f64) -> Result<(), String> {
+    if value.is_finite() && (lo..=hi).contains(&value) {
+        Ok(())
+    } else {
+        Err(format!("{flag} must be in {lo}..={hi}, got {value:?}"))
+    }
+}
+
+impl GyroArgs {
+    /// Every physical parameter against its stated range; the message names the flag.
+    pub fn validate(&self) -> Result<(), String> {
+        in_range("--scale-factor-arcsec", self.scale_factor_arcsec, 0.1, 20.0)?;
+        in_range("--dither-hz", self.dither_hz, 200.0, 1500.0)?;
+        in_range(
+            "--dither-amplitude-arcsec",
+            self.dither_amplitude_arcsec,
+            50.0,
+            800.0,
+        )?;
+        in_range("--lock-in-deg-h", self.lock_in_deg_h, 0.0, 5000.0)?;
+        in_range("--eps-rad", self.eps_rad, -3.1416, 3.1416)?;
+        in_range("--arw-deg-rt-h", self.arw_deg_rt_h, 0.0, 1.0)?;
+        in_range("--amplitude-jitter", self.amplitude_jitter, 0.0, 0.1)
+    }
+}
+
 /// Valid range of the sync rate, Hz.
 pub const SYNC_HZ_RANGE: std::ops::RangeInclusive<f64> = 100.0..=2000.0;
 
 #[derive(Args, Debug, Clone)]
 pub struct DitherArgs {
     /// Simulated seconds.
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
     pub seconds: f64,
     /// Resonance f0 at the start, Hz (300..=600).
-    #[arg(long, default_value_t = 389.0)]
+    #[arg(long, default_value_t = 389.0, allow_negative_numbers = true)]
     pub dither_hz: f64,
     /// Quality factor of the dither resonator (100..=100000).
-    #[arg(long, default_value_t = 1000.0)]
+    #[arg(long, default_value_t = 1000.0, allow_negative_numbers = true)]
     pub q_factor: f64,
     /// The drive's amplitude setpoint, arcsec (50..=650).
-    #[arg(long, default_value_t = 450.0)]
+    #[arg(long, default_value_t = 450.0, allow_negative_numbers = true)]
     pub dither_amplitude_arcsec: f64,
     /// Linear drift of the resonance over the run, Hz (-10..=10).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub resonance_drift_hz: f64,
     /// The pick-off signal disappears at this time, s.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub pickoff_lost_at_s: Option<f64>,
     /// Random-noise dither: the drive's amplitude randomised every half cycle by this depth,
     /// percent (0..=50).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub dither_noise_percent: f64,
     /// Random seed (pick-off noise, noise dither).
     #[arg(long, default_value_t = 1)]
@@ -101,26 +128,27 @@ pub struct DitherArgs {
 /// The gyro and its dither (defaults: the docs/physics.md parameter set, after the paper).
 #[derive(Args, Debug, Clone)]
 pub struct GyroArgs {
-    /// Scale factor, arcsec of input angle per counter pulse (fringe).
-    #[arg(long, default_value_t = 1.8655)]
+    /// Scale factor, arcsec of input angle per counter pulse (fringe) (0.1..=20).
+    #[arg(long, default_value_t = 1.8655, allow_negative_numbers = true)]
     pub scale_factor_arcsec: f64,
-    /// Dither frequency, Hz.
-    #[arg(long, default_value_t = 389.0)]
+    /// Dither frequency, Hz (200..=1500: the board's scheduler range).
+    #[arg(long, default_value_t = 389.0, allow_negative_numbers = true)]
     pub dither_hz: f64,
-    /// Dither peak amplitude, arcsec.
-    #[arg(long, default_value_t = 450.0)]
+    /// Dither peak amplitude, arcsec (50..=800: the pick-off saturates at 819).
+    #[arg(long, default_value_t = 450.0, allow_negative_numbers = true)]
     pub dither_amplitude_arcsec: f64,
-    /// Lock-in threshold Omega_L, deg/h.
-    #[arg(long, default_value_t = 200.0)]
+    /// Lock-in threshold Omega_L, deg/h (0..=5000).
+    #[arg(long, default_value_t = 200.0, allow_negative_numbers = true)]
     pub lock_in_deg_h: f64,
-    /// Photodiode phase offset eps, rad.
-    #[arg(long, default_value_t = 0.3)]
+    /// Photodiode phase offset eps, rad (-3.1416..=3.1416).
+    #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
     pub eps_rad: f64,
-    /// Angle random walk, deg/sqrt(h) (0 = no noise).
-    #[arg(long, default_value_t = 0.0)]
+    /// Angle random walk, deg/sqrt(h) (0..=1; 0 = no noise).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub arw_deg_rt_h: f64,
-    /// Relative rms of smooth dither amplitude jitter (0 = steady dither).
-    #[arg(long, default_value_t = 0.0)]
+    /// Relative rms of smooth dither amplitude jitter (0..=0.1; 0 = steady dither; applies to
+    /// the prescribed sine of --dither-drive ideal: the closed-loop drive's wander is its own).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub amplitude_jitter: f64,
     /// Random seed (same seed, same output).
     #[arg(long, default_value_t = 1)]
@@ -131,20 +159,20 @@ pub struct GyroArgs {
 pub struct SweepArgs {
     #[command(flatten)]
     pub gyro: GyroArgs,
-    /// Lowest input rate, deg/h.
+    /// Lowest input rate, deg/h (-1e6..=1e6).
     #[arg(long, default_value_t = -PAPER_RANGE_DEG_H, allow_negative_numbers = true)]
     pub rate_min_deg_h: f64,
-    /// Highest input rate, deg/h.
+    /// Highest input rate, deg/h (-1e6..=1e6).
     #[arg(long, default_value_t = PAPER_RANGE_DEG_H, allow_negative_numbers = true)]
     pub rate_max_deg_h: f64,
-    /// Number of input rates, evenly spaced from min to max.
+    /// Number of input rates, evenly spaced from min to max (1..=10000).
     #[arg(long, default_value_t = 41)]
     pub points: usize,
-    /// Simulated seconds recorded per input rate (after the warm-up).
-    #[arg(long, default_value_t = 10.0)]
+    /// Simulated seconds recorded per input rate, after the warm-up (0.001..=36000).
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
     pub seconds_per_point: f64,
-    /// Simulated seconds discarded before recording (lets the Lissajous fit settle).
-    #[arg(long, default_value_t = 0.5)]
+    /// Simulated seconds discarded before recording, lets the Lissajous fit settle (0..=60).
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     pub warmup_seconds: f64,
     #[command(flatten)]
     pub calibration: CalibrationArgs,
@@ -189,6 +217,21 @@ impl SweepArgs {
                 return Err(format!("{flag} must be a finite number, got {v}"));
             }
         }
+        in_range("--rate-min-deg-h", self.rate_min_deg_h, -1e6, 1e6)?;
+        in_range("--rate-max-deg-h", self.rate_max_deg_h, -1e6, 1e6)?;
+        in_range(
+            "--seconds-per-point",
+            self.seconds_per_point,
+            1e-3,
+            36_000.0,
+        )?;
+        in_range("--warmup-seconds", self.warmup_seconds, 0.0, 60.0)?;
+        if self.points > 10_000 {
+            return Err(format!(
+                "--points must be in 1..=10000, got {}",
+                self.points
+            ));
+        }
         if self.rate_max_deg_h < self.rate_min_deg_h {
             return Err("--rate-max-deg-h must not be below --rate-min-deg-h".into());
         }
@@ -215,7 +258,7 @@ pub struct CalibrationArgs {
     #[arg(long, allow_negative_numbers = true, num_args = 1)]
     pub calibration_rate_deg_h: Vec<f64>,
     /// Simulated seconds per calibration run.
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
     pub calibration_seconds: f64,
 }
 
@@ -259,11 +302,11 @@ pub struct BoardArgs {
     pub latch: LatchArg,
     /// Rate of the sync pulses that end the board's fixed-rate output periods, Hz
     /// (100..=2000).
-    #[arg(long, default_value_t = 1000.0)]
+    #[arg(long, default_value_t = 1000.0, allow_negative_numbers = true)]
     pub sync_hz: f64,
     /// Random-noise dither depth, percent (0..=50; needs --dither-drive closed-loop: the noise
     /// dither is the firmware drive's).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub dither_noise_percent: f64,
     /// The pick-off's gain error against its nominal 0.4 arcsec per code (-0.2..=0.2): the
     /// stripping fits it.
@@ -271,7 +314,7 @@ pub struct BoardArgs {
     pub pickoff_gain_error: f64,
     /// The pick-off's lag behind the dither angle, us (0..=100): the stripping's second tap
     /// fits it.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub pickoff_lag_us: f64,
 }
 
@@ -323,10 +366,10 @@ pub struct RecordArgs {
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub rate_deg_h: f64,
     /// Simulated seconds recorded after the warm-up (0 < s <= 360000: 100 h).
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
     pub seconds: f64,
     /// Simulated seconds discarded before recording (0..=60).
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     pub warmup_seconds: f64,
     /// Output CSV (t_s,delta_angle_arcsec,true_delta_angle_arcsec,valid), one row per sync
     /// period, written as the rows come.
@@ -371,6 +414,6 @@ pub struct SpeedArgs {
     #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
     pub rate_deg_h: f64,
     /// Simulated seconds to time.
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
     pub seconds: f64,
 }

@@ -62,6 +62,7 @@ enum Failure {
 
 impl GyroArgs {
     fn params(&self) -> Result<GyroParams, Failure> {
+        self.validate().map_err(Failure::Usage)?;
         let params = GyroParams {
             scale_factor_arcsec: self.scale_factor_arcsec,
             dither_hz: self.dither_hz,
@@ -354,8 +355,17 @@ impl BoardArgs {
 }
 
 fn speed(args: &SpeedArgs) -> Result<(), Failure> {
-    if !(args.seconds.is_finite() && args.seconds > 0.0) {
-        return Err(Failure::Usage("--seconds must be positive".into()));
+    if !(args.seconds.is_finite() && args.seconds > 0.0 && args.seconds <= 3600.0) {
+        return Err(Failure::Usage(format!(
+            "--seconds must be in (0, 3600], got {}",
+            args.seconds
+        )));
+    }
+    if !(args.rate_deg_h.is_finite() && args.rate_deg_h.abs() <= 1e6) {
+        return Err(Failure::Usage(format!(
+            "--rate-deg-h must be in -1e6..=1e6, got {}",
+            args.rate_deg_h
+        )));
     }
     let params = args.gyro.params()?;
     let speed = measure_speed(

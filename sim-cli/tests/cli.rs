@@ -119,3 +119,157 @@ fn sigint_keeps_the_points_done() {
         .count();
     assert_eq!(table_rows, rows, "{}", text(&out.stdout));
 }
+
+/// `rlg-sim record`: rows reach the disk as they come; Ctrl-C a second into the recording stops
+/// the run cleanly: exit 130, the header and every row written (about 1000 rows per simulated
+/// second at the default 1 kHz sync; the run simulates several seconds per wall second), the
+/// last row complete.
+#[test]
+fn record_sigint_keeps_every_row() {
+    use std::io::{BufRead, BufReader};
+    let csv = std::env::temp_dir().join(format!("rlg-sim-rec-{}.csv", std::process::id()));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_rlg-sim"))
+        .args([
+            "record",
+            "--quiet",
+            "--calibration-seconds",
+            "3",
+            "--seconds",
+            "600",
+        ])
+        .arg("--csv")
+        .arg(&csv)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    while !line.contains("Omega_L") {
+        line.clear();
+        assert!(stderr.read_line(&mut line).unwrap() > 0, "calibration line");
+    }
+    std::thread::sleep(Duration::from_millis(1500));
+    // Rows are on disk before the run ends (flushed at least once a second).
+    let early = std::fs::read_to_string(&csv).unwrap().lines().count();
+    assert!(early > 1, "{early} lines after 1.5 s");
+    // SAFETY: a signal to our own child process.
+    assert_eq!(
+        unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) },
+        0
+    );
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(130), "{rest}");
+    let written = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = written.lines();
+    assert_eq!(
+        lines.next(),
+        Some("t_s,delta_angle_arcsec,true_delta_angle_arcsec,valid")
+    );
+    let rows: Vec<&str> = lines.collect();
+    assert!(rows.len() >= early - 1, "{} < {early}", rows.len());
+    assert!(written.ends_with('\n'));
+    for row in &rows {
+        let fields: Vec<f64> = row.split(',').map(|f| f.parse().unwrap()).collect();
+        assert_eq!(fields.len(), 4, "{row}");
+    }
+    let stdout = text(&out.stdout);
+    assert!(stdout.contains(&format!("{} rows", rows.len())), "{stdout}");
+    let _ = std::fs::remove_file(&csv);
+}
+
+/// Out-of-range board flags are refused at once, naming the flag and its range.
+#[test]
+fn record_refuses_out_of_range_flags() {
+    for (flag, value, says) in [
+        ("--sync-hz", "50", "--sync-hz must be in 100..=2000"),
+        (
+            "--pickoff-lag-us",
+            "-1",
+            "--pickoff-lag-us must be in 0..=100",
+        ),
+        (
+            "--pickoff-gain-error",
+            "-0.5",
+            "--pickoff-gain-error must be in -0.2..=0.2",
+        ),
+        ("--seconds", "0", "--seconds must be in (0, 360000]"),
+    ] {
+        let (out, took) = rlg_sim(&["record", "--csv", "/tmp/never.csv", flag, value]);
+        assert_eq!(out.status.code(), Some(2), "{flag} {value}");
+        assert!(text(&out.stderr).contains(says), "{}", text(&out.stderr));
+        assert!(took < Duration::from_secs(1), "{took:?}");
+    }
+}
+
+/// Every numeric flag takes a leading minus where the value is legal (the error that follows
+/// is about another flag, so the negative one was accepted), and refuses an out-of-range value
+/// with its flag and range, exit 2, within a second (issue 15 items 14 and 15: `--dither-hz 0`
+/// and an amplitude of 1e9 arcsec used to hang, `--eps-rad 1e300` to print garbage).
+#[test]
+fn numeric_flags_take_negatives_where_legal_and_state_their_ranges() {
+    for legal in [
+        ["--eps-rad", "-0.7"],
+        ["--rate-min-deg-h", "-6"],
+        ["--pickoff-gain-error", "-0.05"],
+        ["--calibration-rate-deg-h", "-13.888"],
+    ] {
+        let mut args = vec!["sweep", "--sync-hz", "50"];
+        args.extend_from_slice(&legal);
+        let (out, took) = rlg_sim(&args);
+        let stderr = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{legal:?}");
+        assert!(
+            stderr.contains("--sync-hz must be in"),
+            "{legal:?}: {stderr}"
+        );
+        assert!(took < Duration::from_secs(1), "{took:?}");
+    }
+    for (flag, value, says) in [
+        (
+            "--dither-hz",
+            "0",
+            "--dither-hz must be in 200..=1500, got 0.0",
+        ),
+        (
+            "--dither-amplitude-arcsec",
+            "1e9",
+            "must be in 50..=800, got 1000000000.0",
+        ),
+        (
+            "--eps-rad",
+            "1e300",
+            "--eps-rad must be in -3.1416..=3.1416, got 1e300",
+        ),
+        (
+            "--arw-deg-rt-h",
+            "-1",
+            "--arw-deg-rt-h must be in 0..=1, got -1.0",
+        ),
+        (
+            "--lock-in-deg-h",
+            "-5",
+            "--lock-in-deg-h must be in 0..=5000, got -5.0",
+        ),
+        (
+            "--scale-factor-arcsec",
+            "-1.8655",
+            "--scale-factor-arcsec must be in",
+        ),
+        (
+            "--seconds-per-point",
+            "-10",
+            "--seconds-per-point must be in",
+        ),
+        ("--amplitude-jitter", "nan", "--amplitude-jitter must be in"),
+    ] {
+        let (out, took) = rlg_sim(&["sweep", flag, value]);
+        let stderr = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{flag} {value}: {stderr}");
+        assert!(stderr.contains(says), "{flag} {value}: {stderr}");
+        assert!(took < Duration::from_secs(1), "{flag}: {took:?}");
+    }
+}
