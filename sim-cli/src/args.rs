@@ -78,7 +78,8 @@ impl GyroArgs {
             800.0,
         )?;
         in_range("--lock-in-deg-h", self.lock_in_deg_h, 0.0, 5000.0)?;
-        in_range("--eps-rad", self.eps_rad, -3.1416, 3.1416)?;
+        use std::f64::consts::PI;
+        in_range("--eps-rad", self.eps_rad, -PI, PI)?;
         in_range("--arw-deg-rt-h", self.arw_deg_rt_h, 0.0, 1.0)?;
         in_range("--amplitude-jitter", self.amplitude_jitter, 0.0, 0.1)
     }
@@ -140,7 +141,7 @@ pub struct GyroArgs {
     /// Lock-in threshold Omega_L, deg/h (0..=5000).
     #[arg(long, default_value_t = 200.0, allow_negative_numbers = true)]
     pub lock_in_deg_h: f64,
-    /// Photodiode phase offset eps, rad (-3.1416..=3.1416).
+    /// Photodiode phase offset eps, rad (-pi..=pi).
     #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
     pub eps_rad: f64,
     /// Angle random walk, deg/sqrt(h) (0..=1; 0 = no noise).
