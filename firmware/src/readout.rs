@@ -281,6 +281,11 @@ impl Readout {
         )
     }
 
+    /// Output records made so far (the next record's sequence number).
+    pub fn output_records(&self) -> u64 {
+        self.recorder.records()
+    }
+
     /// The stripping coefficient K and the state of its fit.
     pub fn strip_status(&self, config: &ReadoutConfig) -> StripStatus {
         self.stripper.status(&config.output.strip)

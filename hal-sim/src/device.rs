@@ -23,6 +23,11 @@ use crate::dither::resonator::ResonatorParams;
 use crate::drive_loop::FirmwareDrive;
 use crate::flash::CalibrationFlash;
 use crate::harness::{DriveSource, Feed, Harness, HarnessError, HarnessOptions};
+use firmware::signal::output::record::OutputRecord;
+
+/// The simulated board's output rate without an external sync: the board's internal output
+/// timer, Hz.
+pub const OUTPUT_RATE_HZ: f64 = 1000.0;
 use crate::input::InputProfile;
 use crate::params::GyroParams;
 use firmware::dither::{DitherConfig, DitherController};
@@ -80,8 +85,10 @@ impl SimDevice {
         };
         // As on the board: the turnarounds latched at the instants the firmware predicts from
         // the pick-off's edges, not at the simulator's true turnarounds.
+        // The output latches at the board's internal output rate (no external sync connected).
         let board = BoardConfig {
             latch: LatchTiming::scheduled(0.0),
+            sync_hz: Some(OUTPUT_RATE_HZ),
             ..BoardConfig::for_gyro(&params)
         };
         let profile = BoardProfile {
@@ -167,11 +174,17 @@ impl SimDevice {
             }
             return;
         }
-        let Some(record) = self.harness.step().record else {
-            return;
-        };
+        let record = self.harness.step().record;
+        // The output latches of the half cycle came first (the output latch's context), then
+        // the cycle its closing turnaround made (the cycle task).
+        let outputs: Vec<OutputRecord> = self.harness.outputs().iter().map(|(_, r)| *r).collect();
         let mut ports = SimPorts::new(&mut self.harness, &mut self.output);
-        self.service.on_cycle(&record, &mut ports);
+        for output in &outputs {
+            self.service.on_output(output, &mut ports);
+        }
+        if let Some(record) = record {
+            self.service.on_cycle(&record, &mut ports);
+        }
     }
 
     /// Serial bytes from the host: every completed line is executed and answered at once, by

@@ -34,6 +34,7 @@ use crate::calibration::validation::AcceptanceLimits;
 use crate::dither::DitherState;
 use crate::signal::compensation::CompensationSettings;
 use crate::signal::lockin::CycleRecord;
+use crate::signal::output::record::OutputRecord;
 use crate::storage::{FitSummary, LoadReport};
 
 pub use super::commands::provenance::Source;
@@ -102,6 +103,12 @@ impl Executor {
         }
     }
 
+    /// Every output record (from the output latch's context, through the service): the frame
+    /// to send when the output is streamed.
+    pub fn on_output(&self, record: &OutputRecord) -> Option<OutputRecord> {
+        self.stream.on_output(record)
+    }
+
     /// Executes one command.
     pub fn execute<D: DeviceLink>(
         &mut self,
@@ -168,6 +175,7 @@ impl Executor {
             Command::Store => storage::store(device, p, id),
             Command::Reload => Ok(storage::reload(device, p)),
             Command::Stream(divider) => Ok(self.stream.command(divider)),
+            Command::StreamOutput => Ok(self.stream.command_output()),
             Command::Unlock(given) => self.access.unlock(id, now_ms, given),
             Command::Lock => Ok(self.access.lock()),
             Command::Dither(command) => dither::command(device, id, command),

@@ -9,6 +9,7 @@
 
 use crate::dither::{CommandError, DitherStatus};
 use crate::signal::compensation::CompensationSettings;
+use crate::signal::output::strip::StripStatus;
 use crate::storage::{CalibrationRecord, DitherSetpoints, LoadReport, StoreError};
 
 /// What the device is, for `id` (constants of the build and of the board's OTP block).
@@ -53,6 +54,10 @@ pub struct DeviceStatus {
     pub missed_turnarounds: u32,
     /// Latest averaged output rate, deg/h.
     pub rate_deg_per_h: f32,
+    /// The dither stripping's coefficients and the state of their fit.
+    pub strip: StripStatus,
+    /// Output records made since boot (the next record's sequence number).
+    pub output_records: u64,
 }
 
 /// What the protocol needs from the rest of the firmware.

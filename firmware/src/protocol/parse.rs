@@ -72,6 +72,8 @@ pub enum Command {
     Defaults,
     /// `stream on <divider>` (every n-th cycle) | `stream off`.
     Stream(Option<u16>),
+    /// `stream output`: the fixed-rate output records, one frame per output period.
+    StreamOutput,
     /// `unlock <key>`: allow commands that change coefficients or flash.
     Unlock(u32),
     /// `lock`: lock at once.
@@ -230,6 +232,7 @@ pub fn parse(text: &str) -> Result<Command, ErrorCode> {
     } else if is("stream") {
         match words.next() {
             Some(w) if w.eq_ignore_ascii_case("off") => Command::Stream(None),
+            Some(w) if w.eq_ignore_ascii_case("output") => Command::StreamOutput,
             Some(w) if w.eq_ignore_ascii_case("on") => {
                 let divider = match words.next() {
                     None => 1,
@@ -313,6 +316,8 @@ mod tests {
         assert_eq!(parse("stream on 10"), Ok(Command::Stream(Some(10))));
         assert_eq!(parse("stream on"), Ok(Command::Stream(Some(1))));
         assert_eq!(parse("stream off"), Ok(Command::Stream(None)));
+        assert_eq!(parse("stream output"), Ok(Command::StreamOutput));
+        assert_eq!(parse("stream output 3"), Err(ErrorCode::Syntax));
         assert_eq!(parse("unlock 0xC0FFEE"), Ok(Command::Unlock(0xC0FFEE)));
         assert_eq!(parse("  status\t"), Ok(Command::Status));
         assert_eq!(

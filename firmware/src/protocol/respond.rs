@@ -10,7 +10,7 @@ use core::fmt::Write;
 use heapless::String;
 
 /// Longest answer, bytes (with CRC suffix and terminator).
-pub const MAX_RESPONSE: usize = 320;
+pub const MAX_RESPONSE: usize = 400;
 
 /// An answer being built.
 #[derive(Clone, Debug)]

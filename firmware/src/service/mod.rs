@@ -31,10 +31,12 @@ use crate::profile::BoardProfile;
 use crate::protocol::endpoint;
 use crate::protocol::execute::{DeviceLink, DeviceStatus, Executor, Identity};
 use crate::protocol::line::{LineAssembler, LineEvent, MAX_LINE};
+use crate::protocol::output_frame::{encode_output_frame, MAX_OUTPUT_FRAME};
 use crate::protocol::stream::{encode_frame, MAX_FRAME};
 use crate::readout::ReadoutConfig;
 use crate::signal::compensation::CompensationSettings;
 use crate::signal::lockin::CycleRecord;
+use crate::signal::output::record::OutputRecord;
 use crate::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use crate::storage::{
     CalibrationRecord, CalibrationStore, DitherSetpoints, Geometry, GeometryError, LoadReport,
@@ -193,6 +195,19 @@ impl<F: NorFlash> Service<F> {
         }
     }
 
+    /// One fixed-rate output record: sent as a frame when the output is streamed (`stream
+    /// output`), queued whole or dropped and counted; a dropped record shows to the host as a
+    /// gap in the records' own sequence numbers.
+    pub fn on_output<P: SerialTx>(&mut self, record: &OutputRecord, ports: &mut P) {
+        if let Some(record) = self.executor.on_output(record) {
+            let mut buf = [0u8; MAX_OUTPUT_FRAME];
+            let n = encode_output_frame(&record, &mut buf);
+            if !ports.try_send_frame(&buf[..n]) {
+                self.frames_dropped = self.frames_dropped.saturating_add(1);
+            }
+        }
+    }
+
     /// Whether the binary stream is on.
     pub fn streaming(&self) -> bool {
         self.executor.streaming()
@@ -224,8 +239,18 @@ impl<F: NorFlash> Service<F> {
     }
 
     fn refresh_status<P: ReadoutAccess>(&mut self, ports: &mut P) {
-        let (counters, dither) = ports.with_readout(|r| (r.counters(), r.dither()));
+        let config = &self.config.readout;
+        let (counters, dither, strip, records) = ports.with_readout(|r| {
+            (
+                r.counters(),
+                r.dither(),
+                r.strip_status(config),
+                r.output_records(),
+            )
+        });
         self.status.update_from(&counters, dither);
+        self.status.strip = strip;
+        self.status.output_records = records;
         self.status.missed_turnarounds = self
             .status
             .missed_turnarounds

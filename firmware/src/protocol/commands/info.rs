@@ -13,7 +13,7 @@ use crate::signal::compensation::Coefficients;
 
 const HELP: &str =
     "commands: id status get{a|b|coeffs} set{a|b}<rad/s> comp{on|off} track{on|off} \
-cal{start<n>[<warmup>]|status|abort|result|accept} store reload defaults stream{on[<n>]|off} \
+cal{start<n>[<warmup>]|status|abort|result|accept} store reload defaults stream{on[<n>]|output|off} \
 dither{on|off|amp<arcsec>|noise<percent>|status} unlock<key> lock help";
 
 /// What `status` reports of the executor's own state.
@@ -54,7 +54,7 @@ pub fn status<D: DeviceLink>(id: &Identity, device: &mut D, flags: StatusFlags) 
     ok_with(format_args!(
         "signal={} drive={} dither_hz={:.3} dither_amp_arcsec={:.2} rate_deg_h={:.4} turnarounds={} \
 cycles={} counter_glitches={} phase_glitches={} signal_lost={} missed={} comp={} track={} coeffs={} \
-locked={}",
+locked={} strip_k={:.7} strip_k_prev={:.7} strip_k_std_rel={:.1e} strip={} output_records={}",
         if s.signal_ok { "ok" } else { "lost" },
         drive,
         s.dither_hz,
@@ -70,6 +70,15 @@ locked={}",
         if flags.tracking { "on" } else { "off" },
         SourceText(flags.source),
         if flags.unlocked { "no" } else { "yes" },
+        s.strip.k,
+        s.strip.k_previous,
+        s.strip.k_std_rel,
+        if s.strip.converged {
+            "converged"
+        } else {
+            "learning"
+        },
+        s.output_records,
     ))
 }
 
@@ -139,6 +148,14 @@ mod tests {
                 signal_lost: 3,
                 missed_turnarounds: 4,
                 rate_deg_per_h: 15.0,
+                strip: crate::signal::output::strip::StripStatus {
+                    k: 0.2144199,
+                    k_previous: -0.0001234,
+                    k_std_rel: 2.1e-5,
+                    updates: 9000,
+                    converged: true,
+                },
+                output_records: 12345,
             },
             ..MemDevice::default()
         };
@@ -151,7 +168,8 @@ mod tests {
             text(status(&ID, &mut device, flags)).trim_end(),
             "OK signal=ok drive=locked dither_hz=389.000 dither_amp_arcsec=200.00 rate_deg_h=15.0000 \
 turnarounds=10 cycles=5 counter_glitches=1 phase_glitches=2 signal_lost=3 missed=4 comp=off \
-track=on coeffs=flash:3 locked=yes"
+track=on coeffs=flash:3 locked=yes strip_k=0.2144199 strip_k_prev=-0.0001234 \
+strip_k_std_rel=2.1e-5 strip=converged output_records=12345"
         );
     }
 

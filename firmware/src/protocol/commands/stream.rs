@@ -1,10 +1,14 @@
-//! `stream on [<n>]` and `stream off`, and the countdown that picks every n-th dither cycle
-//! for a binary frame ([`StreamState`]). The frame format is [`crate::protocol::stream`].
+//! `stream on [<n>]`, `stream output` and `stream off`: the countdown that picks every n-th
+//! dither cycle for a binary frame, or every fixed-rate output record ([`StreamState`]). The
+//! frame formats are [`crate::protocol::stream`] and [`crate::protocol::output_frame`]; one
+//! stream at a time, so the host knows which frames it reads from the command it sent.
 
 use super::ok_with;
+use crate::protocol::output_frame::MAX_OUTPUT_FRAME;
 use crate::protocol::respond::Response;
 use crate::protocol::stream::{StreamRecord, MAX_FRAME};
 use crate::signal::lockin::CycleRecord;
+use crate::signal::output::record::OutputRecord;
 
 /// The stream settings and position.
 #[derive(Clone, Debug, Default)]
@@ -15,17 +19,32 @@ pub struct StreamState {
     countdown: u16,
     /// The next frame's sequence number (wrapping; the host counts lost frames by it).
     sequence: u32,
+    /// The output records are streamed (their own 64-bit sequence numbers count them).
+    output: bool,
 }
 
 impl StreamState {
     /// Whether binary streaming is on.
     pub fn on(&self) -> bool {
-        self.divider.is_some()
+        self.divider.is_some() || self.output
+    }
+
+    /// `stream output`: every output record as a frame (the cycle stream stops).
+    pub fn command_output(&mut self) -> Response {
+        self.divider = None;
+        self.output = true;
+        ok_with(format_args!("stream=output frame_bytes={MAX_OUTPUT_FRAME}"))
+    }
+
+    /// One output record: the frame to send, when the output is streamed.
+    pub fn on_output(&self, record: &OutputRecord) -> Option<OutputRecord> {
+        self.output.then_some(*record)
     }
 
     /// `stream on <n>` (`Some(n)`) or `stream off` (`None`).
     pub fn command(&mut self, divider: Option<u16>) -> Response {
         self.divider = divider;
+        self.output = false;
         self.countdown = 1;
         match divider {
             Some(n) => ok_with(format_args!(
@@ -92,5 +111,33 @@ mod tests {
         assert_eq!(s.on_cycle(&record()).map(|f| f.sequence), Some(3));
         s.command(None);
         assert_eq!(s.on_cycle(&record()), None);
+    }
+
+    /// `stream output` sends every output record and no cycle; `stream on` or `off` ends it.
+    #[test]
+    fn output_mode_sends_every_record_and_no_cycle() {
+        let mut s = StreamState::default();
+        let out = OutputRecord {
+            sequence: 7,
+            time_ticks: 0,
+            period_ticks: 84_000,
+            delta_angle_q16: 1,
+            angle_q16: 2,
+            rate_deg_per_h: 3.0,
+            status: Default::default(),
+        };
+        assert_eq!(s.on_output(&out), None);
+        assert_eq!(
+            text(s.command_output()).trim_end(),
+            format!("OK stream=output frame_bytes={MAX_OUTPUT_FRAME}")
+        );
+        assert!(s.on());
+        assert_eq!(s.on_output(&out), Some(out));
+        assert_eq!(s.on_cycle(&record()), None);
+        s.command(Some(1));
+        assert_eq!(s.on_output(&out), None);
+        assert!(s.on_cycle(&record()).is_some());
+        s.command(None);
+        assert!(!s.on());
     }
 }

@@ -140,6 +140,11 @@ impl OutputRecorder {
         Self::default()
     }
 
+    /// Records made so far (the next record's sequence number).
+    pub fn records(&self) -> u64 {
+        self.sequence
+    }
+
     /// Breaks the chain (a resynchronised count): the next record is a restart.
     pub fn restart(&mut self) {
         self.previous_q32 = None;

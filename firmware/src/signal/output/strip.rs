@@ -90,7 +90,7 @@ impl StripConfig {
 }
 
 /// The state of `K`'s fit, as `status` reports it.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct StripStatus {
     /// `K` in use, fringes per pick-off code (the tap on the latch's own pick-off code).
     pub k: f32,
