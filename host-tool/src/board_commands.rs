@@ -1,12 +1,12 @@
 //! The subcommands that talk to a board, on any link: one exchange with its answer printed, or
-//! the long runs (`calibrate`, `stream`, `console`).
+//! the long runs (`calibrate`, `stream`, `record`, `console`).
 //!
 //! The long runs check their preconditions first ([`prepare`]: output files created, the key
 //! present for a protected step), then ask the board `id`, and stop cleanly on Ctrl-C or
 //! SIGTERM (`rlg_sim::interrupt`): `calibrate` sends `cal abort`, `stream` keeps every frame
 //! received (its CSV is written row by row), draws its SVG and prints its summary; exit 130.
 
-use crate::cli::{CalibrateArgs, Command, OnOff, StreamArgs};
+use crate::cli::{CalibrateArgs, Command, OnOff, RecordArgs, StreamArgs};
 use crate::Failure;
 use indicatif::{ProgressBar, ProgressStyle};
 use rlg_cal::capture::CsvRows;
@@ -14,6 +14,7 @@ use rlg_cal::client::{Client, ClientError};
 use rlg_cal::link::Link;
 use rlg_cal::ops::{self, CalibrateOptions};
 use rlg_cal::output::Format;
+use rlg_cal::output_capture::OutputRows;
 use rlg_sim::interrupt;
 use std::fs::File;
 use std::io::Write;
@@ -57,6 +58,18 @@ pub fn prepare(command: &Command, have_key: bool) -> Result<Outputs, Failure> {
             Ok(Outputs {
                 csv: Some(create_output(&args.csv)?),
                 svg: args.svg.as_deref().map(create_output).transpose()?,
+            })
+        }
+        Command::Record(args) => {
+            if !(args.seconds.is_finite() && args.seconds > 0.0 && args.seconds <= 360_000.0) {
+                return Err(Failure::Usage(format!(
+                    "--seconds must be in (0, 360000], got {}",
+                    args.seconds
+                )));
+            }
+            Ok(Outputs {
+                csv: Some(create_output(&args.csv)?),
+                svg: None,
             })
         }
         Command::Calibrate(args) if args.accept && !have_key => Err(Failure::Usage(
@@ -153,6 +166,7 @@ impl<'a, L: Link> Device<'a, L> {
             Command::Send { words } => self.ask(&words.join(" ")),
             Command::Calibrate(args) => self.calibrate(args),
             Command::Stream(args) => self.stream(args),
+            Command::Record(args) => self.record(args),
             Command::Console => {
                 if let Some(key) = &self.session.key {
                     ops::unlock(self.client, key)?;
@@ -207,6 +221,79 @@ impl<'a, L: Link> Device<'a, L> {
             sections.push(("store", self.client.command("store")?.fields()));
         }
         self.print(&fit.fields(), &sections);
+        Ok(())
+    }
+
+    /// `rlg-cal record`: the fixed-rate output into the CSV as it comes; lost records counted
+    /// and marked; Ctrl-C stops with every record received written (exit 130).
+    fn record(&mut self, args: &RecordArgs) -> Result<(), Failure> {
+        let stop = interrupt::install();
+        let outputs = std::mem::take(&mut self.session.outputs);
+        let csv = outputs.csv.expect("prepared");
+        self.probe()?;
+        let scale = ops::rate_scale(self.client, args.timer_hz)?;
+        let write_failed = |path: &Path, e: std::io::Error| {
+            Failure::Run(format!("cannot write {}: {e}", path.display()))
+        };
+        let mut rows = OutputRows::new(csv.file, scale).map_err(|e| write_failed(&csv.path, e))?;
+        let mut row_error = None;
+        eprintln!(
+            "rlg-cal: recording the fixed-rate output for {} s into {} (Ctrl-C stops and keeps \
+             every record received).",
+            args.seconds,
+            csv.path.display()
+        );
+        let bar = ProgressBar::new(1000).with_style(
+            ProgressStyle::with_template("{bar:40} recording {elapsed}").expect("valid template"),
+        );
+        let result = ops::record_until(
+            self.client,
+            Duration::from_secs_f64(args.seconds),
+            &mut |fraction| bar.set_position((fraction * 1000.0) as u64),
+            &mut |chunk| {
+                if let Err(e) = rows.push_chunk(chunk) {
+                    row_error.get_or_insert(e);
+                }
+            },
+            stop,
+        );
+        bar.finish_and_clear();
+        result?;
+        if let Some(e) = row_error {
+            return Err(write_failed(&csv.path, e));
+        }
+        let (bad, invalid, span_s) = (rows.bad_frames, rows.invalid, rows.span_s());
+        let gaps = rows.finish().map_err(|e| write_failed(&csv.path, e))?;
+        let interrupted = interrupt::requested();
+        let summary = [
+            ("records", gaps.received.to_string()),
+            ("lost", gaps.lost.to_string()),
+            ("bad", bad.to_string()),
+            ("invalid", invalid.to_string()),
+            ("span_s", format!("{span_s:.3}")),
+            (
+                "interrupted",
+                if interrupted { "yes" } else { "no" }.to_owned(),
+            ),
+        ]
+        .map(|(k, v)| (k.to_owned(), v));
+        self.print(&summary, &[]);
+        if gaps.lost > 0 {
+            eprintln!(
+                "rlg-cal: {} records lost (sequence gaps, marked in the CSV): the link is slower \
+                 than the output (44 bytes per record)",
+                gaps.lost
+            );
+        }
+        if interrupted {
+            return Err(Failure::Client(ClientError::Interrupted {
+                what: format!(
+                    "the recording after {} records (all of them in {})",
+                    gaps.received,
+                    csv.path.display()
+                ),
+            }));
+        }
         Ok(())
     }
 

@@ -268,6 +268,9 @@ pub enum Command {
     Calibrate(CalibrateArgs),
     /// Streams per-cycle frames to CSV (and an SVG plot of the rate); reports lost frames.
     Stream(StreamArgs),
+    /// Record the board's fixed-rate output (`stream output`): one CSV row per output period,
+    /// lost records marked; rows go to disk as they come, Ctrl-C keeps them.
+    Record(RecordArgs),
     /// An interactive console: line editing, history, completion of command names (Tab); the
     /// CRC is added to each line and every answer shown, an error with its code in words.
     Console,
@@ -315,6 +318,21 @@ pub struct StreamArgs {
     /// Stream every n-th cycle (1 = every cycle; needs about 18 kB/s at 389 Hz).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..))]
     pub divider: u16,
+    /// Override the capture-timer frequency the board reports in `id`, Hz.
+    #[arg(long)]
+    pub timer_hz: Option<f64>,
+}
+
+/// `rlg-cal record`: the board's fixed-rate output.
+#[derive(Debug, Args)]
+pub struct RecordArgs {
+    /// How long to record, s (0 < s <= 360000).
+    #[arg(long, allow_negative_numbers = true)]
+    pub seconds: f64,
+    /// One row per output record (t_s,delta_angle_arcsec,valid,sequence,status), lost records
+    /// as rows with valid 0 and no angle.
+    #[arg(long, value_name = "PATH")]
+    pub csv: PathBuf,
     /// Override the capture-timer frequency the board reports in `id`, Hz.
     #[arg(long)]
     pub timer_hz: Option<f64>,

@@ -365,7 +365,7 @@ impl<L: Link> Client<L> {
                 text: fields,
                 truncated,
             } => {
-                if fields.starts_with("stream=on") {
+                if fields.starts_with("stream=on") || fields.starts_with("stream=output") {
                     self.streaming = true;
                 } else if fields.starts_with("stream=off") {
                     self.streaming = false;

@@ -24,6 +24,7 @@ pub mod console;
 pub mod link;
 pub mod ops;
 pub mod output;
+pub mod output_capture;
 pub mod serve;
 pub mod sim;
 pub mod sim_state;

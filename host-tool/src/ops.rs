@@ -201,6 +201,40 @@ pub fn stream_until<L: Link>(
     Ok(capture)
 }
 
+/// The board's fixed-rate output for `duration` (`stream output`): every chunk to `on_chunk`
+/// as it arrives, ending early when `stop` is set; the stream is switched off and the frames
+/// in flight handed over before it returns.
+pub fn record_until<L: Link>(
+    client: &mut Client<L>,
+    duration: Duration,
+    progress: &mut dyn FnMut(f64),
+    on_chunk: &mut dyn FnMut(&[u8]),
+    stop: &AtomicBool,
+) -> Result<(), ClientError> {
+    client.command("stream output")?;
+    let start = client.elapsed();
+    let result = (|| -> Result<(), ClientError> {
+        loop {
+            let elapsed = client.elapsed().saturating_sub(start);
+            if elapsed >= duration || stop.load(Ordering::SeqCst) {
+                return Ok(());
+            }
+            progress(elapsed.as_secs_f64() / duration.as_secs_f64());
+            client.poll((duration - elapsed).min(Duration::from_millis(100)))?;
+            for chunk in client.take_frames() {
+                on_chunk(&chunk);
+            }
+        }
+    })();
+    let stopped = client.command("stream off");
+    for chunk in client.take_frames() {
+        on_chunk(&chunk);
+    }
+    result?;
+    stopped?;
+    Ok(())
+}
+
 fn drain_frames<L: Link>(
     client: &mut Client<L>,
     capture: &mut Capture,

@@ -235,3 +235,62 @@ fn sweep_refused_calibration_exits_1_with_the_reason() {
         "no sweep after a refused fit: {out}"
     );
 }
+
+/// `rlg-cal record` on the simulated board: the fixed-rate output (1 kHz) for 1 s, one CSV row
+/// per record with the header, no record lost, all valid once the drive has locked (the
+/// simulated board boots locked), the summary counting them; a bad path fails before the run.
+#[test]
+fn record_writes_the_fixed_rate_output() {
+    let csv = scratch("record.csv");
+    let (code, out, err) = run(&[
+        "--sim",
+        "record",
+        "--seconds",
+        "1",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let field = |key: &str| -> u64 {
+        out.lines()
+            .find_map(|l| l.strip_prefix(key).and_then(|v| v.strip_prefix('=')))
+            .unwrap_or_else(|| panic!("{key} in {out}"))
+            .parse()
+            .unwrap()
+    };
+    let (records, lost) = (field("records"), field("lost"));
+    assert!((999..=1001).contains(&records), "{out}");
+    assert_eq!(lost, 0);
+    let written = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = written.lines();
+    assert_eq!(
+        lines.next(),
+        Some("t_s,delta_angle_arcsec,valid,sequence,status")
+    );
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len() as u64, records);
+    assert!(
+        rows.iter().all(|r| r.split(',').nth(2) == Some("1")),
+        "{}",
+        rows[0]
+    );
+    let (code, _, err) = run(&[
+        "--sim",
+        "record",
+        "--seconds",
+        "1",
+        "--csv",
+        "/nonexistent/dir/x.csv",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    let (code, _, err) = run(&[
+        "--sim",
+        "record",
+        "--seconds",
+        "-1",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--seconds must be in"), "{err}");
+}
