@@ -291,10 +291,11 @@ impl Readout {
         self.stripper.status(&config.output.strip)
     }
 
-    /// Starts the stripping from `k` (fringes per pick-off code: the value stored with the
-    /// calibration), forgetting the fit.
-    pub fn restart_strip_from(&mut self, config: &ReadoutConfig, k: f32) {
-        self.stripper.restart_from(&config.output.strip, k);
+    /// Starts the stripping from the taps `k` and `k_previous` (fringes per pick-off code: the
+    /// values stored with the calibration), forgetting the fit.
+    pub fn restart_strip_from(&mut self, config: &ReadoutConfig, k: f32, k_previous: f32) {
+        self.stripper
+            .restart_from(&config.output.strip, k, k_previous);
     }
 
     /// Starts counting afresh after the readout was paused (a flash store stalls the CPU for up

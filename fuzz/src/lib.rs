@@ -42,6 +42,7 @@ use firmware::signal::lockin::LockinTerms;
 use firmware::signal::lockin::{CycleFlags, CycleOutput};
 use firmware::storage::{
     CalibrationRecord, DefaultsReason, DitherSetpoints, LoadOutcome, LoadReport, StoreError,
+    StripCoefficients,
 };
 
 /// Event byte: a minute passes.
@@ -80,6 +81,7 @@ struct MemDevice {
     fail_next_store: bool,
     dither_config: DitherConfig,
     dither: DitherController,
+    strip: Option<StripCoefficients>,
 }
 
 impl DeviceLink for MemDevice {
@@ -145,6 +147,12 @@ impl DeviceLink for MemDevice {
 
     fn apply_dither(&mut self, setpoints: DitherSetpoints) -> Result<(), CommandError> {
         self.dither.apply_setpoints(&self.dither_config, setpoints)
+    }
+    fn strip_coefficients(&mut self) -> Option<StripCoefficients> {
+        self.strip
+    }
+    fn apply_strip(&mut self, strip: StripCoefficients) {
+        self.strip = Some(strip);
     }
 }
 
@@ -213,6 +221,7 @@ impl Harness {
                     c.enable();
                     c
                 },
+                strip: None,
             },
             line: LineAssembler::new(),
             cycle: 0,

@@ -118,6 +118,13 @@ impl SimDevice {
         .compensation(booted.settings)
         .build()
         .map_err(config_error)?;
+        if let Some(strip) = booted.strip {
+            // As `board::app::boot`: the stripping starts from the stored K.
+            let config = *harness.config();
+            harness
+                .readout_mut()
+                .restart_strip_from(&config, strip.k(), strip.k_previous());
+        }
         if let (Some(stored), Some(drive)) = (booted.dither, harness.firmware_drive_mut()) {
             // As `board::resources::start_dither`: refused values leave the defaults.
             let (controller, config) = drive.controller_mut();

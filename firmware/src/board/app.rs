@@ -118,7 +118,11 @@ pub fn boot<F: NorFlash>(
     let booted = Service::boot(config, flash, None)
         .unwrap_or_else(|e| defmt::panic!("calibration store geometry: {}", e));
     defmt::info!("calibration: {}", booted.report);
-    let readout = Readout::new(&config.readout, booted.settings);
+    let mut readout = Readout::new(&config.readout, booted.settings);
+    if let Some(strip) = booted.strip {
+        // The stripping starts from the stored K (its fit learns on from there).
+        readout.restart_strip_from(&config.readout, strip.k(), strip.k_previous());
+    }
     let records = resources::init_readout(config.readout, readout);
     (booted.service, records, booted.dither)
 }

@@ -10,7 +10,9 @@
 use crate::dither::{CommandError, DitherStatus};
 use crate::signal::compensation::CompensationSettings;
 use crate::signal::output::strip::StripStatus;
-use crate::storage::{CalibrationRecord, DitherSetpoints, LoadReport, StoreError};
+use crate::storage::{
+    CalibrationRecord, DitherSetpoints, LoadReport, StoreError, StripCoefficients,
+};
 
 /// What the device is, for `id` (constants of the build and of the board's OTP block).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -83,4 +85,9 @@ pub trait DeviceLink {
     /// Applies setpoints to the dither drive whole: every field is range-checked first, and a
     /// refused one changes nothing.
     fn apply_dither(&mut self, setpoints: DitherSetpoints) -> Result<(), CommandError>;
+    /// The dither stripping's coefficients, once their fit has converged (what `store` saves);
+    /// `None` while it is still learning.
+    fn strip_coefficients(&mut self) -> Option<StripCoefficients>;
+    /// Starts the stripping from stored coefficients (`reload`), its fit learning on from them.
+    fn apply_strip(&mut self, strip: StripCoefficients);
 }

@@ -40,7 +40,7 @@ use crate::signal::output::record::OutputRecord;
 use crate::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use crate::storage::{
     CalibrationRecord, CalibrationStore, DitherSetpoints, Geometry, GeometryError, LoadReport,
-    StoreError,
+    StoreError, StripCoefficients,
 };
 use ports::{Clock, DitherAccess, ReadoutAccess, SerialTx};
 
@@ -92,6 +92,8 @@ pub struct Booted<F: NorFlash> {
     pub settings: CompensationSettings,
     /// The dither drive's stored setpoints; `None`: the drive keeps its defaults.
     pub dither: Option<DitherSetpoints>,
+    /// The stored stripping coefficients; `None`: the profile's nominal K (the fit learns it).
+    pub strip: Option<StripCoefficients>,
     /// What the load found: loaded or defaults (and why), and the store's health.
     pub report: LoadReport,
 }
@@ -134,6 +136,7 @@ impl<F: NorFlash> Service<F> {
             service,
             settings: record.settings,
             dither: record.dither,
+            strip: record.strip,
             report,
         })
     }
@@ -163,6 +166,7 @@ impl<F: NorFlash> Service<F> {
         self.refresh_status(ports);
         let mut device = ServiceDevice {
             flash: &mut self.flash,
+            readout: &self.config.readout,
             store: &self.store,
             status: self.status,
             ports,
@@ -262,6 +266,7 @@ impl<F: NorFlash> Service<F> {
 /// status snapshot, and the platform's ports.
 struct ServiceDevice<'a, F, P> {
     flash: &'a mut F,
+    readout: &'a ReadoutConfig,
     store: &'a CalibrationStore,
     status: DeviceStatus,
     ports: &'a mut P,
@@ -310,6 +315,21 @@ impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess> DeviceLink for Servic
     fn apply_dither(&mut self, setpoints: DitherSetpoints) -> Result<(), CommandError> {
         self.ports
             .with_dither(|drive, config| drive.apply_setpoints(config, setpoints))
+    }
+
+    fn strip_coefficients(&mut self) -> Option<StripCoefficients> {
+        let config = self.readout;
+        let status = self.ports.with_readout(|r| r.strip_status(config));
+        if !status.converged {
+            return None;
+        }
+        StripCoefficients::from_fringes_per_code(status.k, status.k_previous)
+    }
+
+    fn apply_strip(&mut self, strip: StripCoefficients) {
+        let config = self.readout;
+        self.ports
+            .with_readout(|r| r.restart_strip_from(config, strip.k(), strip.k_previous()));
     }
 }
 

@@ -58,7 +58,7 @@ pub mod ram_flash;
 pub mod record;
 pub mod store;
 
-pub use record::{CalibrationRecord, DitherSetpoints, FitSummary, RecordError};
+pub use record::{CalibrationRecord, DitherSetpoints, FitSummary, RecordError, StripCoefficients};
 pub use store::{
     CalibrationStore, DefaultsReason, Geometry, GeometryError, LoadOutcome, LoadReport,
     SkippedFrame, StoreError,

@@ -62,6 +62,13 @@ pub fn record(i: u64) -> CalibrationRecord {
         amplitude_arcsec: rng.random_range(50.0..1000.0),
         noise_percent: rng.random_range(0.0..30.0),
     });
+    let strip = rng.random_bool(0.6).then(|| {
+        firmware::storage::StripCoefficients::from_fringes_per_code(
+            rng.random_range(0.05..0.5),
+            rng.random_range(-0.01..0.01),
+        )
+        .expect("in range")
+    });
     CalibrationRecord {
         serial_number: 1000 + (i as u32 % 3),
         boot_count: i as u32,
@@ -69,6 +76,7 @@ pub fn record(i: u64) -> CalibrationRecord {
         fit,
         reset_to_defaults: false,
         dither,
+        strip,
     }
 }
 

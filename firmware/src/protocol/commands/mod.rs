@@ -100,6 +100,7 @@ pub(crate) mod testing {
         pub stored: Vec<CalibrationRecord>,
         pub fail_store: bool,
         pub drive: MemDrive,
+        pub strip: Option<crate::storage::StripCoefficients>,
     }
 
     impl DeviceLink for MemDevice {
@@ -154,6 +155,12 @@ pub(crate) mod testing {
         fn apply_dither(&mut self, setpoints: DitherSetpoints) -> Result<(), CommandError> {
             let MemDrive { config, controller } = &mut self.drive;
             controller.apply_setpoints(config, setpoints)
+        }
+        fn strip_coefficients(&mut self) -> Option<crate::storage::StripCoefficients> {
+            self.strip
+        }
+        fn apply_strip(&mut self, strip: crate::storage::StripCoefficients) {
+            self.strip = Some(strip);
         }
     }
 

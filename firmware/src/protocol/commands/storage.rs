@@ -19,6 +19,7 @@ pub fn store<D: DeviceLink>(device: &mut D, provenance: &mut Provenance, id: &Id
         fit: provenance.fit,
         reset_to_defaults: false,
         dither: Some(device.dither_setpoints()),
+        strip: device.strip_coefficients(),
     };
     let sequence = device.store(&record).map_err(|_| ErrorCode::FlashError)?;
     provenance.source = Source::Flash { sequence };
@@ -30,7 +31,8 @@ pub fn store<D: DeviceLink>(device: &mut D, provenance: &mut Provenance, id: &Id
 /// `reload`: the newest valid record (or the defaults) staged, with where it came from; its
 /// dither setpoints applied when it holds any (`dither=stored`), else the drive's stay
 /// (`dither=kept`; also when the drive refuses the stored values, which a record of other
-/// firmware could hold: `dither=refused`).
+/// firmware could hold: `dither=refused`); its stripping coefficients likewise (`strip=stored`,
+/// or `strip=kept`: the stripping goes on from where it is).
 pub fn reload<D: DeviceLink>(device: &mut D, provenance: &mut Provenance) -> Response {
     let (record, report) = device.load();
     device.stage_settings(record.settings);
@@ -41,8 +43,15 @@ pub fn reload<D: DeviceLink>(device: &mut D, provenance: &mut Provenance) -> Res
         Some(_) => "refused",
         None => "kept",
     };
+    let strip = match record.strip {
+        Some(strip) => {
+            device.apply_strip(strip);
+            "stored"
+        }
+        None => "kept",
+    };
     ok_with(format_args!(
-        "coeffs={} dither={dither}",
+        "coeffs={} dither={dither} strip={strip}",
         SourceText(provenance.source)
     ))
 }
@@ -101,7 +110,7 @@ mod tests {
         let mut p = unsaved();
         assert_eq!(
             text(reload(&mut device, &mut p)).trim_end(),
-            "OK coeffs=defaults:erased dither=kept"
+            "OK coeffs=defaults:erased dither=kept strip=kept"
         );
         assert_eq!(p.source, Source::Defaults(DefaultsReason::Erased));
         assert_eq!((p.fit, device.staged), (None, 1));
@@ -111,7 +120,7 @@ mod tests {
         device.settings = CalibrationRecord::DEFAULTS.settings;
         assert_eq!(
             text(reload(&mut device, &mut p)).trim_end(),
-            "OK coeffs=flash:1 dither=stored"
+            "OK coeffs=flash:1 dither=stored strip=kept"
         );
         assert!(device.settings.enabled);
     }
@@ -135,7 +144,10 @@ mod tests {
         };
         device.apply_dither(other).unwrap();
         let answer = text(reload(&mut device, &mut p));
-        assert_eq!(answer.trim_end(), "OK coeffs=flash:1 dither=stored");
+        assert_eq!(
+            answer.trim_end(),
+            "OK coeffs=flash:1 dither=stored strip=kept"
+        );
         assert_eq!(device.dither_setpoints(), chosen);
         // A record whose setpoints the drive refuses (another firmware's wider range): the
         // coefficients load, the drive keeps what it had.
@@ -145,7 +157,35 @@ mod tests {
         });
         device.apply_dither(other).unwrap();
         let answer = text(reload(&mut device, &mut p));
-        assert_eq!(answer.trim_end(), "OK coeffs=flash:1 dither=refused");
+        assert_eq!(
+            answer.trim_end(),
+            "OK coeffs=flash:1 dither=refused strip=kept"
+        );
         assert_eq!(device.dither_setpoints(), other);
+    }
+
+    /// `store` saves the stripping coefficients once converged (none while learning), and
+    /// `reload` starts the stripping from them.
+    #[test]
+    fn store_saves_the_stripping_coefficients_and_reload_applies_them() {
+        use crate::storage::StripCoefficients;
+        let mut device = MemDevice::default();
+        let mut p = unsaved();
+        store(&mut device, &mut p, &ID).unwrap();
+        assert_eq!(
+            device.stored[0].strip, None,
+            "still learning: nothing saved"
+        );
+        let learned = StripCoefficients::from_fringes_per_code(0.2144, -0.001).unwrap();
+        device.strip = Some(learned);
+        store(&mut device, &mut p, &ID).unwrap();
+        assert_eq!(device.stored[1].strip, Some(learned));
+        device.strip = None;
+        let answer = text(reload(&mut device, &mut p));
+        assert_eq!(
+            answer.trim_end(),
+            "OK coeffs=flash:2 dither=stored strip=stored"
+        );
+        assert_eq!(device.strip, Some(learned));
     }
 }

@@ -162,12 +162,13 @@ impl DitherStripper {
         }
     }
 
-    /// Starts from `k` (a stored value) and forgets the fit.
-    pub fn restart_from(&mut self, config: &StripConfig, k: f32) {
+    /// Starts from stored taps `k` and `k_previous` and forgets the fit.
+    pub fn restart_from(&mut self, config: &StripConfig, k: f32, k_previous: f32) {
         *self = Self::new(&StripConfig {
             initial_k: k,
             ..*config
         });
+        self.k_previous = k_previous;
     }
 
     /// The dither in the count at a latch, fringes: the two taps on this latch's code and the

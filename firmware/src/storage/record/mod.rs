@@ -1,5 +1,5 @@
-//! The calibration record: fixed 80-byte little-endian layout (64 bytes in the older version 1,
-//! still read), CRC-32, commit marker and the
+//! The calibration record: fixed 96-byte little-endian layout (80 bytes in version 2 and 64 in
+//! version 1, both still read), CRC-32, commit marker and the
 //! plausibility checks applied both before storing and after loading.
 //!
 //! # Frame (every format version, present and future)
@@ -18,20 +18,20 @@
 //! the length, the CRC and the marker all check; a valid frame of an unknown version is skipped
 //! by its length and left alone.
 //!
-//! # Format version 2 ([`RECORD_BYTES`] = 80 bytes, 20 words), written by this firmware
+//! # Format version 3 ([`RECORD_BYTES`] = 96 bytes, 24 words), written by this firmware
 //!
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 2 | magic `0xCA1B` |
-//! | 2 | 1 | format version = 2 |
-//! | 3 | 1 | length = 20 words |
+//! | 2 | 1 | format version = 3 |
+//! | 3 | 1 | length = 24 words |
 //! | 4 | 4 | sequence number (u32) |
 //! | 8 | 4 | gyro serial number (u32) |
 //! | 12 | 4 | boot count at the time of storing (u32, supplied by the caller) |
 //! | 16 | 4 | a, Q15.16 rad/s (i32) |
 //! | 20 | 4 | b, Q15.16 rad/s (i32) |
 //! | 24 | 1 | compensation enabled: 0 or 1 |
-//! | 25 | 1 | flags: bit 0 fit summary present, bit 1 reset-to-defaults record, bit 2 dither setpoints present; others 0 |
+//! | 25 | 1 | flags: bit 0 fit summary present, bit 1 reset-to-defaults record, bit 2 dither setpoints present, bit 3 stripping coefficients present; others 0 |
 //! | 26 | 2 | fit: runs pooled (u16, saturated) |
 //! | 28 | 4 | fit: cycles (u32, saturated) |
 //! | 32 | 4 | fit: standard error of a, rad/s (f32) |
@@ -44,8 +44,20 @@
 //! | 60 | 4 | dither: random-noise depth, percent of the setpoint (f32) |
 //! | 64 | 1 | dither: drive enabled at power-up, 0 or 1 |
 //! | 65 | 7 | reserved, 0 |
-//! | 72 | 4 | CRC-32 of bytes 0..72 |
-//! | 76 | 4 | commit marker |
+//! | 72 | 4 | stripping: K, Q8.24 fringes per pick-off code (i32) |
+//! | 76 | 4 | stripping: K', the previous latch's tap, Q8.24 fringes per code (i32) |
+//! | 80 | 8 | reserved, 0 |
+//! | 88 | 4 | CRC-32 of bytes 0..88 |
+//! | 92 | 4 | commit marker |
+//!
+//! # Format version 2 (80 bytes, 20 words), still read
+//!
+//! Bytes 0..72 as in version 3 (flag bit 3 unknown, so never set), then the CRC-32 of bytes
+//! 0..72 at 72 and the commit marker at 76. It loads with no stripping coefficients (`strip:
+//! None`: the profile's nominal K applies and the fit learns it); the next store writes
+//! version 3. The stripping coefficients are fixed point, as a and b: Q8.24 spans +-128
+//! fringes per code (the F405's pick-off with the docs/physics.md gyro: 0.214) at 6e-8, 3e-7
+//! of K, far below the fit's own 2e-5.
 //!
 //! # Format version 1 (64 bytes, 16 words), still read
 //!
@@ -71,9 +83,13 @@ use crate::signal::compensation::{Coefficients, CompensationSettings};
 /// First half-word of every frame.
 pub const MAGIC: u16 = 0xCA1B;
 /// The format version this firmware writes.
-pub const FORMAT_VERSION: u8 = 2;
+pub const FORMAT_VERSION: u8 = 3;
 /// Length of a record of [`FORMAT_VERSION`].
-pub const RECORD_BYTES: usize = 80;
+pub const RECORD_BYTES: usize = 96;
+/// The previous format version, still read.
+pub const V2_FORMAT_VERSION: u8 = 2;
+/// Length of a version-2 record.
+pub const V2_RECORD_BYTES: usize = 80;
 /// The older format version this firmware still reads.
 pub const V1_FORMAT_VERSION: u8 = 1;
 /// Length of a version-1 record.
@@ -83,6 +99,7 @@ pub const V1_RECORD_BYTES: usize = 64;
 pub const fn readable_length(version: u8) -> Option<usize> {
     match version {
         V1_FORMAT_VERSION => Some(V1_RECORD_BYTES),
+        V2_FORMAT_VERSION => Some(V2_RECORD_BYTES),
         FORMAT_VERSION => Some(RECORD_BYTES),
         _ => None,
     }
@@ -140,12 +157,20 @@ pub mod offset {
     pub const DITHER_NOISE: usize = 60;
     /// Dither drive enabled at power-up, u8: 0 or 1.
     pub const DITHER_ENABLED: usize = 64;
-    /// Reserved bytes, 0, up to [`CRC`].
+    /// Reserved bytes, 0, up to [`STRIP_K`].
     pub const RESERVED: usize = 65;
+    /// Stripping coefficient K, Q8.24 fringes per pick-off code, i32.
+    pub const STRIP_K: usize = 72;
+    /// Stripping coefficient K' (the previous latch's tap), Q8.24, i32.
+    pub const STRIP_K_PREVIOUS: usize = 76;
+    /// Reserved bytes after the stripping coefficients, 0, up to [`CRC`].
+    pub const RESERVED_2: usize = 80;
     /// CRC of `[0, CRC)`; in any frame of length n bytes it sits at n - 8.
-    pub const CRC: usize = 72;
+    pub const CRC: usize = 88;
     /// Commit marker; in any frame of length n bytes it sits at n - 4.
-    pub const COMMIT: usize = 76;
+    pub const COMMIT: usize = 92;
+    /// Version 2: CRC of `[0, V2_CRC)`.
+    pub const V2_CRC: usize = 72;
     /// Version 1: CRC of `[0, V1_CRC)`.
     pub const V1_CRC: usize = 56;
 }
@@ -153,8 +178,58 @@ pub mod offset {
 const FLAG_FIT_PRESENT: u8 = 1 << 0;
 const FLAG_RESET: u8 = 1 << 1;
 const FLAG_DITHER_PRESENT: u8 = 1 << 2;
+const FLAG_STRIP_PRESENT: u8 = 1 << 3;
 const V1_KNOWN_FLAGS: u8 = FLAG_FIT_PRESENT | FLAG_RESET;
-const KNOWN_FLAGS: u8 = V1_KNOWN_FLAGS | FLAG_DITHER_PRESENT;
+const V2_KNOWN_FLAGS: u8 = V1_KNOWN_FLAGS | FLAG_DITHER_PRESENT;
+const KNOWN_FLAGS: u8 = V2_KNOWN_FLAGS | FLAG_STRIP_PRESENT;
+
+/// The dither stripping's coefficients as stored (fixed point, Q8.24 fringes per pick-off
+/// code): the taps on the latch's own pick-off code and the previous latch's
+/// (`signal::output::strip`). What the board starts its stripping with at power-up.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct StripCoefficients {
+    /// K, Q8.24 fringes per code.
+    pub k_q24: i32,
+    /// K', Q8.24 fringes per code.
+    pub k_previous_q24: i32,
+}
+
+impl StripCoefficients {
+    /// One Q8.24 unit.
+    const ONE: f32 = (1u32 << 24) as f32;
+
+    /// From the taps in fringes per code; `None` when one is not finite or beyond +-128.
+    pub fn from_fringes_per_code(k: f32, k_previous: f32) -> Option<Self> {
+        let q = |x: f32| {
+            let v = x * Self::ONE;
+            (x.is_finite() && v.abs() < i32::MAX as f32).then(|| crate::math::round_f32_to_i32(v))
+        };
+        Some(Self {
+            k_q24: q(k)?,
+            k_previous_q24: q(k_previous)?,
+        })
+    }
+
+    /// K in fringes per code.
+    pub fn k(&self) -> f32 {
+        self.k_q24 as f32 / Self::ONE
+    }
+
+    /// K' in fringes per code.
+    pub fn k_previous(&self) -> f32 {
+        self.k_previous_q24 as f32 / Self::ONE
+    }
+
+    /// A K of zero strips nothing: no board stores one (the fit refuses a zero K).
+    pub fn check(&self) -> Result<(), RecordError> {
+        if self.k_q24 == 0 {
+            Err(RecordError::ImplausibleStrip)
+        } else {
+            Ok(())
+        }
+    }
+}
 
 /// Largest dither amplitude setpoint a record may hold, arcsec (far above any dither: a sanity
 /// bound for the record; the drive applies its own, narrower range).
@@ -184,6 +259,9 @@ pub enum RecordError {
     /// Dither setpoints that are not finite or outside their ranges, bytes without setpoints,
     /// or reserved bytes that are not 0.
     ImplausibleDither,
+    /// Stripping coefficients with a zero K, bytes without coefficients, or reserved bytes
+    /// after them that are not 0.
+    ImplausibleStrip,
 }
 
 /// The dither drive's setpoints as stored: what the board starts the drive with at power-up.
@@ -293,6 +371,9 @@ pub struct CalibrationRecord {
     /// The dither drive's setpoints; `None` when never set (or a version-1 record): the board's
     /// defaults apply.
     pub dither: Option<DitherSetpoints>,
+    /// The dither stripping's coefficients; `None` when never stored (or an older record): the
+    /// profile's nominal K applies until the fit learns it.
+    pub strip: Option<StripCoefficients>,
 }
 
 impl CalibrationRecord {
@@ -307,6 +388,7 @@ impl CalibrationRecord {
         fit: None,
         reset_to_defaults: false,
         dither: None,
+        strip: None,
     };
 
     /// The record `reset_to_defaults` writes.
@@ -339,8 +421,13 @@ impl CalibrationRecord {
         if let Some(dither) = &self.dither {
             dither.check()?;
         }
-        let is_default =
-            self.settings == Self::DEFAULTS.settings && self.fit.is_none() && self.dither.is_none();
+        if let Some(strip) = &self.strip {
+            strip.check()?;
+        }
+        let is_default = self.settings == Self::DEFAULTS.settings
+            && self.fit.is_none()
+            && self.dither.is_none()
+            && self.strip.is_none();
         if self.reset_to_defaults && !is_default {
             return Err(RecordError::ImplausibleReset);
         }
@@ -370,7 +457,7 @@ pub fn parse_header(unit: &[u8; ALIGN_BYTES]) -> Option<FrameHeader> {
     })
 }
 
-/// The version-2 bytes of `record` with sequence number `sequence`, CRC and commit marker.
+/// The version-3 bytes of `record` with sequence number `sequence`, CRC and commit marker.
 /// Does not check the record (the store does, before it writes).
 pub fn encode(record: &CalibrationRecord, sequence: u32) -> [u8; RECORD_BYTES] {
     let mut bytes = [0u8; RECORD_BYTES];
@@ -414,6 +501,15 @@ pub fn encode(record: &CalibrationRecord, sequence: u32) -> [u8; RECORD_BYTES] {
         );
         bytes[offset::DITHER_ENABLED] = dither.enabled as u8;
     }
+    if let Some(strip) = &record.strip {
+        flags |= FLAG_STRIP_PRESENT;
+        put(&mut bytes, offset::STRIP_K, &strip.k_q24.to_le_bytes());
+        put(
+            &mut bytes,
+            offset::STRIP_K_PREVIOUS,
+            &strip.k_previous_q24.to_le_bytes(),
+        );
+    }
     bytes[offset::FLAGS] = flags;
     seal(&mut bytes);
     bytes
@@ -444,9 +540,9 @@ fn encode_fit(bytes: &mut [u8], fit: &FitSummary) {
     }
 }
 
-/// Checks a frame of a readable version (1 or 2) completely (magic, version, length, CRC,
+/// Checks a frame of a readable version (1, 2 or 3) completely (magic, version, length, CRC,
 /// marker, plausibility) and returns its sequence number and record. `bytes` is the whole
-/// frame: [`V1_RECORD_BYTES`] or [`RECORD_BYTES`] long.
+/// frame: [`V1_RECORD_BYTES`], [`V2_RECORD_BYTES`] or [`RECORD_BYTES`] long.
 pub fn decode(bytes: &[u8]) -> Result<(u32, CalibrationRecord), RecordError> {
     let header: &[u8; ALIGN_BYTES] = bytes
         .get(..ALIGN_BYTES)
@@ -476,10 +572,10 @@ pub fn decode(bytes: &[u8]) -> Result<(u32, CalibrationRecord), RecordError> {
 fn decode_body(bytes: &[u8], version: u8) -> Result<CalibrationRecord, RecordError> {
     let flags = bytes[offset::FLAGS];
     let enabled = bytes[offset::ENABLED];
-    let known = if version == V1_FORMAT_VERSION {
-        V1_KNOWN_FLAGS
-    } else {
-        KNOWN_FLAGS
+    let known = match version {
+        V1_FORMAT_VERSION => V1_KNOWN_FLAGS,
+        V2_FORMAT_VERSION => V2_KNOWN_FLAGS,
+        _ => KNOWN_FLAGS,
     };
     if flags & !known != 0 || enabled > 1 {
         return Err(RecordError::BadFlags);
@@ -499,6 +595,11 @@ fn decode_body(bytes: &[u8], version: u8) -> Result<CalibrationRecord, RecordErr
     } else {
         decode_dither(bytes, flags & FLAG_DITHER_PRESENT != 0)?
     };
+    let strip = if version == FORMAT_VERSION {
+        decode_strip(bytes, flags & FLAG_STRIP_PRESENT != 0)?
+    } else {
+        None
+    };
     Ok(CalibrationRecord {
         serial_number: get_u32(bytes, offset::SERIAL_NUMBER),
         boot_count: get_u32(bytes, offset::BOOT_COUNT),
@@ -512,12 +613,33 @@ fn decode_body(bytes: &[u8], version: u8) -> Result<CalibrationRecord, RecordErr
         fit,
         reset_to_defaults: flags & FLAG_RESET != 0,
         dither,
+        strip,
     })
 }
 
-/// The version-2 dither bytes: setpoints when `present`, else all zero; reserved bytes zero.
+/// The version-3 stripping bytes: coefficients when `present`, else zero; reserved bytes zero.
+fn decode_strip(bytes: &[u8], present: bool) -> Result<Option<StripCoefficients>, RecordError> {
+    let reserved_clear = bytes[offset::RESERVED_2..offset::CRC]
+        .iter()
+        .all(|&b| b == 0);
+    let strip = StripCoefficients {
+        k_q24: get_u32(bytes, offset::STRIP_K) as i32,
+        k_previous_q24: get_u32(bytes, offset::STRIP_K_PREVIOUS) as i32,
+    };
+    match (reserved_clear, present) {
+        (false, _) => Err(RecordError::ImplausibleStrip),
+        (true, true) => Ok(Some(strip)),
+        (true, false) if strip == StripCoefficients::default() => Ok(None),
+        (true, false) => Err(RecordError::ImplausibleStrip),
+    }
+}
+
+/// The dither bytes (versions 2 and 3): setpoints when `present`, else all zero; reserved bytes
+/// zero.
 fn decode_dither(bytes: &[u8], present: bool) -> Result<Option<DitherSetpoints>, RecordError> {
-    let reserved_clear = bytes[offset::RESERVED..offset::CRC].iter().all(|&b| b == 0);
+    let reserved_clear = bytes[offset::RESERVED..offset::V2_CRC]
+        .iter()
+        .all(|&b| b == 0);
     let enabled = bytes[offset::DITHER_ENABLED];
     if !reserved_clear || enabled > 1 {
         return Err(RecordError::ImplausibleDither);

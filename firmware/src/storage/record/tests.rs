@@ -1,4 +1,4 @@
-//! The record's tests: round trips of both format versions, the documented layout, every
+//! The record's tests: round trips of the three format versions, the documented layout, every
 //! single bit flip refused, the plausibility checks.
 
 use super::*;
@@ -30,12 +30,26 @@ fn sample() -> CalibrationRecord {
             amplitude_arcsec: 450.0,
             noise_percent: 12.5,
         }),
+        strip: StripCoefficients::from_fringes_per_code(0.2144199, -0.0012),
     }
+}
+
+/// The version-2 bytes of a record without stripping coefficients (what the firmware of issue
+/// 12 wrote).
+fn encode_v2(record: &CalibrationRecord, sequence: u32) -> [u8; V2_RECORD_BYTES] {
+    assert!(record.strip.is_none());
+    let v3 = encode(record, sequence);
+    let mut bytes = [0u8; V2_RECORD_BYTES];
+    bytes[..offset::V2_CRC].copy_from_slice(&v3[..offset::V2_CRC]);
+    bytes[offset::VERSION] = V2_FORMAT_VERSION;
+    bytes[offset::LENGTH_WORDS] = (V2_RECORD_BYTES / 4) as u8;
+    seal(&mut bytes);
+    bytes
 }
 
 /// The version-1 bytes of a record without dither setpoints (what older firmware wrote).
 fn encode_v1(record: &CalibrationRecord, sequence: u32) -> [u8; V1_RECORD_BYTES] {
-    assert!(record.dither.is_none());
+    assert!(record.dither.is_none() && record.strip.is_none());
     let v2 = encode(record, sequence);
     let mut bytes = [0u8; V1_RECORD_BYTES];
     bytes[..offset::V1_CRC].copy_from_slice(&v2[..offset::V1_CRC]);
@@ -60,21 +74,71 @@ fn round_trip() {
 #[test]
 fn layout_is_little_endian_at_documented_offsets() {
     let bytes = encode(&sample(), 0x0102_0304);
-    assert_eq!(&bytes[..4], &[0x1B, 0xCA, 2, 20]);
+    assert_eq!(&bytes[..4], &[0x1B, 0xCA, 3, 24]);
     assert_eq!(&bytes[4..8], &[4, 3, 2, 1]);
     assert_eq!(&bytes[8..12], &[0x78, 0x56, 0x34, 0x12]);
     assert_eq!(&bytes[56..60], &450.0f32.to_le_bytes());
     assert_eq!(&bytes[60..64], &12.5f32.to_le_bytes());
-    assert_eq!(bytes[25], 0b101, "fit and dither present");
+    assert_eq!(bytes[25], 0b1101, "fit, dither and stripping present");
     assert_eq!(&bytes[64..72], &[1, 0, 0, 0, 0, 0, 0, 0]);
-    assert_eq!(get_u32(&bytes, offset::CRC), crc32(&bytes[..72]));
+    // K = 0.2144199 in Q8.24: round(0.2144199 * 2^24) = 3597369.
+    assert_eq!(get_u32(&bytes, offset::STRIP_K) as i32, 3_597_369);
+    assert_eq!(get_u32(&bytes, offset::STRIP_K_PREVIOUS) as i32, -20_133);
+    assert_eq!(&bytes[80..88], &[0; 8]);
+    assert_eq!(get_u32(&bytes, offset::CRC), crc32(&bytes[..88]));
     assert_eq!(get_u32(&bytes, offset::COMMIT), COMMIT_MARKER);
+}
+
+/// A version-2 record (no stripping coefficients) still loads, with `strip: None`; it cannot
+/// claim the version-3 flag.
+#[test]
+fn version_2_records_still_load_without_stripping_coefficients() {
+    let mut record = sample();
+    record.strip = None;
+    let v2 = encode_v2(&record, 8);
+    assert_eq!(&v2[..4], &[0x1B, 0xCA, 2, 20]);
+    assert_eq!(decode(&v2), Ok((8, record)));
+    let mut bad = v2;
+    bad[offset::FLAGS] |= FLAG_STRIP_PRESENT;
+    seal(&mut bad);
+    assert_eq!(decode(&bad), Err(RecordError::BadFlags));
+    for bit in 0..V2_RECORD_BYTES * 8 {
+        let mut flipped = v2;
+        flipped[bit / 8] ^= 1 << (bit % 8);
+        assert!(decode(&flipped).is_err(), "v2 bit {bit}");
+    }
+}
+
+/// Stripping coefficients: a zero K is refused, bytes without the flag are refused, the
+/// reserved bytes after them must be zero; the Q8.24 round trip is exact to 6e-8.
+#[test]
+fn stripping_coefficients_are_checked() {
+    let mut record = sample();
+    record.strip = Some(StripCoefficients::default());
+    assert_eq!(record.check(), Err(RecordError::ImplausibleStrip));
+    record.strip = None;
+    let mut bytes = encode(&record, 1);
+    bytes[offset::STRIP_K] = 1;
+    seal(&mut bytes);
+    assert_eq!(decode(&bytes), Err(RecordError::ImplausibleStrip));
+    let mut bytes = encode(&sample(), 1);
+    bytes[offset::RESERVED_2 + 2] = 1;
+    seal(&mut bytes);
+    assert_eq!(decode(&bytes), Err(RecordError::ImplausibleStrip));
+    let strip = StripCoefficients::from_fringes_per_code(0.2144199, -0.0012).unwrap();
+    assert!((strip.k() - 0.2144199).abs() < 6e-8 && (strip.k_previous() + 0.0012).abs() < 6e-8);
+    assert_eq!(
+        StripCoefficients::from_fringes_per_code(f32::NAN, 0.0),
+        None
+    );
+    assert_eq!(StripCoefficients::from_fringes_per_code(200.0, 0.0), None);
 }
 
 #[test]
 fn version_1_records_still_load_without_dither_setpoints() {
     let mut record = sample();
     record.dither = None;
+    record.strip = None;
     let v1 = encode_v1(&record, 7);
     assert_eq!(&v1[..4], &[0x1B, 0xCA, 1, 16]);
     assert_eq!(decode(&v1), Ok((7, record)));
@@ -141,6 +205,7 @@ fn every_single_bit_flip_is_refused() {
     }
     let mut record = sample();
     record.dither = None;
+    record.strip = None;
     let v1 = encode_v1(&record, 5);
     for bit in 0..V1_RECORD_BYTES * 8 {
         let mut flipped = v1;
