@@ -281,6 +281,13 @@ impl Readout {
         )
     }
 
+    /// Output latches were lost before they reached the readout: the next record is a restart
+    /// (invalid, its period spanning the loss), so no angle is spliced across it.
+    pub fn break_output_chain(&mut self) {
+        self.recorder.restart();
+        self.output_faults = self.output_faults.union(OutputStatus::RESTART);
+    }
+
     /// Output records made so far (the next record's sequence number).
     pub fn output_records(&self) -> u64 {
         self.recorder.records()

@@ -14,17 +14,15 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m::peripheral::NVIC;
 use embedded_storage::nor_flash::NorFlash;
-use heapless::spsc::Consumer;
 
 use super::ports::BoardPorts;
-use super::resources::{self, init_core, start_dither, unmask_readout, SCHEDULER};
-use super::{adc, clocks, dither, encoder, flash, pac, turnaround, usart, watchdog};
+use super::resources::{self, init_core, start_dither, unmask_readout, ReadoutQueues, SCHEDULER};
+use super::{adc, clocks, dither, encoder, flash, pac, sync, turnaround, usart, watchdog};
 use crate::dither::DitherConfig;
 use crate::profile::BoardProfile;
 use crate::protocol::execute::Identity;
 use crate::readout::Readout;
 use crate::service::{Service, ServiceConfig};
-use crate::signal::lockin::CycleRecord;
 use crate::storage::{DitherSetpoints, Geometry};
 
 /// Milliseconds between health logs (defmt, only when a counter changed).
@@ -45,6 +43,12 @@ pub struct Health {
     pub turnarounds_dropped: u32,
     /// Cycle records the main loop did not take in time.
     pub records_dropped: u32,
+    /// Output latches lost before the readout task (the next record restarts the chain).
+    pub output_latches_dropped: u32,
+    /// Output records the main loop did not take in time (sequence gaps).
+    pub output_records_dropped: u32,
+    /// Sync edges dropped because an output latch was still pending.
+    pub sync_overruns: u32,
     /// Lissajous DMA halves completed again before the readout task processed them.
     pub lissajous_block_overruns: u32,
     /// DMA2 stream 0 transfer errors.
@@ -70,6 +74,9 @@ impl Health {
             latches_overwritten: get(&turnaround::LATCH_OVERWRITTEN),
             turnarounds_dropped: get(&resources::TURNAROUNDS_DROPPED),
             records_dropped: get(&resources::RECORDS_DROPPED),
+            output_latches_dropped: get(&resources::OUTPUT_LATCHES_DROPPED),
+            output_records_dropped: get(&resources::OUTPUT_RECORDS_DROPPED),
+            sync_overruns: turnaround::sync_overruns(),
             lissajous_block_overruns: get(&adc::BLOCK_OVERRUNS),
             dma_errors: get(&adc::DMA_ERRORS),
             usart_overruns: get(&usart::OVERRUNS),
@@ -105,16 +112,12 @@ fn identity(profile: &BoardProfile) -> Identity {
 }
 
 /// Boots the service on `flash` and creates the readout with the settings it loaded; returns
-/// the service, the main loop's end of the cycle-record queue and the dither drive's stored
+/// the service, the main loop's ends of the cycle and output record queues and the dither drive's stored
 /// setpoints (for [`start_dither`]). The readout's interrupts are the caller's to unmask.
 pub fn boot<F: NorFlash>(
     config: ServiceConfig,
     flash: F,
-) -> (
-    Service<F>,
-    Consumer<'static, CycleRecord>,
-    Option<DitherSetpoints>,
-) {
+) -> (Service<F>, ReadoutQueues, Option<DitherSetpoints>) {
     let booted = Service::boot(config, flash, None)
         .unwrap_or_else(|e| defmt::panic!("calibration store geometry: {}", e));
     defmt::info!("calibration: {}", booted.report);
@@ -123,8 +126,8 @@ pub fn boot<F: NorFlash>(
         // The stripping starts from the stored K (its fit learns on from there).
         readout.restart_strip_from(&config.readout, strip.k(), strip.k_previous());
     }
-    let records = resources::init_readout(config.readout, readout);
-    (booted.service, records, booted.dither)
+    let queues = resources::init_readout(config.readout, readout);
+    (booted.service, queues, booted.dither)
 }
 
 /// Brings the board up and runs it: clocks, watchdog, serial link, calibration from flash,
@@ -156,13 +159,15 @@ pub fn run() -> ! {
         identity(&profile),
         Geometry::F405_SECTORS_10_11,
     );
-    let (service, records, dither_setpoints) = boot(config, flash::InternalFlash::new(dp.FLASH));
+    let (service, queues, dither_setpoints) = boot(config, flash::InternalFlash::new(dp.FLASH));
     let _encoder = encoder::Encoder::new(dp.TIM5);
     SCHEDULER.init(turnaround::Scheduler::new());
     adc::init(&dp.ADC_COMMON, &dp.ADC1, &dp.ADC2, &dp.TIM3, &dp.DMA2);
     turnaround::init(&dp.TIM2);
+    sync::init(&dp.TIM2);
     let dither_config = DitherConfig::for_profile(&profile);
     dither::init(&dp.TIM4, &dp.DAC, &dp.ADC3, dither_config.dac_mid_code);
+    turnaround::measure_drive_tick_phase(&dp.TIM2, &dp.TIM4);
     start_dither(dither_config, dither_setpoints);
     unmask_readout(true);
     // SAFETY: the USART's queues were set up in `usart::init`.
@@ -172,14 +177,14 @@ pub fn run() -> ! {
         watchdog: Some(watchdog),
         hardware: true,
     };
-    serve(service, records, ports, Some("# rlg-readout ready"))
+    serve(service, queues, ports, Some("# rlg-readout ready"))
 }
 
 /// The main loop (see the module docs). `banner` is sent once at the start, so a host knows the
 /// receiver is on (QEMU drops bytes sent before its serial socket is connected).
 pub fn serve<F: NorFlash>(
     mut service: Service<F>,
-    mut records: Consumer<'static, CycleRecord>,
+    mut queues: ReadoutQueues,
     mut ports: BoardPorts,
     banner: Option<&str>,
 ) -> ! {
@@ -198,7 +203,11 @@ pub fn serve<F: NorFlash>(
             service.on_byte(byte, &mut ports);
             busy = true;
         }
-        while let Some(record) = records.dequeue() {
+        while let Some(record) = queues.outputs.dequeue() {
+            service.on_output(&record, &mut ports);
+            busy = true;
+        }
+        while let Some(record) = queues.cycles.dequeue() {
             service.on_cycle(&record, &mut ports);
             busy = true;
         }

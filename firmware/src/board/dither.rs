@@ -68,8 +68,11 @@ const TIM_CR2_MMS_UPDATE: u32 = 0b010 << 4;
 const TIM_CC1: u32 = 1 << 1;
 // DAC_CR: EN1 0, BOFF1 1 (0: buffer on), TEN1 2, TSEL1[5:3] = 101 (TIM4 TRGO)
 const DAC_CR: u32 = 1 | (1 << 2) | (0b101 << 3);
-// ADC_CR2: ADON 0, JEXTSEL[19:16] = 1001 (TIM4 TRGO), JEXTEN[21:20] = 01 (rising)
-const ADC_CR2: u32 = 1 | (0b1001 << 16) | (0b01 << 20);
+// ADC_CR2: ADON 0, JEXTSEL[19:16] = 1001 (TIM4 TRGO), JEXTEN[21:20] = 01 (rising); the regular
+// group is the output latch's pick-off: EXTSEL[27:24] = 0110 (TIM2 TRGO, the latch's compare
+// pulse, as ADC1/ADC2's injected pair), EXTEN[29:28] = 01 (rising), EOCS 10 (EOC per
+// conversion)
+const ADC_CR2: u32 = 1 | (0b1001 << 16) | (0b01 << 20) | (0b0110 << 24) | (0b01 << 28) | (1 << 10);
 // ADC_SMPR1: SMP12[8:6] = 001 (15 cycles)
 const ADC_SMPR1: u32 = 0b001 << 6;
 // ADC_SR: JEOC 2
@@ -86,6 +89,8 @@ pub fn init(tim: &pac::TIM4, dac: &pac::DAC, adc3: &pac::ADC3, mid_code: u16) {
     adc3.smpr1().write(|w| unsafe { w.bits(ADC_SMPR1) });
     adc3.jsqr()
         .write(|w| unsafe { w.bits(PICKOFF_CHANNEL << 15) }); // JL = 0: JSQ4
+    adc3.sqr1().write(|w| unsafe { w.bits(0) }); // L = 0: one regular conversion
+    adc3.sqr3().write(|w| unsafe { w.bits(PICKOFF_CHANNEL) }); // SQ1: the pick-off
     adc3.cr1().write(|w| unsafe { w.bits(0) });
     adc3.cr2().write(|w| unsafe { w.bits(ADC_CR2) });
     // t_STAB (3 us) before the first trigger.

@@ -10,29 +10,44 @@ use core::sync::atomic::Ordering;
 use cortex_m::peripheral::NVIC;
 
 use super::resources::{
-    self, LATCH_SIDE, READOUT, READOUT_TASK_IRQ, RECORDS_DROPPED, SCHEDULER, TURNAROUNDS_DROPPED,
+    self, LATCH_SIDE, OUTPUT_LATCHES_DROPPED, OUTPUT_LATCH_SIDE, OUTPUT_RECORDS_DROPPED, READOUT,
+    READOUT_TASK_IRQ, RECORDS_DROPPED, SCHEDULER, TURNAROUNDS_DROPPED,
 };
+use super::turnaround::Latched;
 use super::{adc, dither, pac, turnaround, usart};
 
-/// `ADC`: the turnaround latch (JEOC of ADC1).
+/// `ADC`: the latch (JEOC of ADC1): a turnaround, or an output latch (`super::sync`).
 pub fn adc() {
-    // SAFETY: register reads/flag clears of peripherals this handler owns after start-up.
-    let (adc1, adc2, tim2, tim5) = unsafe {
+    // SAFETY: register reads/flag clears of peripherals this handler owns after start-up; the
+    // CCR1 write is inside the plan's critical section (`turnaround::latch`). ADC3's regular
+    // data register is read by this handler only (the drive tick reads its injected one).
+    let (adc1, adc2, adc3, tim2, tim5) = unsafe {
         (
             &*pac::ADC1::ptr(),
             &*pac::ADC2::ptr(),
+            &*pac::ADC3::ptr(),
             &*pac::TIM2::ptr(),
             &*pac::TIM5::ptr(),
         )
     };
-    let Some(sample) = turnaround::latch(adc1, adc2, tim2, tim5) else {
-        return;
-    };
-    // SAFETY: this handler is the only producer.
-    if let Some(queue) = unsafe { LATCH_SIDE.get() } {
-        if queue.enqueue(sample).is_err() {
-            TURNAROUNDS_DROPPED.fetch_add(1, Ordering::Relaxed);
+    match turnaround::latch(adc1, adc2, adc3, tim2, tim5) {
+        Some(Latched::Turnaround(sample)) => {
+            // SAFETY: this handler is the only producer.
+            if let Some(queue) = unsafe { LATCH_SIDE.get() } {
+                if queue.enqueue(sample).is_err() {
+                    TURNAROUNDS_DROPPED.fetch_add(1, Ordering::Relaxed);
+                }
+            }
         }
+        Some(Latched::Output(sample)) => {
+            // SAFETY: this handler is the only producer.
+            if let Some(queue) = unsafe { OUTPUT_LATCH_SIDE.get() } {
+                if queue.enqueue(sample).is_err() {
+                    OUTPUT_LATCHES_DROPPED.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        }
+        None => return,
     }
     NVIC::pend(READOUT_TASK_IRQ);
 }
@@ -77,6 +92,19 @@ pub fn systick() {
 /// `EXTI1` (software): the readout task.
 pub fn readout_task() {
     READOUT.lock(|task| {
+        // Output latches first (they are older than the turnaround that pended the task at
+        // most by a few microseconds, and each record carries its own time).
+        let dropped = OUTPUT_LATCHES_DROPPED.load(Ordering::Relaxed);
+        if dropped != task.output_latches_dropped_seen {
+            task.output_latches_dropped_seen = dropped;
+            task.readout.break_output_chain();
+        }
+        while let Some(sample) = task.output_samples.dequeue() {
+            let record = task.readout.on_output_latch(&task.config, sample);
+            if task.outputs.enqueue(record).is_err() {
+                OUTPUT_RECORDS_DROPPED.fetch_add(1, Ordering::Relaxed);
+            }
+        }
         while let Some(sample) = task.samples.dequeue() {
             if let Some(record) = task.readout.on_turnaround(&task.config, sample) {
                 turnaround::publish_rate_shift(&record);

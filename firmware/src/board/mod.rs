@@ -46,6 +46,7 @@ pub mod flash;
 pub mod isr;
 pub mod ports;
 pub mod resources;
+pub mod sync;
 pub mod turnaround;
 pub mod usart;
 pub mod watchdog;

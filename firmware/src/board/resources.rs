@@ -8,13 +8,13 @@
 //!
 //! | context | vector | prio | work | worst case |
 //! |---|---|---|---|---|
-//! | turnaround latch | `ADC` (JEOC) | 0x00 | copy ADC1/ADC2 JDR1, TIM5 CCR3, TIM2 CCR1 into a `TurnaroundSample`, enqueue, pend the readout task | 61 instr, 0.7 us |
+//! | latch | `ADC` (JEOC) | 0x00 | copy ADC1/ADC2 JDR1, ADC3 DR, TIM5 CCR3, TIM2 CCR1 into a `TurnaroundSample` or an `OutputSample`, arm the next compare (`LatchPlan`), enqueue, pend the readout task | 129 instr, 1.3 us |
 //! | dither drive tick | `TIM4` (CC1, 40 kHz) | 0x10 | ADC3 JDR1 (pick-off) -> `DitherController::on_tick` -> DAC DHR12R1 | 18 + 232 instr, 2.5 us; at the end of a half dither cycle 18 + 1243, 12.0 us |
-//! | pick-off | `TIM2` (CC3/CC4) | 0x20 | edge time -> predicted turnaround -> `CCR1` | 55 instr, 0.7 us (both edges pending: 1.1 us) |
+//! | pick-off and sync | `TIM2` (CC3/CC4, CC2) | 0x20 | edge time -> predicted turnaround -> `CCR1`; a sync edge (or the internal output period) -> the output latch's compare (`super::sync`) | 55 instr, 0.7 us (both edges pending: 1.1 us) |
 //! | serial | `USART1` | 0x30 | RX byte -> RX queue; TX queue -> DR | 35 + 20 per byte, 0.9 us |
 //! | Lissajous block | `DMA2_STREAM0` (HT/TC) | 0x40 | mark a half buffer ready, pend the readout task | 44 instr (static count), 0.6 us |
 //! | ms tick | `SysTick` | 0x40 | millisecond counter for the protocol's timeouts | 10 instr |
-//! | readout task | `EXTI1` (software-pended, no EXTI line routed) | 0x50 | `on_turnaround` per queued sample (1106 / 1786 instr) + rate shift (71), `on_lissajous_sample` per pair (129; 51 573 at a window solve), `CycleRecord` out | 18 us per turnaround; 0.33 ms per block, 0.82 ms with a solve |
+//! | readout task | `EXTI1` (software-pended, no EXTI line routed) | 0x50 | `on_output_latch` per queued output latch (1999 instr), `on_turnaround` per queued sample (1106 / 1786 instr) + rate shift (71), `on_lissajous_sample` per pair (129; 51 573 at a window solve), `CycleRecord` out | 18 us per turnaround; 0.33 ms per block, 0.82 ms with a solve |
 //! | main loop | thread | - | protocol (line -> parse -> `Executor`), rate averaging (716 instr per cycle), calibration run (3 910), stream frame (921), flash store, watchdog | preemptible |
 //!
 //! Rate-monotonic reasoning: the turnaround latch has no deadline of its own (the hardware holds
@@ -33,7 +33,12 @@
 //!
 //! # Shared state
 //! - ISR -> readout task: `TurnaroundSample`s through a heapless SPSC queue (16 entries = 8
-//!   dither cycles of slack); Lissajous halves through an atomic bit mask (`adc`).
+//!   dither cycles of slack), `OutputSample`s through another (8 entries: 8 ms at 1 kHz; a loss
+//!   makes the next record a restart); Lissajous halves through an atomic bit mask (`adc`).
+//! - readout task -> main loop: `OutputRecord`s through an SPSC queue (64 entries; a loss is a
+//!   gap in the records' sequence numbers, which the host counts).
+//! - The latch's compare plan (`turnaround::PLAN`, a `LatchPlan`) is shared by the pick-off
+//!   and sync handler and the latch: short critical sections that also write CCR1.
 //! - readout task -> main loop: `CycleRecord`s through an SPSC queue (32 entries); the input-rate
 //!   shift for the scheduler through an `AtomicI32` (`turnaround::RATE_SHIFT_TICKS`).
 //! - USART1 <-> main loop: byte queues (`usart`).
@@ -60,8 +65,9 @@ use heapless::spsc::{Consumer, Producer, Queue};
 use super::{adc, pac, turnaround, Owned};
 use crate::dither::{DitherConfig, DitherController};
 use crate::readout::{Readout, ReadoutConfig};
-use crate::sample::TurnaroundSample;
+use crate::sample::{OutputSample, TurnaroundSample};
 use crate::signal::lockin::CycleRecord;
+use crate::signal::output::record::OutputRecord;
 use crate::storage::DitherSetpoints;
 use pac::Interrupt;
 
@@ -88,11 +94,18 @@ pub const READOUT_TASK_IRQ: Interrupt = Interrupt::EXTI1;
 
 const TURNAROUND_QUEUE: usize = 17; // 16 usable
 const RECORD_QUEUE: usize = 33; // 32 usable
+const OUTPUT_LATCH_QUEUE: usize = 9; // 8 usable: 8 ms at a 1 kHz sync
+const OUTPUT_RECORD_QUEUE: usize = 65; // 64 usable: 64 ms at a 1 kHz sync
 
 /// Turnarounds lost because the readout task fell 16 behind.
 pub static TURNAROUNDS_DROPPED: AtomicU32 = AtomicU32::new(0);
 /// Cycle records the main loop did not take in time.
 pub static RECORDS_DROPPED: AtomicU32 = AtomicU32::new(0);
+/// Output latches lost because the readout task fell 8 behind: the record after them is a
+/// restart (`Readout::break_output_chain`), its period spanning the loss.
+pub static OUTPUT_LATCHES_DROPPED: AtomicU32 = AtomicU32::new(0);
+/// Output records the main loop did not take in time: gaps in the records' sequence numbers.
+pub static OUTPUT_RECORDS_DROPPED: AtomicU32 = AtomicU32::new(0);
 /// Milliseconds since start (SysTick), wrapping.
 static MILLIS: AtomicU32 = AtomicU32::new(0);
 
@@ -147,6 +160,20 @@ pub struct ReadoutTask {
     pub samples: Consumer<'static, TurnaroundSample>,
     /// The task's end of the cycle record queue (32 entries), emptied by the main loop.
     pub records: Producer<'static, CycleRecord>,
+    /// The task's end of the output latch queue (8 entries), filled by the latch.
+    pub output_samples: Consumer<'static, OutputSample>,
+    /// The task's end of the output record queue (64 entries), emptied by the main loop.
+    pub outputs: Producer<'static, OutputRecord>,
+    /// [`OUTPUT_LATCHES_DROPPED`] as last seen: a change breaks the output chain.
+    pub output_latches_dropped_seen: u32,
+}
+
+/// The main loop's ends of the readout task's queues.
+pub struct ReadoutQueues {
+    /// Closed dither cycles.
+    pub cycles: Consumer<'static, CycleRecord>,
+    /// Output records.
+    pub outputs: Consumer<'static, OutputRecord>,
 }
 
 /// What the drive tick owns: the dither controller and its settings.
@@ -164,24 +191,39 @@ pub static DITHER: PriorityLock<DitherTask> = PriorityLock::new(priority::DITHER
 pub static READOUT: PriorityLock<ReadoutTask> = PriorityLock::new(priority::READOUT_TASK);
 /// The turnaround latch's end of the sample queue (owner: `isr::adc`).
 pub static LATCH_SIDE: Owned<Producer<'static, TurnaroundSample>> = Owned::new();
+/// The latch's end of the output latch queue (owner: `isr::adc`).
+pub static OUTPUT_LATCH_SIDE: Owned<Producer<'static, OutputSample>> = Owned::new();
 /// The pick-off handler's prediction state (owner: `isr::tim2`).
 pub static SCHEDULER: Owned<turnaround::Scheduler> = Owned::new();
 
-/// Creates the queues and the readout; returns the main loop's end of the record queue.
-pub fn init_readout(config: ReadoutConfig, readout: Readout) -> Consumer<'static, CycleRecord> {
+/// Creates the queues and the readout; returns the main loop's ends of the record queues.
+pub fn init_readout(config: ReadoutConfig, readout: Readout) -> ReadoutQueues {
     let samples =
         cortex_m::singleton!(: Queue<TurnaroundSample, TURNAROUND_QUEUE> = Queue::new()).unwrap();
     let records = cortex_m::singleton!(: Queue<CycleRecord, RECORD_QUEUE> = Queue::new()).unwrap();
+    let output_samples =
+        cortex_m::singleton!(: Queue<OutputSample, OUTPUT_LATCH_QUEUE> = Queue::new()).unwrap();
+    let outputs =
+        cortex_m::singleton!(: Queue<OutputRecord, OUTPUT_RECORD_QUEUE> = Queue::new()).unwrap();
     let (sample_in, sample_out) = samples.split();
     let (record_in, record_out) = records.split();
+    let (output_sample_in, output_sample_out) = output_samples.split();
+    let (output_in, output_out) = outputs.split();
     LATCH_SIDE.init(sample_in);
+    OUTPUT_LATCH_SIDE.init(output_sample_in);
     READOUT.init(ReadoutTask {
         config,
         readout,
         samples: sample_out,
         records: record_in,
+        output_samples: output_sample_out,
+        outputs: output_in,
+        output_latches_dropped_seen: 0,
     });
-    record_out
+    ReadoutQueues {
+        cycles: record_out,
+        outputs: output_out,
+    }
 }
 
 /// Milliseconds since start (wrapping).

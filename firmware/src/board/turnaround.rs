@@ -33,12 +33,16 @@
 //! turnaround). About +-0.1 us random error once they are calibrated, against the ~1 us
 //! docs/physics.md asks for.
 
-use core::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, AtomicU8, Ordering};
+use core::cell::RefCell;
+use core::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, Ordering};
+
+use cortex_m::interrupt::Mutex;
 
 use super::pac;
 use crate::profile::BoardProfile;
-use crate::sample::{TurnaroundKind, TurnaroundSample};
+use crate::sample::{OutputSample, TurnaroundKind, TurnaroundSample};
 use crate::signal::lockin::CycleRecord;
+use crate::signal::output::latch_plan::{Arm, KeepOut, LatchKind, LatchPlan, OUTPUT_LEAD_TICKS};
 use crate::signal::turnaround::{self as schedule, SchedulerConfig};
 pub use crate::signal::turnaround::{Edge, Schedule};
 
@@ -60,11 +64,15 @@ pub const AFTER_RISING_EDGE: TurnaroundKind = BoardProfile::F405.after_rising_ed
 /// Input-rate shift `Omega_i / |psi_ddot|` in timer ticks (signed), written by the cycle task,
 /// read by the pick-off handler. One aligned word: no lock needed.
 pub static RATE_SHIFT_TICKS: AtomicI32 = AtomicI32::new(0);
-/// Kind of the turnaround whose compare is armed (0 = Plus, 1 = Minus), written before CCR1;
-/// `NOT_ARMED` once the latch has taken it, or while the compare is parked. A compare match
-/// nobody armed (the parked compare coming round after 25 s without dither) is discarded.
-static ARMED_KIND: AtomicU8 = AtomicU8::new(NOT_ARMED);
-const NOT_ARMED: u8 = 0xFF;
+/// What the compare is armed for: the next turnaround, an output latch (`super::sync`), or
+/// both in turn ([`LatchPlan`]). Shared by the pick-off handler (priority 0x20) and the latch
+/// (0x00): every use is a short critical section that also writes CCR1, so the plan and the
+/// register never disagree. A compare match nobody armed (the parked compare coming round after
+/// 25 s without dither) is discarded.
+static PLAN: Mutex<RefCell<LatchPlan>> = Mutex::new(RefCell::new(LatchPlan::new()));
+/// Where the drive tick's ADC3 conversion window starts, TIM2 ticks modulo its period
+/// (measured at start-up, [`measure_drive_tick_phase`]).
+static DRIVE_TICK_WINDOW: AtomicU32 = AtomicU32::new(0);
 /// Latches nobody armed (discarded).
 pub static UNARMED: AtomicU32 = AtomicU32::new(0);
 /// Count latches overwritten before the handler read them (it ran a half cycle late).
@@ -118,9 +126,55 @@ pub fn init(tim: &pac::TIM2) {
 
 /// Moves the compare half a counter period away from `now`: nothing fires for 25 s.
 fn park(tim: &pac::tim2::RegisterBlock, now: u32) {
-    ARMED_KIND.store(NOT_ARMED, Ordering::Relaxed);
     tim.ccr1()
         .write(|w| unsafe { w.bits(now.wrapping_add(1 << 31)) });
+}
+
+/// The drive tick's conversion window in TIM2's time: TIM4 updates (and triggers ADC3's
+/// injected pick-off conversion) when its counter wraps; reading both counters back to back
+/// (a few ticks apart, inside the window's margin) gives the phase. Call once both run.
+pub fn measure_drive_tick_phase(tim2: &pac::tim2::RegisterBlock, tim4: &pac::tim3::RegisterBlock) {
+    let period = BoardProfile::F405.drive_tick_period_timer_ticks();
+    let (t2, t4) =
+        cortex_m::interrupt::free(|_| (tim2.cnt().read().bits(), tim4.cnt().read().bits()));
+    // The update is at TIM4 count 0: t2 - t4 in TIM2 ticks. The window opens one conversion
+    // (27 ADC clocks = 108 ticks, plus margin) before it and closes one after.
+    let window_start = t2.wrapping_sub(t4).wrapping_sub(DRIVE_KEEP_OUT_HALF_TICKS) % period;
+    DRIVE_TICK_WINDOW.store(window_start, Ordering::Relaxed);
+    cortex_m::interrupt::free(|cs| {
+        *PLAN.borrow(cs).borrow_mut() = fresh_plan();
+    });
+}
+
+/// Half the keep-out window around a drive tick's conversion, ticks: one conversion (27 ADC
+/// clocks at 21 MHz, 108 ticks) plus the trigger latency and margin.
+const DRIVE_KEEP_OUT_HALF_TICKS: u32 = 125;
+
+/// A plan with nothing pending and the drive tick's window kept out.
+fn fresh_plan() -> LatchPlan {
+    LatchPlan::with_keep_out(KeepOut {
+        period_ticks: BoardProfile::F405.drive_tick_period_timer_ticks(),
+        start_ticks: DRIVE_TICK_WINDOW.load(Ordering::Relaxed),
+        width_ticks: 2 * DRIVE_KEEP_OUT_HALF_TICKS,
+    })
+}
+
+/// Writes the plan's armed compare to CCR1 (inside the caller's critical section): an output
+/// latch too close to `now` to be armed safely moves [`MIN_LEAD_TICKS`] on; nothing armed
+/// parks the compare.
+fn write_armed(tim: &pac::tim2::RegisterBlock, plan: &mut LatchPlan, arm: Arm, now: u32) {
+    let mut arm = arm;
+    if let Some((LatchKind::Output, at)) = arm {
+        if (at.wrapping_sub(now) as i32) < MIN_LEAD_TICKS as i32 {
+            arm = plan.defer_output(now.wrapping_add(MIN_LEAD_TICKS.max(OUTPUT_LEAD_TICKS)));
+        }
+    }
+    match arm {
+        Some((_, at)) => {
+            tim.ccr1().write(|w| unsafe { w.bits(at) });
+        }
+        None => park(tim, now),
+    }
 }
 
 /// The pick-off handler's prediction: the plain-logic scheduler and this board's settings;
@@ -162,12 +216,22 @@ impl Scheduler {
     }
 }
 
-/// The pick-off handler's work (TIM2 IRQ): captured edges in time order -> compare armed.
+/// The TIM2 handler's work: the output latch's sync edge (CC2, `super::sync`) into the plan;
+/// captured pick-off edges in time order -> the turnaround's compare.
 /// About 55 instructions for one edge (`examples/board_cost.rs`); no floating point, no
 /// division.
 #[inline(always)]
 pub fn on_pickoff_interrupt(tim: &pac::tim2::RegisterBlock, scheduler: &mut Scheduler) {
     let sr = tim.sr().read().bits();
+    // The output latch's sync edge (or internal period), if CC2 fired.
+    if let Some(edge) = super::sync::take_edge(tim, sr) {
+        let now = tim.cnt().read().bits();
+        cortex_m::interrupt::free(|cs| {
+            let mut plan = PLAN.borrow(cs).borrow_mut();
+            let arm = plan.on_sync(edge, now);
+            write_armed(tim, &mut plan, arm, now);
+        });
+    }
     // Reading CCR3/CCR4 clears CC3IF/CC4IF.
     let rise = (sr & SR_CC3IF != 0).then(|| (Edge::Rising, tim.ccr3().read().bits()));
     let fall = (sr & SR_CC4IF != 0).then(|| (Edge::Falling, tim.ccr4().read().bits()));
@@ -196,48 +260,86 @@ pub fn on_pickoff_interrupt(tim: &pac::tim2::RegisterBlock, scheduler: &mut Sche
 /// Arms the compare for `schedule` if it lies at least [`MIN_LEAD_TICKS`] after `now`; else
 /// parks it and returns false (that turnaround is skipped: the readout sees a gap).
 pub fn arm(tim: &pac::tim2::RegisterBlock, schedule: Schedule, now: u32) -> bool {
-    if schedule.compare_ticks.wrapping_sub(now) as i32 >= MIN_LEAD_TICKS as i32 {
-        ARMED_KIND.store(schedule.kind as u8, Ordering::Relaxed);
-        tim.ccr1()
-            .write(|w| unsafe { w.bits(schedule.compare_ticks) });
-        true
-    } else {
-        park(tim, now);
-        false
-    }
+    let in_time = schedule.compare_ticks.wrapping_sub(now) as i32 >= MIN_LEAD_TICKS as i32;
+    cortex_m::interrupt::free(|cs| {
+        let mut plan = PLAN.borrow(cs).borrow_mut();
+        let arm = if in_time {
+            plan.on_turnaround(schedule.kind, schedule.compare_ticks)
+        } else {
+            plan.cancel_turnaround()
+        };
+        write_armed(tim, &mut plan, arm, now);
+    });
+    in_time
 }
 
-/// The JEOC handler's work (ADC IRQ, highest priority): copy the four latched registers.
-/// Nothing here is time-critical any more (the data registers hold until the next trigger,
-/// ~1.3 ms later at 389 Hz). `None` for a compare match nobody armed.
+/// What the latch took.
+pub enum Latched {
+    /// A turnaround (to the cycle assembly).
+    Turnaround(TurnaroundSample),
+    /// An output latch (the end of an output period).
+    Output(OutputSample),
+}
+
+/// The JEOC handler's work (ADC IRQ, highest priority): copy the latched registers, then arm
+/// the next compare the plan holds (an output latch waiting behind this turnaround, or the
+/// turnaround behind this output latch). Nothing here is time-critical (the data registers
+/// hold until the next trigger). `None` for a compare match nobody armed.
 #[inline(always)]
 pub fn latch(
     adc1: &pac::adc1::RegisterBlock,
     adc2: &pac::adc1::RegisterBlock,
+    adc3: &pac::adc1::RegisterBlock,
     tim2: &pac::tim2::RegisterBlock,
     tim5: &pac::tim5::RegisterBlock,
-) -> Option<TurnaroundSample> {
+) -> Option<Latched> {
     super::adc::clear_jeoc(adc1);
     let (encoder_count, overwritten) = super::encoder::take_latched(tim5);
     if overwritten {
         LATCH_OVERWRITTEN.fetch_add(1, Ordering::Relaxed);
     }
-    let kind = match ARMED_KIND.swap(NOT_ARMED, Ordering::Relaxed) {
-        k if k == TurnaroundKind::Plus as u8 => TurnaroundKind::Plus,
-        k if k == TurnaroundKind::Minus as u8 => TurnaroundKind::Minus,
-        _ => {
+    // Read before the compare is re-armed; ADC3's regular result (the pick-off, converted by
+    // every latch) is read always, which clears its EOC.
+    let fired_at = tim2.ccr1().read().bits();
+    let pickoff_code = adc3.dr().read().bits() as u16;
+    let now = tim2.cnt().read().bits();
+    let fired = cortex_m::interrupt::free(|cs| {
+        let mut plan = PLAN.borrow(cs).borrow_mut();
+        let (fired, next) = plan.on_fired();
+        write_armed(tim2, &mut plan, next, now);
+        fired
+    });
+    let adc_a_code = adc1.jdr1().read().bits() as u16;
+    let adc_b_code = adc2.jdr1().read().bits() as u16;
+    let timestamp_ticks = fired_at.wrapping_add(APERTURE_DELAY_TICKS);
+    let drive_locked = DRIVE_LOCKED.load(Ordering::Relaxed);
+    match fired {
+        Some(LatchKind::Turnaround(kind)) => Some(Latched::Turnaround(TurnaroundSample {
+            kind,
+            encoder_count,
+            adc_a_code,
+            adc_b_code,
+            timestamp_ticks,
+            drive_locked,
+        })),
+        Some(LatchKind::Output) => Some(Latched::Output(OutputSample {
+            encoder_count,
+            adc_a_code,
+            adc_b_code,
+            pickoff_code,
+            timestamp_ticks,
+            drive_locked,
+        })),
+        None => {
             UNARMED.fetch_add(1, Ordering::Relaxed);
-            return None;
+            None
         }
-    };
-    Some(TurnaroundSample {
-        kind,
-        encoder_count,
-        adc_a_code: adc1.jdr1().read().bits() as u16,
-        adc_b_code: adc2.jdr1().read().bits() as u16,
-        timestamp_ticks: tim2.ccr1().read().bits().wrapping_add(APERTURE_DELAY_TICKS),
-        drive_locked: DRIVE_LOCKED.load(Ordering::Relaxed),
-    })
+    }
+}
+
+/// Sync edges dropped because an output latch was still pending (the plan's overruns).
+pub fn sync_overruns() -> u32 {
+    cortex_m::interrupt::free(|cs| PLAN.borrow(cs).borrow().overruns)
 }
 
 /// Publishes the input-rate shift of the next turnarounds from one cycle (the cycle task, after
@@ -256,6 +358,12 @@ pub fn rate_shift_ticks(rate_rad_per_s: f32, amplitude_rad: f32, dither_hz: f32)
 /// The readout pauses (TIM2's interrupt is masked by the caller): park the compare, drop
 /// pending captures, and make the handler forget its edge history when it runs again.
 pub fn pause(tim: &pac::tim2::RegisterBlock) {
+    cortex_m::interrupt::free(|cs| {
+        let overruns = PLAN.borrow(cs).borrow().overruns;
+        let mut plan = fresh_plan();
+        plan.overruns = overruns;
+        *PLAN.borrow(cs).borrow_mut() = plan;
+    });
     park(tim, tim.cnt().read().bits());
     tim.sr().write(|w| unsafe { w.bits(0) });
     RESTART.store(true, Ordering::Relaxed);

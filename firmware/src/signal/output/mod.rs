@@ -9,6 +9,7 @@
 //! 6a and 6b run in the output-latch interrupt (the sync input's capture), through
 //! [`crate::readout::Readout::on_output_latch`]; 6c in the cycle task.
 
+pub mod latch_plan;
 pub mod rate;
 pub mod record;
 pub mod strip;
