@@ -34,7 +34,7 @@ use crate::calibration::validation::AcceptanceLimits;
 use crate::dither::DitherState;
 use crate::signal::compensation::CompensationSettings;
 use crate::signal::lockin::CycleRecord;
-use crate::signal::output::record::OutputRecord;
+use crate::signal::output::record::{OutputRecord, OutputStatus};
 use crate::storage::{FitSummary, LoadReport};
 
 pub use super::commands::provenance::Source;
@@ -104,9 +104,14 @@ impl Executor {
     }
 
     /// Every output record (from the output latch's context, through the service): the frame
-    /// to send when the output is streamed.
+    /// to send when the output is streamed, with the tracking bit set while the tracker runs
+    /// (the readout does not know it).
     pub fn on_output(&self, record: &OutputRecord) -> Option<OutputRecord> {
-        self.stream.on_output(record)
+        let mut record = self.stream.on_output(record)?;
+        if self.tracking() {
+            record.status = record.status.union(OutputStatus::TRACKING);
+        }
+        Some(record)
     }
 
     /// Executes one command.
@@ -239,5 +244,34 @@ mod tests {
         assert!(run(&mut e, &mut d, "dither status").starts_with("OK state="));
         assert!(run(&mut e, &mut d, &format!("unlock {:x}", ID.key)).starts_with("OK"));
         assert!(run(&mut e, &mut d, "dither amp 400").starts_with("OK dither=on amp_arcsec=400"));
+    }
+
+    /// `stream output` hands every record over, with the tracking bit set while the tracker
+    /// runs; without it no record goes out.
+    #[test]
+    fn output_records_carry_the_tracking_bit() {
+        let loaded = report(LoadOutcome::Defaults {
+            reason: DefaultsReason::Erased,
+        });
+        let mut e = Executor::new(&loaded, None, 1, AcceptanceLimits::DEFAULT);
+        let mut d = MemDevice::default();
+        let record = OutputRecord {
+            sequence: 1,
+            time_ticks: 2,
+            period_ticks: 3,
+            delta_angle_q16: 4,
+            angle_q16: 5,
+            rate_deg_per_h: 6.0,
+            status: OutputStatus::VALID,
+        };
+        assert_eq!(e.on_output(&record), None);
+        assert!(run(&mut e, &mut d, "stream output").starts_with("OK stream=output"));
+        assert_eq!(e.on_output(&record), Some(record));
+        assert!(run(&mut e, &mut d, &format!("unlock {:x}", ID.key)).starts_with("OK"));
+        assert!(run(&mut e, &mut d, "track on").starts_with("OK"));
+        let sent = e.on_output(&record).unwrap();
+        assert!(sent
+            .status
+            .contains(OutputStatus::TRACKING.union(OutputStatus::VALID)));
     }
 }
