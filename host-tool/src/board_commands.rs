@@ -21,6 +21,19 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+/// A file of a long run could not be written.
+fn write_failed(path: &Path, e: std::io::Error) -> Failure {
+    Failure::Run(format!("cannot write {}: {e}", path.display()))
+}
+
+/// The progress bar of a long run (positions in thousandths of its duration).
+fn run_bar(what: &str) -> ProgressBar {
+    ProgressBar::new(1000).with_style(
+        ProgressStyle::with_template(&format!("{{bar:40}} {what} {{elapsed}}"))
+            .expect("valid template"),
+    )
+}
+
 /// Longest wait for the board's `id` before a long run.
 const PROBE_TIMEOUT: Duration = Duration::from_secs(1);
 
@@ -232,9 +245,6 @@ impl<'a, L: Link> Device<'a, L> {
         let csv = outputs.csv.expect("prepared");
         self.probe()?;
         let scale = ops::rate_scale(self.client, args.timer_hz)?;
-        let write_failed = |path: &Path, e: std::io::Error| {
-            Failure::Run(format!("cannot write {}: {e}", path.display()))
-        };
         let mut rows = OutputRows::new(csv.file, scale).map_err(|e| write_failed(&csv.path, e))?;
         let mut row_error = None;
         eprintln!(
@@ -243,9 +253,7 @@ impl<'a, L: Link> Device<'a, L> {
             args.seconds,
             csv.path.display()
         );
-        let bar = ProgressBar::new(1000).with_style(
-            ProgressStyle::with_template("{bar:40} recording {elapsed}").expect("valid template"),
-        );
+        let bar = run_bar("recording");
         let result = ops::record_until(
             self.client,
             Duration::from_secs_f64(args.seconds),
@@ -303,9 +311,6 @@ impl<'a, L: Link> Device<'a, L> {
         let csv = outputs.csv.expect("prepared");
         self.probe()?;
         let scale = ops::rate_scale(self.client, args.timer_hz)?;
-        let write_failed = |path: &Path, e: std::io::Error| {
-            Failure::Run(format!("cannot write {}: {e}", path.display()))
-        };
         let mut rows =
             CsvRows::new(csv.file, args.divider, scale).map_err(|e| write_failed(&csv.path, e))?;
         let mut row_error = None;
@@ -316,9 +321,7 @@ impl<'a, L: Link> Device<'a, L> {
             args.seconds,
             csv.path.display()
         );
-        let bar = ProgressBar::new(1000).with_style(
-            ProgressStyle::with_template("{bar:40} streaming {elapsed}").expect("valid template"),
-        );
+        let bar = run_bar("streaming");
         let capture = ops::stream_until(
             self.client,
             args.divider,

@@ -180,30 +180,19 @@ pub fn stream_until<L: Link>(
     on_record: &mut dyn FnMut(&StreamRecord),
     stop: &AtomicBool,
 ) -> Result<Capture, ClientError> {
-    client.command(&format!("stream on {divider}"))?;
     let mut capture = Capture::new(divider);
-    let start = client.elapsed();
-    let result = (|| -> Result<(), ClientError> {
-        loop {
-            let elapsed = client.elapsed().saturating_sub(start);
-            if elapsed >= duration || stop.load(Ordering::SeqCst) {
-                return Ok(());
-            }
-            progress(elapsed.as_secs_f64() / duration.as_secs_f64());
-            client.poll((duration - elapsed).min(Duration::from_millis(100)))?;
-            drain_frames(client, &mut capture, on_record);
+    let on_chunk = &mut |chunk: &[u8]| {
+        if let Some(record) = capture.push_chunk(chunk) {
+            on_record(record);
         }
-    })();
-    let stopped = client.command("stream off");
-    drain_frames(client, &mut capture, on_record);
-    result?;
-    stopped?;
+    };
+    let command = format!("stream on {divider}");
+    chunks_until(client, &command, duration, progress, on_chunk, stop)?;
     Ok(capture)
 }
 
 /// The board's fixed-rate output for `duration` (`stream output`): every chunk to `on_chunk`
-/// as it arrives, ending early when `stop` is set; the stream is switched off and the frames
-/// in flight handed over before it returns.
+/// as it arrives, ending early when `stop` is set.
 pub fn record_until<L: Link>(
     client: &mut Client<L>,
     duration: Duration,
@@ -211,7 +200,21 @@ pub fn record_until<L: Link>(
     on_chunk: &mut dyn FnMut(&[u8]),
     stop: &AtomicBool,
 ) -> Result<(), ClientError> {
-    client.command("stream output")?;
+    chunks_until(client, "stream output", duration, progress, on_chunk, stop)
+}
+
+/// One binary stream (`command` switches it on) for `duration` or until `stop`: every
+/// 0x00-delimited chunk to `on_chunk` as it arrives; the stream is switched off and the frames
+/// in flight handed over before it returns.
+fn chunks_until<L: Link>(
+    client: &mut Client<L>,
+    command: &str,
+    duration: Duration,
+    progress: &mut dyn FnMut(f64),
+    on_chunk: &mut dyn FnMut(&[u8]),
+    stop: &AtomicBool,
+) -> Result<(), ClientError> {
+    client.command(command)?;
     let start = client.elapsed();
     let result = (|| -> Result<(), ClientError> {
         loop {
@@ -233,16 +236,4 @@ pub fn record_until<L: Link>(
     result?;
     stopped?;
     Ok(())
-}
-
-fn drain_frames<L: Link>(
-    client: &mut Client<L>,
-    capture: &mut Capture,
-    on_record: &mut dyn FnMut(&StreamRecord),
-) {
-    for chunk in client.take_frames() {
-        if let Some(record) = capture.push_chunk(&chunk) {
-            on_record(record);
-        }
-    }
 }
