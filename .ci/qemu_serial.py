@@ -18,6 +18,7 @@ Closing line: `qemu-serial: N passed, M failed`; exit status 0 when M == 0, else
 Standard library only.
 """
 import os
+import secrets
 import shutil
 import signal
 import socket
@@ -27,7 +28,9 @@ import tempfile
 import time
 
 BANNER = b"# rlg-readout ready"
-KEY = "c0ffee42"
+# A fresh 128-bit key per run: the emulated board boots unprovisioned (QEMU's OTP is a blank RAM
+# model) and is provisioned first, as at production.
+KEY = secrets.token_hex(16)
 LINE_TIMEOUT_S = 5.0
 OVERALL_TIMEOUT_S = 90
 
@@ -98,13 +101,26 @@ def crc_answer_ok(answer: str, body: str) -> bool:
     return text == body and crc == f"{crc16(text.encode()):04X}"
 
 
+def provision(exchange):
+    """An unprovisioned board: no key unlocks it (the old published one neither); provisioned
+    once, a second provisioning is refused."""
+    exchange("unprovisioned status", b"status", lambda a: a.endswith("key=unprovisioned"))
+    exchange("unprovisioned unlock", f"unlock {KEY}".encode(), lambda a: a.startswith("ERR 16 "))
+    exchange("32-bit key refused", b"unlock c0ffee42", lambda a: a.startswith("ERR 3 "))
+    exchange("key provision", f"key provision {KEY}".encode(), lambda a: a == "OK key=provisioned")
+    exchange("provisioned status", b"status", lambda a: a.endswith("key=provisioned"))
+    exchange("second provision refused", b"key provision " + b"1" * 32,
+             lambda a: a.startswith("ERR 11 "))
+
+
 def protocol_checks(exchange, link, check, qemu):
     """The serial_protocol example: the protocol end to end, RAM-backed flash."""
     exchange("id", b"id", lambda a: a.startswith("OK fw=") and "board=netduinoplus2" in a)
     exchange("status", b"status",
              lambda a: a.startswith("OK signal=") and "turnarounds=0" in a and "locked=yes" in a)
     exchange("locked set", b"set a 1", lambda a: a.startswith("ERR 9 "))
-    exchange("wrong key", b"unlock 12345678", lambda a: a.startswith("ERR 15 "))
+    provision(exchange)
+    exchange("wrong key", b"unlock " + b"12345678" * 4, lambda a: a.startswith("ERR 15 "))
     exchange("unlock", f"unlock {KEY}".encode(), lambda a: a.startswith("OK unlocked"))
     exchange("set", b"set a 12.5", lambda a: a == "OK a=12.5")
     exchange("get", b"get a", lambda a: a == "OK a=12.5")
@@ -149,6 +165,7 @@ def board_checks(exchange):
     """The complete board image: comes up, serves the protocol, survives a failing store."""
     exchange("id", b"id", lambda a: a.startswith("OK fw=") and "board=rlg-readout-f405" in a)
     exchange("status", b"status", lambda a: a.startswith("OK signal=") and "locked=yes" in a)
+    provision(exchange)
     exchange("unlock", f"unlock {KEY}".encode(), lambda a: a.startswith("OK unlocked"))
     exchange("set", b"set a 12.5", lambda a: a == "OK a=12.5")
     exchange("store fails cleanly (no flash model)", b"store", lambda a: a.startswith("ERR 13 "))

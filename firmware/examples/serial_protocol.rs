@@ -58,7 +58,8 @@ mod app {
             build: "qemu",
             board: "netduinoplus2",
             serial_number: 4242,
-            key: 0xC0FF_EE42,
+            // Unprovisioned, as QEMU's blank OTP model: the host provisions a key first.
+            key: firmware::board::otp::read().1,
             scale_factor_arcsec: profile.scale_factor_arcsec as f32,
             capture_timer_hz: profile.timer_hz,
         };

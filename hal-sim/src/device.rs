@@ -28,8 +28,10 @@ use crate::params::GyroParams;
 use firmware::dither::{DitherConfig, DitherController};
 use firmware::profile::BoardProfile;
 use firmware::protocol::execute::Identity;
+use firmware::protocol::key::Key;
+use firmware::protocol::link::KeyWriteError;
 use firmware::readout::Readout;
-use firmware::service::ports::{Clock, DitherAccess, ReadoutAccess, SerialTx};
+use firmware::service::ports::{Clock, DitherAccess, ReadoutAccess, Secrets, SerialTx};
 use firmware::service::{Service, ServiceConfig};
 use firmware::storage::Geometry;
 
@@ -43,15 +45,19 @@ pub struct SimDevice {
     output: Vec<u8>,
     /// Simulated seconds the CPU is still stalled by a flash operation.
     stall_s: f64,
+    /// The simulated OTP key words: the identity's key at boot, or what `key provision` wrote.
+    otp_key: Option<Key>,
 }
 
-/// An identity for simulated boards.
+/// An identity for simulated boards: unprovisioned. A simulated board with a key is
+/// `Identity { key: Some(key), ..SIM_IDENTITY }`, the key given on its command line (rlg-cal's
+/// `--board-key` / `RLG_SIM_BOARD_KEY`); there is no fixed simulator key.
 pub const SIM_IDENTITY: Identity = Identity {
     firmware_version: env!("CARGO_PKG_VERSION"),
     build: "hal-sim",
     board: "rlg-readout-sim",
     serial_number: 4242,
-    key: 0xC0FF_EE42,
+    key: None,
     scale_factor_arcsec: BoardProfile::F405.scale_factor_arcsec as f32,
     capture_timer_hz: BoardProfile::F405.timer_hz,
 };
@@ -121,6 +127,7 @@ impl SimDevice {
             service: booted.service,
             output: Vec::new(),
             stall_s: 0.0,
+            otp_key: identity.key,
         })
     }
 
@@ -170,7 +177,7 @@ impl SimDevice {
         let Some(record) = self.harness.step().record else {
             return;
         };
-        let mut ports = SimPorts::new(&mut self.harness, &mut self.output);
+        let mut ports = SimPorts::new(&mut self.harness, &mut self.output, &mut self.otp_key);
         self.service.on_cycle(&record, &mut ports);
     }
 
@@ -179,7 +186,7 @@ impl SimDevice {
     pub fn receive(&mut self, bytes: &[u8]) {
         for &byte in bytes {
             let busy_before_s = self.service.flash().stats().busy_s;
-            let mut ports = SimPorts::new(&mut self.harness, &mut self.output);
+            let mut ports = SimPorts::new(&mut self.harness, &mut self.output, &mut self.otp_key);
             self.service.on_byte(byte, &mut ports);
             if ports.paused {
                 // The stall: the readout misses what happens meanwhile and re-synchronises
@@ -206,13 +213,18 @@ struct SimPorts<'a> {
     readout: &'a mut Readout,
     drive: &'a mut FirmwareDrive,
     output: &'a mut Vec<u8>,
+    otp_key: &'a mut Option<Key>,
     now_ms: u32,
     paused: bool,
 }
 
 impl<'a> SimPorts<'a> {
     /// The ports at the harness's present simulated time.
-    fn new(harness: &'a mut Harness, output: &'a mut Vec<u8>) -> Self {
+    fn new(
+        harness: &'a mut Harness,
+        output: &'a mut Vec<u8>,
+        otp_key: &'a mut Option<Key>,
+    ) -> Self {
         let now_ms = (harness.time_s() * 1000.0) as u32;
         let (readout, drive) = harness.firmware_parts_mut();
         Self {
@@ -220,6 +232,7 @@ impl<'a> SimPorts<'a> {
             readout,
             drive: drive.expect("the simulated board's dither is driven by the firmware"),
             output,
+            otp_key,
             paused: false,
         }
     }
@@ -229,6 +242,17 @@ impl DitherAccess for SimPorts<'_> {
     fn with_dither<R>(&mut self, f: impl FnOnce(&mut DitherController, &DitherConfig) -> R) -> R {
         let (controller, config) = self.drive.controller_mut();
         f(controller, config)
+    }
+}
+
+impl Secrets for SimPorts<'_> {
+    /// The simulated OTP: written once, refused when not blank.
+    fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError> {
+        if self.otp_key.is_some() {
+            return Err(KeyWriteError::NotBlank);
+        }
+        *self.otp_key = Some(*key);
+        Ok(())
     }
 }
 

@@ -2,6 +2,8 @@
 //! calibration session and flash store, driven by text lines as a technician or the host tool
 //! would send them. Seeded; every exchange is one line in, exactly one line out.
 
+use firmware::protocol::execute::Identity;
+use firmware::protocol::key::Key;
 use firmware::protocol::parse::crc16;
 use firmware::protocol::stream::{decode_frame, GapCounter};
 use hal_sim::device::{SimDevice, SIM_IDENTITY};
@@ -9,7 +11,8 @@ use hal_sim::flash::{CalibrationFlash, PowerCut};
 use hal_sim::input::InputProfile;
 use hal_sim::params::GyroParams;
 
-const KEY: &str = "c0ffee42";
+/// The key this test gives its simulated board (a fixture: the simulator has no fixed key).
+const KEY: &str = "3a7c5e91b2d4f60819e3c5a7b9d1f2e4";
 
 /// Powers the simulated board up and waits, as a technician does, until `status` shows the
 /// dither drive locked (the board's start-up from the ringing dither takes about 1.1 s; 3 s at
@@ -22,7 +25,10 @@ fn boot(flash: CalibrationFlash, rate_deg_h: f64, boot_count: u32) -> SimDevice 
     let mut dev = SimDevice::boot(
         params,
         InputProfile::constant(rate_deg_h),
-        SIM_IDENTITY,
+        Identity {
+            key: Key::parse_hex(KEY),
+            ..SIM_IDENTITY
+        },
         flash,
         boot_count,
     )
@@ -51,6 +57,38 @@ fn field<'a>(answer: &'a str, key: &str) -> &'a str {
         .split(' ')
         .find_map(|w| w.strip_prefix(key).and_then(|w| w.strip_prefix('=')))
         .unwrap_or_else(|| panic!("{key} in {answer}"))
+}
+
+/// A simulated board booted without a key is a new board: no key unlocks it (the old
+/// published development key included), `status` says `key=unprovisioned`; `key provision`
+/// sets the key once, after which it unlocks and a second provisioning is refused.
+#[test]
+fn an_unprovisioned_board_accepts_no_key_until_provisioned_once() {
+    let params = GyroParams {
+        seed: 5,
+        ..GyroParams::default()
+    };
+    let input = InputProfile::constant(0.0);
+    let flash = CalibrationFlash::default();
+    let mut dev = SimDevice::boot(params, input, SIM_IDENTITY, flash, 0).unwrap();
+    assert!(ask(&mut dev, "status").ends_with("key=unprovisioned"));
+    assert!(ask(&mut dev, &format!("unlock {KEY}")).starts_with("ERR 16 no key provisioned"));
+    assert!(ask(&mut dev, "unlock c0ffee42").starts_with("ERR 3 "));
+    assert!(ask(&mut dev, "set a 300").starts_with("ERR 9 "));
+    assert_eq!(
+        ask(&mut dev, &format!("key provision {KEY}")),
+        "OK key=provisioned"
+    );
+    assert!(ask(&mut dev, "status").ends_with("key=provisioned"));
+    assert!(
+        ask(&mut dev, "set a 300").starts_with("ERR 9 "),
+        "still locked"
+    );
+    let other = KEY.replace('a', "b");
+    assert!(ask(&mut dev, &format!("key provision {other}")).starts_with("ERR 11 "));
+    assert!(ask(&mut dev, &format!("unlock {other}")).starts_with("ERR 15 "));
+    assert!(ask(&mut dev, &format!("unlock {KEY}")).starts_with("OK unlocked"));
+    assert_eq!(ask(&mut dev, "set a 300"), "OK a=300");
 }
 
 #[test]
@@ -100,7 +138,11 @@ fn calibrate_accept_store_and_survive_a_power_cycle() {
         ask(&mut dev, "set a 300").starts_with("ERR 9 "),
         "locked at reset"
     );
-    assert!(ask(&mut dev, "unlock 1234").starts_with("ERR 15 "));
+    assert!(
+        ask(&mut dev, "unlock 1234").starts_with("ERR 3 "),
+        "no 128-bit key"
+    );
+    assert!(ask(&mut dev, &format!("unlock {}", KEY.replace('3', "4"))).starts_with("ERR 15 "));
     assert!(ask(&mut dev, &format!("unlock {KEY}")).starts_with("OK unlocked"));
     assert!(ask(&mut dev, "cal start 3000 100").starts_with("OK cal=running"));
     assert!(

@@ -7,12 +7,15 @@ const AFTER_HELP: &str = "\
 Connections (one of, before the subcommand):
   --port /dev/ttyUSB0 --baud 460800    a serial port, or a pty served by `rlg-cal serve-sim --pty`
   --tcp 127.0.0.1:7878                 the simulated board served by `rlg-cal serve-sim --tcp`
-  --sim                                a simulated board inside this process (for trying things)
+  --sim                                a simulated board inside this process (for trying things;
+                                       its key: $RLG_SIM_BOARD_KEY, else the --key given)
 
 Examples:
   rlg-cal --tcp 127.0.0.1:7878 status
-  rlg-cal --tcp 127.0.0.1:7878 --key c0ffee42 set a 344.25
-  rlg-cal --port /dev/ttyUSB0 --key c0ffee42 calibrate --cycles 4000 --warmup 400 --accept --store
+  rlg-cal --tcp 127.0.0.1:7878 --key $KEY set a 344.25
+  rlg-cal --port /dev/ttyUSB0 --key $KEY calibrate --cycles 4000 --warmup 400 --accept --store
+  rlg-cal --port /dev/ttyUSB0 send key provision $KEY   (production, once per board)
+  rlg-cal serve-sim --tcp 127.0.0.1:7878 --board-key $KEY
   rlg-cal --port /dev/ttyUSB0 --baud 460800 stream --seconds 10 --csv run.csv --svg run.svg
   rlg-cal sweep --calibrate --svg sweep.svg
   rlg-cal serve-sim --pty
@@ -32,7 +35,7 @@ Exit status:
 pub struct Cli {
     #[command(flatten)]
     pub connection: ConnectionArgs,
-    /// Unlock key (hex) sent before protected commands (set, comp, track, store, reload,
+    /// Unlock key (32 hex digits) sent before protected commands (set, comp, track, store, reload,
     /// defaults, calibrate --accept).
     #[arg(long, value_name = "KEY")]
     pub key: Option<String>,
@@ -259,6 +262,10 @@ pub struct ServeArgs {
     /// Stop after this many wall-clock seconds (default: run until killed).
     #[arg(long)]
     pub seconds: Option<f64>,
+    /// The simulated board's key, 32 hex digits (default: $RLG_SIM_BOARD_KEY; neither: the
+    /// board starts unprovisioned, as a new board).
+    #[arg(long, value_name = "KEY")]
+    pub board_key: Option<String>,
 }
 
 /// Any number the board's parser may see: the board itself says what it refuses (NaN,

@@ -62,7 +62,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
         Command::ServeSim(args) => return run_serve(args, &cli.connection),
         _ => {}
     }
-    let link = connect(&cli.connection)?;
+    let link = connect(&cli.connection, cli.key.as_deref())?;
     let mut client = Client::new(link).with_timeout(Duration::from_millis(cli.timeout_ms));
     let mut device = Device {
         client: &mut client,
@@ -71,7 +71,9 @@ fn run(cli: Cli) -> Result<(), Failure> {
     device.run(&cli.command)
 }
 
-fn connect(c: &ConnectionArgs) -> Result<Box<dyn Link>, Failure> {
+/// The link `c` names; `key`: the client's `--key`, which a `--sim` board is provisioned with
+/// unless `RLG_SIM_BOARD_KEY` gives it another (the in-process board has no key of its own).
+fn connect(c: &ConnectionArgs, key: Option<&str>) -> Result<Box<dyn Link>, Failure> {
     let chosen = c.port.is_some() as u8 + c.tcp.is_some() as u8 + c.sim as u8;
     if chosen != 1 {
         return Err(Failure::Usage(
@@ -91,7 +93,11 @@ fn connect(c: &ConnectionArgs) -> Result<Box<dyn Link>, Failure> {
     let input = SimInput::Constant {
         rate_deg_per_h: c.sim_rate,
     };
-    let device = sim::boot(input, 1, CalibrationFlash::default(), 0)
+    let board_key = match sim::board_key(None).map_err(Failure::Usage)? {
+        Some(k) => Some(k),
+        None => key.and_then(firmware::protocol::key::Key::parse_hex),
+    };
+    let device = sim::boot(input, 1, CalibrationFlash::default(), 0, board_key)
         .map_err(|e| Failure::Connect(e.to_string()))?;
     // A board that has been on for a moment: its dither drive locked and settled, the readout
     // with a first rate.
@@ -309,7 +315,8 @@ fn run_serve(args: &ServeArgs, connection: &ConnectionArgs) -> Result<(), Failur
             rate_deg_per_h: args.rate,
         },
     };
-    let device = sim::boot(input, args.seed, CalibrationFlash::default(), 0)
+    let board_key = sim::board_key(args.board_key.as_deref()).map_err(Failure::Usage)?;
+    let device = sim::boot(input, args.seed, CalibrationFlash::default(), 0, board_key)
         .map_err(|e| Failure::Run(e.to_string()))?;
     let options = ServeOptions {
         speed: args.speed,
@@ -320,9 +327,13 @@ fn run_serve(args: &ServeArgs, connection: &ConnectionArgs) -> Result<(), Failur
         println!("{where_}");
         let _ = std::io::stdout().flush();
         eprintln!(
-            "rlg-cal: simulated board on {where_} (input {input:?}, speed {}x, unlock key {}); Ctrl-C stops",
+            "rlg-cal: simulated board on {where_} (input {input:?}, speed {}x, key {}); Ctrl-C stops",
             args.speed,
-            sim::sim_key()
+            if board_key.is_some() {
+                "provisioned"
+            } else {
+                "unprovisioned: `key provision <32 hex digits>` first"
+            }
         );
     };
     let served = if let Some(address) = &args.tcp {

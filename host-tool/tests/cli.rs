@@ -6,6 +6,10 @@ use std::net::TcpListener;
 use std::path::PathBuf;
 use std::process::{Child, Command, Output, Stdio};
 
+/// The key the `--sim` and served boards of these tests are given (`--key` provisions the
+/// `--sim` board; `--board-key` the served one).
+const TEST_KEY: &str = "3a7c5e91b2d4f60819e3c5a7b9d1f2e4";
+
 fn rlg_cal(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_rlg-cal"))
         .args(args)
@@ -74,10 +78,10 @@ fn the_board_refusing_exits_1_and_says_why() {
     let (code, _, err) = run(&["--sim", "set", "a", "1"]);
     assert_eq!(code, 1);
     assert!(err.contains("ERR 9 locked"), "{err}");
-    let (code, _, err) = run(&["--sim", "--key", "c0ffee42", "set", "a", "NaN"]);
+    let (code, _, err) = run(&["--sim", "--key", TEST_KEY, "set", "a", "NaN"]);
     assert_eq!(code, 1);
     assert!(err.contains("ERR 4"), "{err}");
-    let (code, out, _) = run(&["--sim", "--key", "c0ffee42", "set", "b", "-344.123456"]);
+    let (code, out, _) = run(&["--sim", "--key", TEST_KEY, "set", "b", "-344.123456"]);
     assert_eq!((code, out.trim()), (0, "b=-344.12344"));
 }
 
@@ -99,7 +103,7 @@ fn calibrate_with_accept_and_store() {
     let (code, out, err) = run(&[
         "--sim",
         "--key",
-        "c0ffee42",
+        TEST_KEY,
         "calibrate",
         "--cycles",
         "3000",
@@ -185,11 +189,11 @@ fn serve_sim(args: &[&str]) -> (Child, String) {
 
 #[test]
 fn a_served_board_talks_to_a_second_process() {
-    let (mut tcp_server, address) = serve_sim(&["--tcp", "127.0.0.1:0"]);
+    let (mut tcp_server, address) = serve_sim(&["--tcp", "127.0.0.1:0", "--board-key", TEST_KEY]);
     let (mut pty_server, path) = serve_sim(&["--pty"]);
     assert!(address.starts_with("127.0.0.1:"), "{address}");
     assert!(path.starts_with("/dev/pts/"), "{path}");
-    let over_tcp = run(&["--tcp", &address, "--key", "c0ffee42", "set", "a", "12.5"]);
+    let over_tcp = run(&["--tcp", &address, "--key", TEST_KEY, "set", "a", "12.5"]);
     let again = run(&["--tcp", &address, "get", "a"]);
     let over_pty = run(&["--port", &path, "--baud", "460800", "id"]);
     tcp_server.kill().unwrap();

@@ -15,6 +15,7 @@ fn board(rate_deg_per_h: f64, flash: CalibrationFlash, boot_count: u32) -> Clien
         7 + boot_count as u64,
         flash,
         boot_count,
+        Some(sim::test_key()),
     )
     .unwrap();
     let mut client = Client::new(SimLink::new(device));
@@ -84,7 +85,7 @@ fn protected_commands_need_the_key_and_answer_the_applied_value() {
         }
         e => panic!("{e}"),
     }
-    assert!(ops::unlock(&mut c, &sim::sim_key())
+    assert!(ops::unlock(&mut c, &sim::key_hex(&sim::test_key()))
         .unwrap()
         .text
         .starts_with("unlocked"));
@@ -113,7 +114,7 @@ fn protected_commands_need_the_key_and_answer_the_applied_value() {
 #[test]
 fn calibrate_accept_store_and_power_cycle() {
     let mut c = board(13.888, CalibrationFlash::default(), 0);
-    ops::unlock(&mut c, &sim::sim_key()).unwrap();
+    ops::unlock(&mut c, &sim::key_hex(&sim::test_key())).unwrap();
     let mut seen: Vec<(u64, u64)> = Vec::new();
     let options = CalibrateOptions::new(3000, 100);
     let fit = ops::calibrate(&mut c, &options, &mut |done, total| {
@@ -143,7 +144,7 @@ fn calibrate_accept_store_and_power_cycle() {
 #[test]
 fn a_refused_fit_and_a_busy_board_are_typed_errors() {
     let mut c = board(0.5, CalibrationFlash::default(), 0);
-    ops::unlock(&mut c, &sim::sim_key()).unwrap();
+    ops::unlock(&mut c, &sim::key_hex(&sim::test_key())).unwrap();
     ask(&mut c, "cal start 1000 10").unwrap();
     assert_eq!(err_code(ask(&mut c, "set a 1")), 10, "busy during a run");
     assert_eq!(err_code(ask(&mut c, "cal result")), 10);

@@ -24,6 +24,7 @@ fn device() -> SimDevice {
         11,
         CalibrationFlash::default(),
         0,
+        Some(sim::test_key()),
     )
     .unwrap()
 }
@@ -50,7 +51,7 @@ fn tcp_server_answers_a_real_socket() {
 
     let mut c = Client::new(link::tcp(&address, Duration::from_secs(2)).unwrap());
     assert!(c.command("id").unwrap().text.contains("serial=4242"));
-    ops::unlock(&mut c, &sim::sim_key()).unwrap();
+    ops::unlock(&mut c, &sim::key_hex(&sim::test_key())).unwrap();
     assert_eq!(c.command("set a 300").unwrap().text, "a=300");
     assert_eq!(c.command("get a").unwrap().text, "a=300");
     // Half a second of streaming on the wall clock: frames at 4 x 389 Hz / 4.

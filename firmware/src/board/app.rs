@@ -18,7 +18,7 @@ use heapless::spsc::Consumer;
 
 use super::ports::BoardPorts;
 use super::resources::{self, init_core, start_dither, unmask_readout, SCHEDULER};
-use super::{adc, clocks, dither, encoder, flash, pac, turnaround, usart, watchdog};
+use super::{adc, clocks, dither, encoder, flash, otp, pac, turnaround, usart, watchdog};
 use crate::dither::DitherConfig;
 use crate::profile::BoardProfile;
 use crate::protocol::execute::Identity;
@@ -80,25 +80,17 @@ impl Health {
     }
 }
 
-/// The board's identity: serial number and unlock key from OTP block 0 (0x1FFF_7800, words 0
-/// and 1, written at production). Unprogrammed OTP (0xFFFF_FFFF) gives serial 0 and the
-/// development key 0xC0FF_EE42: a production board must have its key programmed. (QEMU does
-/// not map the OTP area: a read there faults, so the `qemu` build uses the defaults.)
+/// The board's identity: serial number and unlock key from OTP block 0 ([`otp`]). Unprogrammed
+/// OTP gives serial 0 and no key: the board refuses every protected command until `key
+/// provision` (there is no default key).
 fn identity(profile: &BoardProfile) -> Identity {
-    let otp = |word: usize| {
-        if cfg!(feature = "qemu") {
-            return u32::MAX;
-        }
-        // SAFETY: the OTP area is always readable on the F405.
-        unsafe { (0x1FFF_7800 as *const u32).add(word).read_volatile() }
-    };
-    let or = |value: u32, default: u32| if value == u32::MAX { default } else { value };
+    let (serial_number, key) = otp::read();
     Identity {
         firmware_version: env!("CARGO_PKG_VERSION"),
         build: env!("FW_BUILD_PROFILE"),
         board: profile.name,
-        serial_number: or(otp(0), 0),
-        key: or(otp(1), 0xC0FF_EE42),
+        serial_number,
+        key,
         scale_factor_arcsec: profile.scale_factor_arcsec as f32,
         capture_timer_hz: profile.timer_hz,
     }

@@ -11,8 +11,12 @@
 //!   a board that was unlocked: whoever types it is not to be trusted with the open session.
 //! - Reads never need an unlock.
 //!
+//! The key itself ([`super::key::Key`], 128 bits) is compared in constant time.
+//!
 //! Time is a millisecond tick passed in by the caller (wrapping `u32`, 49 days), so this is
 //! plain logic, testable on the host.
+
+use super::key::Key;
 
 /// Access-control settings (immutable).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -108,8 +112,8 @@ impl Access {
         &mut self,
         config: &AccessConfig,
         now_ms: u32,
-        key: u32,
-        given: u32,
+        key: &Key,
+        given: &Key,
     ) -> UnlockOutcome {
         if let Some(until) = self.blocked_until_ms {
             if !reached(now_ms, until) {
@@ -119,7 +123,7 @@ impl Access {
             }
             self.blocked_until_ms = None;
         }
-        if given == key {
+        if key.matches(given) {
             self.wrong_keys = 0;
             self.unlocked_until_ms = Some(now_ms.wrapping_add(config.unlock_timeout_ms));
             return UnlockOutcome::Unlocked;
@@ -142,14 +146,18 @@ impl Access {
 mod tests {
     use super::*;
 
-    const KEY: u32 = 0xC0FF_EE42;
+    const KEY: Key = Key::from_bytes([0x5A; 16]);
+
+    fn wrong(n: u8) -> Key {
+        Key::from_bytes([n; 16])
+    }
     const C: AccessConfig = AccessConfig::DEFAULT;
 
     #[test]
     fn starts_locked_unlocks_and_times_out() {
         let mut a = Access::new();
         assert!(!a.is_unlocked(0));
-        assert_eq!(a.unlock(&C, 1000, KEY, KEY), UnlockOutcome::Unlocked);
+        assert_eq!(a.unlock(&C, 1000, &KEY, &KEY), UnlockOutcome::Unlocked);
         assert!(a.is_unlocked(1000 + C.unlock_timeout_ms - 1));
         assert!(!a.is_unlocked(1000 + C.unlock_timeout_ms));
     }
@@ -157,7 +165,7 @@ mod tests {
     #[test]
     fn activity_extends_and_lock_ends_it() {
         let mut a = Access::new();
-        a.unlock(&C, 0, KEY, KEY);
+        a.unlock(&C, 0, &KEY, &KEY);
         a.touch(&C, 200_000);
         assert!(a.is_unlocked(450_000));
         a.lock();
@@ -170,20 +178,20 @@ mod tests {
     fn wrong_keys_are_rate_limited() {
         let mut a = Access::new();
         for t in 0..3 {
-            assert_eq!(a.unlock(&C, t, KEY, 1), UnlockOutcome::WrongKey);
+            assert_eq!(a.unlock(&C, t, &KEY, &wrong(1)), UnlockOutcome::WrongKey);
         }
-        assert_eq!(a.unlock(&C, 10, KEY, 2), UnlockOutcome::WrongKey); // 4th: 1 s penalty
+        assert_eq!(a.unlock(&C, 10, &KEY, &wrong(2)), UnlockOutcome::WrongKey); // 4th: 1 s penalty
         assert_eq!(
-            a.unlock(&C, 500, KEY, KEY),
+            a.unlock(&C, 500, &KEY, &KEY),
             UnlockOutcome::RateLimited { wait_ms: 510 }
         );
         assert!(!a.is_unlocked(500));
-        assert_eq!(a.unlock(&C, 1010, KEY, 3), UnlockOutcome::WrongKey); // 5th: 2 s
+        assert_eq!(a.unlock(&C, 1010, &KEY, &wrong(3)), UnlockOutcome::WrongKey); // 5th: 2 s
         assert_eq!(
-            a.unlock(&C, 3000, KEY, KEY),
+            a.unlock(&C, 3000, &KEY, &KEY),
             UnlockOutcome::RateLimited { wait_ms: 10 }
         );
-        assert_eq!(a.unlock(&C, 3010, KEY, KEY), UnlockOutcome::Unlocked);
+        assert_eq!(a.unlock(&C, 3010, &KEY, &KEY), UnlockOutcome::Unlocked);
         assert_eq!(a.wrong_keys(), 0);
     }
 
@@ -193,13 +201,13 @@ mod tests {
         let mut a = Access::new();
         let mut t = u32::MAX - 5_000;
         for _ in 0..40 {
-            if let UnlockOutcome::RateLimited { wait_ms } = a.unlock(&C, t, KEY, 0) {
+            if let UnlockOutcome::RateLimited { wait_ms } = a.unlock(&C, t, &KEY, &wrong(0)) {
                 assert!(wait_ms <= C.max_penalty_ms);
                 t = t.wrapping_add(wait_ms);
             }
         }
         assert_eq!(
-            a.unlock(&C, t.wrapping_add(C.max_penalty_ms), KEY, KEY),
+            a.unlock(&C, t.wrapping_add(C.max_penalty_ms), &KEY, &KEY),
             UnlockOutcome::Unlocked
         );
     }

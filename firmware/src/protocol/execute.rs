@@ -9,6 +9,8 @@
 //! the groups and dispatches each command to its group's function:
 //!
 //! - reads (`id`, `status`, `get`, `cal status`, `cal result`, `help`) never need an unlock;
+//! - `key provision` needs none either: it is accepted only while the board has no key
+//!   ([`super::key`]), and there is nothing to unlock with before;
 //! - everything that changes coefficients, compensation, the dither drive or flash (`set`,
 //!   `comp`, `track`, `cal accept`, `store`, `reload`, `defaults`, `dither on|off|amp|noise`)
 //!   needs one, and extends it when it succeeds;
@@ -142,6 +144,7 @@ impl Executor {
                     tracking: self.calibration.tracking(),
                     source: p.source,
                     unlocked: self.access.is_unlocked(now_ms),
+                    key_provisioned: self.access.provisioned(id),
                 };
                 Ok(info::status(id, device, flags))
             }
@@ -168,7 +171,8 @@ impl Executor {
             Command::Store => storage::store(device, p, id),
             Command::Reload => Ok(storage::reload(device, p)),
             Command::Stream(divider) => Ok(self.stream.command(divider)),
-            Command::Unlock(given) => self.access.unlock(id, now_ms, given),
+            Command::Unlock(given) => self.access.unlock(id, now_ms, &given),
+            Command::KeyProvision(key) => self.access.provision(id, device, key),
             Command::Lock => Ok(self.access.lock()),
             Command::Dither(command) => dither::command(device, id, command),
         }
@@ -195,6 +199,17 @@ mod tests {
     use crate::protocol::commands::testing::{report, MemDevice, ID};
     use crate::protocol::parse::parse;
     use crate::storage::{DefaultsReason, LoadOutcome};
+
+    fn unlock_line() -> std::string::String {
+        let hex: std::string::String = ID
+            .key
+            .unwrap()
+            .to_bytes()
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        format!("unlock {hex}")
+    }
 
     fn run(e: &mut Executor, d: &mut MemDevice, line: &str) -> std::string::String {
         let command = parse(line).unwrap();
@@ -229,7 +244,7 @@ mod tests {
             assert!(run(&mut e, &mut d, line).starts_with("ERR 9 "), "{line}");
         }
         assert!(run(&mut e, &mut d, "dither status").starts_with("OK state="));
-        assert!(run(&mut e, &mut d, &format!("unlock {:x}", ID.key)).starts_with("OK"));
+        assert!(run(&mut e, &mut d, &unlock_line()).starts_with("OK"));
         assert!(run(&mut e, &mut d, "dither amp 400").starts_with("OK dither=on amp_arcsec=400"));
     }
 }

@@ -7,6 +7,7 @@
 //! [`super::commands`] see nothing else of the device. These types are re-exported from
 //! [`super::execute`], where callers have always found them.
 
+use super::key::Key;
 use crate::dither::{CommandError, DitherStatus};
 use crate::signal::compensation::CompensationSettings;
 use crate::storage::{CalibrationRecord, DitherSetpoints, LoadReport, StoreError};
@@ -22,8 +23,9 @@ pub struct Identity {
     pub board: &'static str,
     /// The gyro's serial number (OTP flash on the board).
     pub serial_number: u32,
-    /// The calibration unlock key (OTP flash on the board, written at production).
-    pub key: u32,
+    /// The calibration unlock key as read at boot (OTP on the board, written once by `key
+    /// provision`); `None`: unprovisioned, protected commands are refused until it is.
+    pub key: Option<Key>,
     /// Scale factor, arcsec per fringe: only for reporting deg/h.
     pub scale_factor_arcsec: f32,
     /// Capture-timer frequency, Hz: the unit of the streamed cycle durations.
@@ -78,4 +80,18 @@ pub trait DeviceLink {
     /// Applies setpoints to the dither drive whole: every field is range-checked first, and a
     /// refused one changes nothing.
     fn apply_dither(&mut self, setpoints: DitherSetpoints) -> Result<(), CommandError>;
+    /// Writes the key to the board's one-time-programmable memory and locks it (`key
+    /// provision`; the executor calls it only while no key is provisioned). `Err`: the write
+    /// failed or did not read back; the board stays unprovisioned.
+    fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError>;
+}
+
+/// Why the key could not be written to OTP.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum KeyWriteError {
+    /// The OTP words are not blank (another key, or a failed earlier attempt): the board can
+    /// never be provisioned; it stays locked.
+    NotBlank,
+    /// The flash controller reported an error, or the words did not read back.
+    Failed,
 }

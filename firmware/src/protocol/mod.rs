@@ -13,6 +13,7 @@ pub mod access;
 pub mod commands;
 pub mod endpoint;
 pub mod execute;
+pub mod key;
 pub mod line;
 pub mod link;
 pub mod parse;
@@ -55,11 +56,13 @@ pub enum ErrorCode {
     RateLimited = 14,
     /// `unlock` with a key that is not the device's; the device locks.
     WrongKey = 15,
+    /// `unlock` on a board whose key was never provisioned (`key provision`, production).
+    NoKey = 16,
 }
 
 impl ErrorCode {
     /// Every code, in numeric order (for hosts that parse answers).
-    pub const ALL: [ErrorCode; 15] = [
+    pub const ALL: [ErrorCode; 16] = [
         Self::UnknownCommand,
         Self::Syntax,
         Self::BadNumber,
@@ -75,6 +78,7 @@ impl ErrorCode {
         Self::FlashError,
         Self::RateLimited,
         Self::WrongKey,
+        Self::NoKey,
     ];
 
     /// The number after `ERR`.
@@ -100,6 +104,7 @@ impl ErrorCode {
             Self::FlashError => "flash error",
             Self::RateLimited => "too many attempts, wait",
             Self::WrongKey => "wrong key",
+            Self::NoKey => "no key provisioned",
         }
     }
 }

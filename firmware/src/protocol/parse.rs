@@ -7,6 +7,7 @@
 //! parsed. Numbers are decimal (`f32` via `core`'s parser, which also accepts exponents); NaN
 //! and infinities are refused, and so is anything outside the documented range.
 
+use super::key::Key;
 use super::ErrorCode;
 
 /// Which coefficient.
@@ -72,8 +73,10 @@ pub enum Command {
     Defaults,
     /// `stream on <divider>` (every n-th cycle) | `stream off`.
     Stream(Option<u16>),
-    /// `unlock <key>`: allow commands that change coefficients or flash.
-    Unlock(u32),
+    /// `unlock <key>`: allow commands that change coefficients or flash (32 hex digits).
+    Unlock(Key),
+    /// `key provision <key>`: write the board's key to OTP, once (production; see [`super::key`]).
+    KeyProvision(Key),
     /// `lock`: lock at once.
     Lock,
     /// `dither on|off|amp <arcsec>|noise <percent>|status`: the dither drive.
@@ -115,6 +118,11 @@ pub fn strip_checksum(line: &str) -> Result<(&str, bool), ErrorCode> {
         return Err(ErrorCode::BadChecksum);
     }
     Ok((body, true))
+}
+
+/// A key argument: 32 hex digits ([`Key::parse_hex`]).
+fn key(word: Option<&str>) -> Result<Key, ErrorCode> {
+    Key::parse_hex(word.ok_or(ErrorCode::Syntax)?).ok_or(ErrorCode::BadNumber)
 }
 
 fn number(word: Option<&str>) -> Result<f32, ErrorCode> {
@@ -243,10 +251,14 @@ pub fn parse(text: &str) -> Result<Command, ErrorCode> {
             _ => return Err(ErrorCode::Syntax),
         }
     } else if is("unlock") {
-        let word = words.next().ok_or(ErrorCode::Syntax)?;
-        let key = u32::from_str_radix(word.trim_start_matches("0x"), 16)
-            .map_err(|_| ErrorCode::BadNumber)?;
-        Command::Unlock(key)
+        Command::Unlock(key(words.next())?)
+    } else if is("key") {
+        match words.next() {
+            Some(w) if w.eq_ignore_ascii_case("provision") => {
+                Command::KeyProvision(key(words.next())?)
+            }
+            _ => return Err(ErrorCode::Syntax),
+        }
     } else if is("lock") {
         Command::Lock
     } else {
@@ -313,7 +325,19 @@ mod tests {
         assert_eq!(parse("stream on 10"), Ok(Command::Stream(Some(10))));
         assert_eq!(parse("stream on"), Ok(Command::Stream(Some(1))));
         assert_eq!(parse("stream off"), Ok(Command::Stream(None)));
-        assert_eq!(parse("unlock 0xC0FFEE"), Ok(Command::Unlock(0xC0FFEE)));
+        let key = Key::parse_hex("000102030405060708090a0b0c0d0e0f").unwrap();
+        assert_eq!(
+            parse("unlock 000102030405060708090a0b0c0d0e0f"),
+            Ok(Command::Unlock(key))
+        );
+        assert_eq!(
+            parse("key provision 0x000102030405060708090A0B0C0D0E0F"),
+            Ok(Command::KeyProvision(key))
+        );
+        // A 32-bit key (the old development key) is no key.
+        assert_eq!(parse("unlock c0ffee42"), Err(ErrorCode::BadNumber));
+        assert_eq!(parse("key provision"), Err(ErrorCode::Syntax));
+        assert_eq!(parse("key"), Err(ErrorCode::Syntax));
         assert_eq!(parse("  status\t"), Ok(Command::Status));
         assert_eq!(
             parse("dither amp 420.5"),

@@ -11,7 +11,7 @@
 //!   into the readout), and a stream frame (queued whole or dropped and counted).
 //!
 //! Everything that differs between the board and the simulator is behind the small traits of
-//! [`ports`] (clock, serial transmitter, readout access, dither access) and `embedded_storage`'s
+//! [`ports`] (clock, serial transmitter, readout access, dither access, the key's OTP) and `embedded_storage`'s
 //! `NorFlash`
 //! (the calibration flash, owned by the service). The board's main loop (`board::app`) and
 //! hal-sim's `SimDevice` each instantiate this one `Service`; neither has protocol glue of its
@@ -30,7 +30,9 @@ use crate::dither::{CommandError, DitherStatus};
 use crate::profile::BoardProfile;
 use crate::protocol::endpoint;
 use crate::protocol::execute::{DeviceLink, DeviceStatus, Executor, Identity};
+use crate::protocol::key::Key;
 use crate::protocol::line::{LineAssembler, LineEvent, MAX_LINE};
+use crate::protocol::link::KeyWriteError;
 use crate::protocol::stream::{encode_frame, MAX_FRAME};
 use crate::readout::ReadoutConfig;
 use crate::signal::compensation::CompensationSettings;
@@ -40,7 +42,7 @@ use crate::storage::{
     CalibrationRecord, CalibrationStore, DitherSetpoints, Geometry, GeometryError, LoadReport,
     StoreError,
 };
-use ports::{Clock, DitherAccess, ReadoutAccess, SerialTx};
+use ports::{Clock, DitherAccess, ReadoutAccess, Secrets, SerialTx};
 
 /// What differs between services (immutable).
 #[derive(Clone, Copy, Debug)]
@@ -137,7 +139,7 @@ impl<F: NorFlash> Service<F> {
     }
 
     /// One received byte; a completed line is executed and answered through `ports`.
-    pub fn on_byte<P: Clock + SerialTx + ReadoutAccess + DitherAccess>(
+    pub fn on_byte<P: Clock + SerialTx + ReadoutAccess + DitherAccess + Secrets>(
         &mut self,
         byte: u8,
         ports: &mut P,
@@ -242,7 +244,9 @@ struct ServiceDevice<'a, F, P> {
     ports: &'a mut P,
 }
 
-impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess> DeviceLink for ServiceDevice<'_, F, P> {
+impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess + Secrets> DeviceLink
+    for ServiceDevice<'_, F, P>
+{
     type FlashError = F::Error;
 
     fn now_ms(&self) -> u32 {
@@ -285,6 +289,10 @@ impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess> DeviceLink for Servic
     fn apply_dither(&mut self, setpoints: DitherSetpoints) -> Result<(), CommandError> {
         self.ports
             .with_dither(|drive, config| drive.apply_setpoints(config, setpoints))
+    }
+
+    fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError> {
+        self.ports.program_key(key)
     }
 }
 

@@ -1,4 +1,4 @@
-//! What the command service needs from the platform it runs on: four small traits, and the
+//! What the command service needs from the platform it runs on: five small traits, and the
 //! readout pause as a guard.
 //!
 //! The board implements them on its peripherals (`board::ports`: SysTick, the USART queues, the
@@ -14,6 +14,8 @@
 //! store without stopping the readout or forget to restart it (an early return included).
 
 use crate::dither::{DitherConfig, DitherController};
+use crate::protocol::key::Key;
+use crate::protocol::link::KeyWriteError;
 use crate::readout::Readout;
 use crate::storage::ReadoutPaused;
 
@@ -54,6 +56,12 @@ pub trait ReadoutAccess {
 pub trait DitherAccess {
     /// Runs `f` on the controller and its configuration, excluding the drive tick meanwhile.
     fn with_dither<R>(&mut self, f: impl FnOnce(&mut DitherController, &DitherConfig) -> R) -> R;
+}
+
+/// The board's security memory: the one-time-programmable key (`key provision`).
+pub trait Secrets {
+    /// Writes `key` to OTP and locks the block; `Err` leaves the board unprovisioned.
+    fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError>;
 }
 
 /// The readout stopped for as long as this guard lives (see the module docs).

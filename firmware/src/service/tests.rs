@@ -2,10 +2,12 @@
 //! rely on (one answer per line, settings staged into the readout, the store inside the pause,
 //! dropped frames counted, status folding).
 
-use super::ports::{Clock, DitherAccess, ReadoutAccess, SerialTx};
+use super::ports::{Clock, DitherAccess, ReadoutAccess, Secrets, SerialTx};
 use super::*;
 use crate::dither::{DitherConfig, DitherController};
 use crate::protocol::commands::testing::MemDrive;
+use crate::protocol::key::Key;
+use crate::protocol::link::KeyWriteError;
 use crate::readout::Readout;
 use crate::signal::lockin::LockinTerms;
 use crate::signal::lockin::{CycleFlags, CycleOutput};
@@ -14,7 +16,7 @@ use std::string::String as StdString;
 use std::vec::Vec;
 
 type Flash = RamFlash<2, 8192>;
-const KEY: u32 = 0x1234_abcd;
+const KEY: &str = "1234abcd1234abcd1234abcd1234abcd";
 
 struct TestPorts {
     readout: Readout,
@@ -44,6 +46,12 @@ impl TestPorts {
 impl DitherAccess for TestPorts {
     fn with_dither<R>(&mut self, f: impl FnOnce(&mut DitherController, &DitherConfig) -> R) -> R {
         f(&mut self.drive.controller, &self.drive.config)
+    }
+}
+
+impl Secrets for TestPorts {
+    fn program_key(&mut self, _key: &Key) -> Result<(), KeyWriteError> {
+        Err(KeyWriteError::NotBlank)
     }
 }
 
@@ -87,7 +95,7 @@ fn config() -> ServiceConfig {
         build: "test",
         board: "test",
         serial_number: 7,
-        key: KEY,
+        key: Key::parse_hex(KEY),
         scale_factor_arcsec: 1.8655,
         capture_timer_hz: 84_000_000,
     };
@@ -160,7 +168,7 @@ fn set_stages_into_the_readout_and_store_runs_inside_one_pause() {
             .a_rad_per_s(),
         0.0
     );
-    assert!(ask(&mut s, &mut p, &format!("unlock {KEY:08x}")).starts_with("OK unlocked"));
+    assert!(ask(&mut s, &mut p, &format!("unlock {KEY}")).starts_with("OK unlocked"));
     assert!(ask(&mut s, &mut p, "set a 1.5").starts_with("OK a=1.5"));
     let staged = p.readout.staged_or_active_compensation();
     assert_eq!(staged.coefficients.a_rad_per_s(), 1.5);
@@ -225,7 +233,7 @@ fn a_failed_store_is_reported_and_still_restarts_the_readout() {
     let mut s = booted.service;
     let mut p = TestPorts::new(Readout::new(&s.config().readout, booted.settings));
     p.out.clear();
-    for &b in format!("unlock {KEY:08x}\nstore\n").as_bytes() {
+    for &b in format!("unlock {KEY}\nstore\n").as_bytes() {
         s.on_byte(b, &mut p);
     }
     let answers = StdString::from_utf8(p.out.clone()).unwrap();

@@ -14,7 +14,7 @@ use crate::signal::compensation::Coefficients;
 const HELP: &str =
     "commands: id status get{a|b|coeffs} set{a|b}<rad/s> comp{on|off} track{on|off} \
 cal{start<n>[<warmup>]|status|abort|result|accept} store reload defaults stream{on[<n>]|off} \
-dither{on|off|amp<arcsec>|noise<percent>|status} unlock<key> lock help";
+dither{on|off|amp<arcsec>|noise<percent>|status} unlock<key> lock key{provision<key>} help";
 
 /// What `status` reports of the executor's own state.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -25,6 +25,8 @@ pub struct StatusFlags {
     pub source: Source,
     /// Protected commands are allowed now (`locked=no`).
     pub unlocked: bool,
+    /// The board has a key (`key=provisioned`; else `key=unprovisioned`).
+    pub key_provisioned: bool,
 }
 
 /// `help`.
@@ -54,7 +56,7 @@ pub fn status<D: DeviceLink>(id: &Identity, device: &mut D, flags: StatusFlags) 
     ok_with(format_args!(
         "signal={} drive={} dither_hz={:.3} dither_amp_arcsec={:.2} rate_deg_h={:.4} turnarounds={} \
 cycles={} counter_glitches={} phase_glitches={} signal_lost={} missed={} comp={} track={} coeffs={} \
-locked={}",
+locked={} key={}",
         if s.signal_ok { "ok" } else { "lost" },
         drive,
         s.dither_hz,
@@ -70,6 +72,11 @@ locked={}",
         if flags.tracking { "on" } else { "off" },
         SourceText(flags.source),
         if flags.unlocked { "no" } else { "yes" },
+        if flags.key_provisioned {
+            "provisioned"
+        } else {
+            "unprovisioned"
+        },
     ))
 }
 
@@ -146,12 +153,13 @@ mod tests {
             tracking: true,
             source: Source::Flash { sequence: 3 },
             unlocked: false,
+            key_provisioned: false,
         };
         assert_eq!(
             text(status(&ID, &mut device, flags)).trim_end(),
             "OK signal=ok drive=locked dither_hz=389.000 dither_amp_arcsec=200.00 rate_deg_h=15.0000 \
 turnarounds=10 cycles=5 counter_glitches=1 phase_glitches=2 signal_lost=3 missed=4 comp=off \
-track=on coeffs=flash:3 locked=yes"
+track=on coeffs=flash:3 locked=yes key=unprovisioned"
         );
     }
 

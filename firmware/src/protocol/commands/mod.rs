@@ -48,7 +48,8 @@ fn ok_with(args: core::fmt::Arguments<'_>) -> Response {
 pub(crate) mod testing {
     use crate::dither::{CommandError, DitherConfig, DitherController, DitherStatus};
     use crate::profile::BoardProfile;
-    use crate::protocol::link::{DeviceLink, DeviceStatus, Identity};
+    use crate::protocol::key::Key;
+    use crate::protocol::link::{DeviceLink, DeviceStatus, Identity, KeyWriteError};
     use crate::protocol::respond::Response;
     use crate::signal::compensation::CompensationSettings;
     use crate::storage::{
@@ -60,7 +61,10 @@ pub(crate) mod testing {
         build: "test",
         board: "sim",
         serial_number: 4242,
-        key: 0xC0FFEE,
+        key: Some(Key::from_bytes([
+            0x0f, 0x1e, 0x2d, 0x3c, 0x4b, 0x5a, 0x69, 0x78, 0x87, 0x96, 0xa5, 0xb4, 0xc3, 0xd2,
+            0xe1, 0xf0,
+        ])),
         scale_factor_arcsec: 2.0,
         capture_timer_hz: 84_000_000,
     };
@@ -100,6 +104,8 @@ pub(crate) mod testing {
         pub stored: Vec<CalibrationRecord>,
         pub fail_store: bool,
         pub drive: MemDrive,
+        /// The key `program_key` wrote (OTP); `fail_store` makes the write fail too.
+        pub otp_key: Option<Key>,
     }
 
     impl DeviceLink for MemDevice {
@@ -154,6 +160,16 @@ pub(crate) mod testing {
         fn apply_dither(&mut self, setpoints: DitherSetpoints) -> Result<(), CommandError> {
             let MemDrive { config, controller } = &mut self.drive;
             controller.apply_setpoints(config, setpoints)
+        }
+        fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError> {
+            match (self.fail_store, self.otp_key) {
+                (true, _) => Err(KeyWriteError::Failed),
+                (false, Some(_)) => Err(KeyWriteError::NotBlank),
+                (false, None) => {
+                    self.otp_key = Some(*key);
+                    Ok(())
+                }
+            }
         }
     }
 
