@@ -77,8 +77,10 @@ fn protected_commands_need_the_key_and_answer_the_applied_value() {
     ] {
         assert_eq!(err_code(ask(&mut c, line)), 9, "{line} while locked");
     }
-    assert_eq!(err_code(ask(&mut c, "unlock 1234")), 15);
-    match c.command("unlock 1234").unwrap_err() {
+    let wrong = "unlock 12341234123412341234123412341234";
+    assert_eq!(err_code(ask(&mut c, "unlock 1234")), 3, "no 128-bit key");
+    assert_eq!(err_code(ask(&mut c, wrong)), 15);
+    match c.command(wrong).unwrap_err() {
         ClientError::Device(e) => {
             assert_eq!(e.kind, Some(firmware::protocol::ErrorCode::WrongKey));
             assert_eq!(e.text, "wrong key");
