@@ -15,6 +15,7 @@
 pub mod calibration;
 pub mod dither;
 pub mod math;
+pub mod millis;
 pub mod profile;
 pub mod protocol;
 pub mod readout;

@@ -76,7 +76,7 @@ const CODES: [ErrorCode; 16] = ErrorCode::ALL;
 /// where the commands put it, and its range checks are the real ones).
 #[derive(Clone, Debug)]
 struct MemDevice {
-    now_ms: u32,
+    now_ms: u64,
     active: CompensationSettings,
     staged: Option<CompensationSettings>,
     stored: Vec<CalibrationRecord>,
@@ -88,7 +88,7 @@ struct MemDevice {
 impl DeviceLink for MemDevice {
     type FlashError = ();
 
-    fn now_ms(&self) -> u32 {
+    fn now_ms(&self) -> u64 {
         self.now_ms
     }
 

@@ -214,7 +214,7 @@ struct SimPorts<'a> {
     drive: &'a mut FirmwareDrive,
     output: &'a mut Vec<u8>,
     otp_key: &'a mut Option<Key>,
-    now_ms: u32,
+    now_ms: u64,
     paused: bool,
 }
 
@@ -225,7 +225,8 @@ impl<'a> SimPorts<'a> {
         output: &'a mut Vec<u8>,
         otp_key: &'a mut Option<Key>,
     ) -> Self {
-        let now_ms = (harness.time_s() * 1000.0) as u32;
+        // 64-bit milliseconds: no saturation at 49.7 days as a u32 would.
+        let now_ms = (harness.time_s() * 1000.0) as u64;
         let (readout, drive) = harness.firmware_parts_mut();
         Self {
             now_ms,
@@ -257,7 +258,7 @@ impl Secrets for SimPorts<'_> {
 }
 
 impl Clock for SimPorts<'_> {
-    fn now_ms(&self) -> u32 {
+    fn now_ms(&self) -> u64 {
         self.now_ms
     }
 }

@@ -28,7 +28,7 @@ use crate::signal::lockin::CycleRecord;
 use crate::storage::{DitherSetpoints, Geometry};
 
 /// Milliseconds between health logs (defmt, only when a counter changed).
-const HEALTH_LOG_MS: u32 = 10_000;
+const HEALTH_LOG_MS: u64 = 10_000;
 
 /// The board-level loss counters the protocol's `status` does not carry, for the defmt log.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, defmt::Format)]
@@ -200,7 +200,7 @@ pub fn serve<F: NorFlash>(
             dither_state = state;
         }
         let now = resources::now_ms();
-        if now.wrapping_sub(health_logged_ms) >= HEALTH_LOG_MS {
+        if now - health_logged_ms >= HEALTH_LOG_MS {
             health_logged_ms = now;
             let current = Health::now(service.frames_dropped());
             if current != health {

@@ -40,7 +40,7 @@ impl BoardPorts {
 }
 
 impl Clock for BoardPorts {
-    fn now_ms(&self) -> u32 {
+    fn now_ms(&self) -> u64 {
         resources::now_ms()
     }
 }

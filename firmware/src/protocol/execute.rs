@@ -132,7 +132,7 @@ impl Executor {
         &mut self,
         id: &Identity,
         device: &mut D,
-        now_ms: u32,
+        now_ms: u64,
         command: Command,
     ) -> Answer {
         let p = &mut self.provenance;

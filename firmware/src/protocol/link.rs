@@ -61,8 +61,8 @@ pub struct DeviceStatus {
 pub trait DeviceLink {
     /// The flash driver's error, carried in [`StoreError::Flash`].
     type FlashError: core::fmt::Debug;
-    /// A millisecond tick (wrapping).
-    fn now_ms(&self) -> u32;
+    /// Milliseconds since boot, monotonic, 64 bits (never wraps).
+    fn now_ms(&self) -> u64;
     /// A snapshot of the readout's counters and dither, for `status`.
     fn status(&self) -> DeviceStatus;
     /// The settings the readout applies now.

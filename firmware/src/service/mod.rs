@@ -249,7 +249,7 @@ impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess + Secrets> DeviceLink
 {
     type FlashError = F::Error;
 
-    fn now_ms(&self) -> u32 {
+    fn now_ms(&self) -> u64 {
         self.ports.now_ms()
     }
 

@@ -19,10 +19,11 @@ use crate::protocol::link::KeyWriteError;
 use crate::readout::Readout;
 use crate::storage::ReadoutPaused;
 
-/// A millisecond tick.
+/// A millisecond clock.
 pub trait Clock {
-    /// Milliseconds since start (wrapping, as the protocol's timeouts expect).
-    fn now_ms(&self) -> u32;
+    /// Milliseconds since start: monotonic, 64 bits, never wraps (the protocol's unlock and
+    /// penalty deadlines compare plainly).
+    fn now_ms(&self) -> u64;
 }
 
 /// The serial transmitter.

@@ -20,7 +20,7 @@ const KEY: &str = "1234abcd1234abcd1234abcd1234abcd";
 
 struct TestPorts {
     readout: Readout,
-    now_ms: u32,
+    now_ms: u64,
     out: Vec<u8>,
     frame_room: bool,
     missed_below: u32,
@@ -56,7 +56,7 @@ impl Secrets for TestPorts {
 }
 
 impl Clock for TestPorts {
-    fn now_ms(&self) -> u32 {
+    fn now_ms(&self) -> u64 {
         self.now_ms
     }
 }

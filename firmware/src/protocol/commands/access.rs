@@ -41,12 +41,12 @@ impl AccessState {
     }
 
     /// Whether an unlock is in force at `now_ms` (an expired one is dropped).
-    pub fn is_unlocked(&mut self, now_ms: u32) -> bool {
+    pub fn is_unlocked(&mut self, now_ms: u64) -> bool {
         self.access.is_unlocked(now_ms)
     }
 
     /// A protected command succeeded: the unlock runs for another timeout from `now_ms`.
-    pub fn touch(&mut self, now_ms: u32) {
+    pub fn touch(&mut self, now_ms: u64) {
         self.access.touch(&self.config, now_ms);
     }
 
@@ -76,7 +76,7 @@ impl AccessState {
     }
 
     /// `unlock <key>`.
-    pub fn unlock(&mut self, id: &Identity, now_ms: u32, given: &Key) -> Answer {
+    pub fn unlock(&mut self, id: &Identity, now_ms: u64, given: &Key) -> Answer {
         let key = self.key(id).ok_or(ErrorCode::NoKey)?;
         match self.access.unlock(&self.config, now_ms, &key, given) {
             UnlockOutcome::Unlocked => Ok(ok_with(format_args!(
@@ -122,7 +122,7 @@ mod tests {
         let timeout_s = AccessConfig::DEFAULT.unlock_timeout_ms / 1000;
         assert_eq!(answer.trim_end(), format!("OK unlocked for_s={timeout_s}"));
         assert!(a.is_unlocked(1));
-        assert!(!a.is_unlocked(AccessConfig::DEFAULT.unlock_timeout_ms + 1));
+        assert!(!a.is_unlocked(AccessConfig::DEFAULT.unlock_timeout_ms as u64 + 1));
     }
 
     #[test]
@@ -156,7 +156,7 @@ mod tests {
     fn lock_ends_the_unlock_and_touch_extends_it() {
         let mut a = AccessState::new();
         a.unlock(&ID, 0, &key()).unwrap();
-        let timeout_ms = AccessConfig::DEFAULT.unlock_timeout_ms;
+        let timeout_ms = AccessConfig::DEFAULT.unlock_timeout_ms as u64;
         a.touch(timeout_ms - 1);
         assert!(a.is_unlocked(timeout_ms + 10));
         assert_eq!(text(a.lock()).trim_end(), "OK locked");

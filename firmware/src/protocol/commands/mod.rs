@@ -97,7 +97,7 @@ pub(crate) mod testing {
     /// Settings in force, staged settings, stored records; `fail_store` makes `store` fail.
     #[derive(Clone, Debug, Default, PartialEq)]
     pub struct MemDevice {
-        pub now_ms: u32,
+        pub now_ms: u64,
         pub status: DeviceStatus,
         pub settings: CompensationSettings,
         pub staged: u32,
@@ -110,7 +110,7 @@ pub(crate) mod testing {
 
     impl DeviceLink for MemDevice {
         type FlashError = ();
-        fn now_ms(&self) -> u32 {
+        fn now_ms(&self) -> u64 {
             self.now_ms
         }
         fn status(&self) -> DeviceStatus {
