@@ -18,7 +18,7 @@ use heapless::spsc::Consumer;
 
 use super::ports::BoardPorts;
 use super::resources::{self, init_core, start_dither, unmask_readout, SCHEDULER};
-use super::{adc, clocks, dither, encoder, flash, otp, pac, turnaround, usart, watchdog};
+use super::{adc, backup, clocks, dither, encoder, flash, otp, pac, turnaround, usart, watchdog};
 use crate::dither::DitherConfig;
 use crate::profile::BoardProfile;
 use crate::protocol::execute::Identity;
@@ -98,7 +98,8 @@ fn identity(profile: &BoardProfile) -> Identity {
 
 /// Boots the service on `flash` and creates the readout with the settings it loaded; returns
 /// the service, the main loop's end of the cycle-record queue and the dither drive's stored
-/// setpoints (for [`start_dither`]). The readout's interrupts are the caller's to unmask.
+/// setpoints (for [`start_dither`]). The wrong-key count comes back from backup RAM
+/// ([`backup`]). The readout's interrupts are the caller's to unmask.
 pub fn boot<F: NorFlash>(
     config: ServiceConfig,
     flash: F,
@@ -107,8 +108,16 @@ pub fn boot<F: NorFlash>(
     Consumer<'static, CycleRecord>,
     Option<DitherSetpoints>,
 ) {
-    let booted = Service::boot(config, flash, None)
+    let mut booted = Service::boot(config, flash, None)
         .unwrap_or_else(|e| defmt::panic!("calibration store geometry: {}", e));
+    // The wrong-key back-off goes on where it was before the reset.
+    let wrong_keys = backup::load_wrong_keys();
+    booted
+        .service
+        .restore_wrong_keys(wrong_keys, resources::now_ms());
+    if wrong_keys > 0 {
+        defmt::warn!("wrong keys before the reset: {}", wrong_keys);
+    }
     defmt::info!("calibration: {}", booted.report);
     let readout = Readout::new(&config.readout, booted.settings);
     let records = resources::init_readout(config.readout, readout);
@@ -127,8 +136,13 @@ pub fn run() -> ! {
     let watchdog = watchdog::Watchdog::start(dp.IWDG);
     clocks::enable(
         &dp.RCC,
-        clocks::AHB1_GPIOA | clocks::AHB1_GPIOB | clocks::AHB1_GPIOC | clocks::AHB1_DMA2,
-        clocks::APB1_TIM2
+        clocks::AHB1_GPIOA
+            | clocks::AHB1_GPIOB
+            | clocks::AHB1_GPIOC
+            | clocks::AHB1_DMA2
+            | clocks::AHB1_BKPSRAM,
+        clocks::APB1_PWR
+            | clocks::APB1_TIM2
             | clocks::APB1_TIM3
             | clocks::APB1_TIM4
             | clocks::APB1_TIM5
@@ -136,6 +150,7 @@ pub fn run() -> ! {
         clocks::APB2_USART1 | clocks::APB2_ADC1 | clocks::APB2_ADC2 | clocks::APB2_ADC3,
     );
     defmt::info!("clocks: 168 MHz from {}", source);
+    backup::init(&dp.PWR);
     init_core(&mut cp.SCB, &mut cp.NVIC, &mut cp.SYST);
     let serial = usart::init(dp.USART1);
     let config = ServiceConfig::for_profile(

@@ -18,6 +18,7 @@
 //! | [`usart`] | USART1 | the calibration protocol's serial link (RXNE/TXE interrupts, bounded queues) |
 //! | [`flash`] | FLASH | sectors 10-11 as an `embedded_storage` `NorFlash`; OTP programming |
 //! | [`otp`] | OTP block 0 | serial number and the 128-bit key (`key provision`) |
+//! | [`backup`] | PWR, backup SRAM | the wrong-key count across resets |
 //! | [`watchdog`] | IWDG | reset if the main loop stops |
 //!
 //! and the contexts around them, in three files that import one way (`app` -> `ports` ->
@@ -40,6 +41,7 @@
 
 pub mod adc;
 pub mod app;
+pub mod backup;
 pub mod clocks;
 pub mod dither;
 pub mod encoder;

@@ -107,6 +107,11 @@ impl Secrets for BoardPorts {
         self.refresh_watchdog();
         result
     }
+
+    /// Backup SRAM ([`super::backup`]).
+    fn save_wrong_keys(&mut self, count: u32) {
+        super::backup::save_wrong_keys(count);
+    }
 }
 
 impl DitherAccess for BoardPorts {

@@ -10,6 +10,9 @@
 //!   serial line takes geological time. A correct key resets the count. A wrong key also locks
 //!   a board that was unlocked: whoever types it is not to be trusted with the open session.
 //! - Reads never need an unlock.
+//! - The wrong-key count survives a reset: the service saves it whenever it changes (backup
+//!   RAM on the board) and restores it at boot ([`Access::restored`]), which restarts the
+//!   penalty of that count; resetting the board is no way around the back-off.
 //!
 //! The key itself ([`super::key::Key`], 128 bits) is compared in constant time.
 //!
@@ -108,6 +111,29 @@ impl Access {
         self.wrong_keys
     }
 
+    /// The state after a reset that kept `wrong_keys` (backup RAM, `service::ports::Secrets`):
+    /// locked, the count as it was, and, past the free attempts, the penalty of that count
+    /// started afresh at `now_ms` (the time left before the reset is unknown; a full penalty
+    /// is the safe side). So a reset never shortens a penalty, and repeated resets extend it.
+    pub fn restored(config: &AccessConfig, wrong_keys: u32, now_ms: u64) -> Self {
+        let mut access = Self::new();
+        access.wrong_keys = wrong_keys;
+        access.start_penalty(config, now_ms);
+        access
+    }
+
+    /// Starts the penalty the wrong-key count calls for (none within the free attempts).
+    fn start_penalty(&mut self, config: &AccessConfig, now_ms: u64) {
+        if self.wrong_keys > config.free_attempts as u32 {
+            let doublings = (self.wrong_keys - config.free_attempts as u32 - 1).min(31);
+            let penalty = config
+                .base_penalty_ms
+                .saturating_mul(1u32 << doublings)
+                .min(config.max_penalty_ms);
+            self.blocked_until_ms = Some(now_ms.saturating_add(penalty as u64));
+        }
+    }
+
     /// An unlock attempt with `given` against the device's `key`.
     pub fn unlock(
         &mut self,
@@ -131,14 +157,7 @@ impl Access {
         }
         self.lock();
         self.wrong_keys = self.wrong_keys.saturating_add(1);
-        if self.wrong_keys > config.free_attempts as u32 {
-            let doublings = (self.wrong_keys - config.free_attempts as u32 - 1).min(31);
-            let penalty = config
-                .base_penalty_ms
-                .saturating_mul(1u32 << doublings)
-                .min(config.max_penalty_ms);
-            self.blocked_until_ms = Some(now_ms.saturating_add(penalty as u64));
-        }
+        self.start_penalty(config, now_ms);
         UnlockOutcome::WrongKey
     }
 }

@@ -75,6 +75,16 @@ impl Executor {
         }
     }
 
+    /// After a reset: the wrong-key count the platform kept, its penalty restarted at `now_ms`.
+    pub fn restore_wrong_keys(&mut self, wrong_keys: u32, now_ms: u64) {
+        self.access.restore_wrong_keys(wrong_keys, now_ms);
+    }
+
+    /// Wrong keys since the last correct one.
+    pub fn wrong_keys(&self) -> u32 {
+        self.access.wrong_keys()
+    }
+
     /// Whether online tracking runs.
     pub fn tracking(&self) -> bool {
         self.calibration.tracking()

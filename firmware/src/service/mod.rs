@@ -106,6 +106,8 @@ pub struct Service<F: NorFlash> {
     averager: RateAverager,
     status: DeviceStatus,
     frames_dropped: u32,
+    /// The wrong-key count last handed to [`Secrets::save_wrong_keys`].
+    saved_wrong_keys: u32,
 }
 
 impl<F: NorFlash> Service<F> {
@@ -126,6 +128,7 @@ impl<F: NorFlash> Service<F> {
             averager: RateAverager::new(),
             status: DeviceStatus::default(),
             frames_dropped: 0,
+            saved_wrong_keys: 0,
             config,
             flash,
             store,
@@ -136,6 +139,13 @@ impl<F: NorFlash> Service<F> {
             dither: record.dither,
             report,
         })
+    }
+
+    /// Right after boot: the wrong-key count the platform kept across the reset (0 when its
+    /// memory was lost); past the free attempts, the penalty restarts at `now_ms`.
+    pub fn restore_wrong_keys(&mut self, wrong_keys: u32, now_ms: u64) {
+        self.executor.restore_wrong_keys(wrong_keys, now_ms);
+        self.saved_wrong_keys = wrong_keys;
     }
 
     /// One received byte; a completed line is executed and answered through `ports`.
@@ -173,6 +183,12 @@ impl<F: NorFlash> Service<F> {
             &self.config.identity,
             &mut device,
         );
+        // Kept before the answer goes out: a reset right after a wrong key still counts it.
+        let wrong_keys = self.executor.wrong_keys();
+        if wrong_keys != self.saved_wrong_keys {
+            ports.save_wrong_keys(wrong_keys);
+            self.saved_wrong_keys = wrong_keys;
+        }
         endpoint::send_answer(streaming, &answer, |bytes| ports.send(bytes));
     }
 

@@ -59,10 +59,16 @@ pub trait DitherAccess {
     fn with_dither<R>(&mut self, f: impl FnOnce(&mut DitherController, &DitherConfig) -> R) -> R;
 }
 
-/// The board's security memory: the one-time-programmable key (`key provision`).
+/// The board's security memory: the one-time-programmable key (`key provision`) and the
+/// wrong-key count that must survive a reset.
 pub trait Secrets {
     /// Writes `key` to OTP and locks the block; `Err` leaves the board unprovisioned.
     fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError>;
+    /// Keeps the wrong-key count across resets (backup RAM on the board: no wear). Called only
+    /// when the count changed, so at most once per `unlock` attempt, and attempts are
+    /// throttled by the penalty. The platform reads it back at boot for
+    /// `Service::restore_wrong_keys`.
+    fn save_wrong_keys(&mut self, count: u32);
 }
 
 /// The readout stopped for as long as this guard lives (see the module docs).

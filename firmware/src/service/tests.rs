@@ -27,6 +27,9 @@ struct TestPorts {
     /// 's' stop, 'r' restart, 'w' a byte of flash traffic seen while stopped.
     log: StdString,
     drive: MemDrive,
+    /// The board's backup RAM: the wrong-key count, and how often it was written.
+    backup_wrong_keys: u32,
+    backup_writes: u32,
 }
 
 impl TestPorts {
@@ -39,6 +42,8 @@ impl TestPorts {
             missed_below: 0,
             log: StdString::new(),
             drive: MemDrive::default(),
+            backup_wrong_keys: 0,
+            backup_writes: 0,
         }
     }
 }
@@ -52,6 +57,10 @@ impl DitherAccess for TestPorts {
 impl Secrets for TestPorts {
     fn program_key(&mut self, _key: &Key) -> Result<(), KeyWriteError> {
         Err(KeyWriteError::NotBlank)
+    }
+    fn save_wrong_keys(&mut self, count: u32) {
+        self.backup_wrong_keys = count;
+        self.backup_writes += 1;
     }
 }
 
@@ -292,4 +301,34 @@ fn the_intercept_hook_sees_lines_first() {
     let mut p = TestPorts::new(Readout::new(&c.readout, booted.settings));
     assert_eq!(ask(&mut s, &mut p, "quit"), "");
     assert!(ask(&mut s, &mut p, "id").starts_with("OK "));
+}
+
+/// The wrong-key count survives a reset: 5 wrong keys (a 2 s penalty running), a reset, and
+/// the right key is still refused until the penalty, restarted at boot, has passed. The count
+/// is written only when it changes.
+#[test]
+fn a_reset_does_not_clear_the_wrong_key_penalty() {
+    let (mut s, mut p) = boot(Flash::new());
+    for i in 0..5 {
+        let answer = ask(&mut s, &mut p, &format!("unlock {}", "12".repeat(16)));
+        assert!(answer.starts_with("ERR 15 "), "{i}: {answer}");
+        p.now_ms += 3_000;
+    }
+    assert_eq!((p.backup_wrong_keys, p.backup_writes), (5, 5));
+    assert!(ask(&mut s, &mut p, "status").contains("locked=yes"));
+    assert_eq!(p.backup_writes, 5, "reads write nothing");
+    // Reset: a new service on the same flash, the clock from 0, the backup RAM kept.
+    let backup = p.backup_wrong_keys;
+    let (mut s, mut p) = boot(s.into_flash());
+    s.restore_wrong_keys(backup, 0);
+    p.now_ms = 1_000;
+    let answer = ask(&mut s, &mut p, &format!("unlock {KEY}"));
+    assert!(answer.starts_with("ERR 14 "), "{answer}");
+    p.now_ms = 2_000; // the 5th wrong key's penalty: 2 s, restarted at boot
+    assert!(ask(&mut s, &mut p, &format!("unlock {KEY}")).starts_with("OK unlocked"));
+    assert_eq!(
+        (p.backup_wrong_keys, p.backup_writes),
+        (0, 1),
+        "the right key resets it"
+    );
 }

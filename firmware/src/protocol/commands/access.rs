@@ -40,6 +40,17 @@ impl AccessState {
         }
     }
 
+    /// After a reset: the wrong-key count kept in backup RAM, its penalty restarted at
+    /// `now_ms` ([`Access::restored`]).
+    pub fn restore_wrong_keys(&mut self, wrong_keys: u32, now_ms: u64) {
+        self.access = Access::restored(&self.config, wrong_keys, now_ms);
+    }
+
+    /// Wrong keys since the last correct one (what the service keeps across resets).
+    pub fn wrong_keys(&self) -> u32 {
+        self.access.wrong_keys()
+    }
+
     /// Whether an unlock is in force at `now_ms` (an expired one is dropped).
     pub fn is_unlocked(&mut self, now_ms: u64) -> bool {
         self.access.is_unlocked(now_ms)
