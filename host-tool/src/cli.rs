@@ -36,7 +36,7 @@ pub struct Cli {
     #[command(flatten)]
     pub connection: ConnectionArgs,
     /// Unlock key (32 hex digits) sent before protected commands (set, comp, track, store, reload,
-    /// defaults, calibrate --accept).
+    /// defaults, calibrate).
     #[arg(long, value_name = "KEY")]
     pub key: Option<String>,
     /// How long to wait for an answer, ms.

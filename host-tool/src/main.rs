@@ -168,9 +168,8 @@ impl Device<'_> {
     }
 
     fn calibrate(&mut self, args: &CalibrateArgs) -> Result<(), Failure> {
-        if args.accept {
-            self.unlocked()?;
-        }
+        // `cal start` takes the board's time: protected like the rest.
+        self.unlocked()?;
         let options = CalibrateOptions {
             poll: Duration::from_millis(args.poll_ms.max(10)),
             ..CalibrateOptions::new(args.cycles, args.warmup)

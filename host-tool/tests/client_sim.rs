@@ -185,7 +185,9 @@ impl Link for AbortingLink {
 
 #[test]
 fn a_run_aborted_meanwhile_is_a_failed_run() {
-    let c = board(13.888, CalibrationFlash::default(), 0);
+    let mut c = board(13.888, CalibrationFlash::default(), 0);
+    // The unlocked user (this session) aborts: the only way a run ends early.
+    ops::unlock(&mut c, &sim::key_hex(&sim::test_key())).unwrap();
     let mut c = Client::new(AbortingLink {
         inner: c.into_link(),
         pauses: 0,

@@ -14,6 +14,9 @@
 //! - everything that changes coefficients, compensation, the dither drive or flash (`set`,
 //!   `comp`, `track`, `cal accept`, `store`, `reload`, `defaults`, `dither on|off|amp|noise`)
 //!   needs one, and extends it when it succeeds;
+//! - so do the calibration commands that take the board's time or discard work: `cal start`,
+//!   `cal abort`, and `cal result` while it would close pooled runs; so a locked client can
+//!   neither start an hour-long run nor end someone else's;
 //! - while a calibration run collects cycles, those commands answer `ERR 10` (busy): the run's
 //!   data would no longer match the coefficients;
 //! - `cal start` answers `ERR 11` while the dither drive is not locked (its cycles would all be
@@ -122,19 +125,30 @@ impl Executor {
         command: Command,
     ) -> Response {
         let now_ms = device.now_ms();
-        if protected(&command) {
-            if !self.access.is_unlocked(now_ms) {
-                return Response::err(ErrorCode::Locked);
-            }
-            if self.calibration.running() {
-                return Response::err(ErrorCode::Busy);
-            }
+        let needs_unlock = protected(&command) || self.takes_time_or_work(&command);
+        if needs_unlock && !self.access.is_unlocked(now_ms) {
+            return Response::err(ErrorCode::Locked);
+        }
+        if protected(&command) && self.calibration.running() {
+            return Response::err(ErrorCode::Busy);
         }
         let answer = self.dispatch(id, device, now_ms, command);
-        if protected(&command) && answer.is_ok() {
+        if needs_unlock && answer.is_ok() {
             self.access.touch(now_ms);
         }
         answer.unwrap_or_else(Response::err)
+    }
+
+    /// Calibration commands that take the board's time or discard work: `cal start` (a run of
+    /// up to an hour, and it discards a finished fit), `cal abort` (drops the runs), and `cal
+    /// result` while it would close the pooled runs (solving ends pooling; reading a solved
+    /// result is a read).
+    fn takes_time_or_work(&self, command: &Command) -> bool {
+        match command {
+            Command::CalStart { .. } | Command::CalAbort => true,
+            Command::CalResult => self.calibration.run_done(),
+            _ => false,
+        }
     }
 
     /// One command to its group.
@@ -240,11 +254,13 @@ mod tests {
         let mut e = Executor::new(&loaded, None, 1, AcceptanceLimits::DEFAULT);
         let mut d = MemDevice::default();
         d.drive.controller.disable();
+        assert!(run(&mut e, &mut d, &unlock_line()).starts_with("OK"));
         assert!(run(&mut e, &mut d, "cal start 100").starts_with("ERR 11 "));
         assert!(run(&mut e, &mut d, "cal status").starts_with("OK cal=idle"));
         d.drive.controller.enable();
         assert!(run(&mut e, &mut d, "cal start 100").starts_with("OK cal=running"));
         run(&mut e, &mut d, "cal abort");
+        run(&mut e, &mut d, "lock");
         for line in [
             "dither on",
             "dither off",
@@ -256,5 +272,50 @@ mod tests {
         assert!(run(&mut e, &mut d, "dither status").starts_with("OK state="));
         assert!(run(&mut e, &mut d, &unlock_line()).starts_with("OK"));
         assert!(run(&mut e, &mut d, "dither amp 400").starts_with("OK dither=on amp_arcsec=400"));
+    }
+
+    /// A locked client can neither start a run (hours of the board's time), nor abort one, nor
+    /// close pooled runs with `cal result`; reading a solved result stays free, and the run
+    /// goes on untouched by the refusals.
+    #[test]
+    fn calibration_commands_that_take_time_or_discard_work_need_the_unlock() {
+        use crate::protocol::commands::calibration::tests::cycle;
+        let loaded = report(LoadOutcome::Defaults {
+            reason: DefaultsReason::Erased,
+        });
+        let mut e = Executor::new(&loaded, None, 1, AcceptanceLimits::DEFAULT);
+        let mut d = MemDevice::default();
+        assert!(run(&mut e, &mut d, "cal start 3000").starts_with("ERR 9 "));
+        assert_eq!(run(&mut e, &mut d, "cal status"), "OK cal=idle");
+        assert!(run(&mut e, &mut d, &unlock_line()).starts_with("OK"));
+        assert!(run(&mut e, &mut d, "cal start 3000").starts_with("OK cal=running"));
+        run(&mut e, &mut d, "lock");
+        assert!(run(&mut e, &mut d, "cal abort").starts_with("ERR 9 "));
+        assert!(run(&mut e, &mut d, "cal status").starts_with("OK cal=running"));
+        for i in 0..3000 {
+            e.on_cycle(
+                &cycle(i, core::f64::consts::TAU * 13.888 / 1.8655),
+                1.0 / 389.0,
+            );
+        }
+        assert_eq!(
+            run(&mut e, &mut d, "cal status"),
+            "OK cal=run_done cycles=3000"
+        );
+        assert!(run(&mut e, &mut d, "cal result").starts_with("ERR 9 "));
+        assert!(run(&mut e, &mut d, "cal start 3000").starts_with("ERR 9 "));
+        assert_eq!(
+            run(&mut e, &mut d, "cal status"),
+            "OK cal=run_done cycles=3000"
+        );
+        assert!(run(&mut e, &mut d, &unlock_line()).starts_with("OK"));
+        let solved = run(&mut e, &mut d, "cal result");
+        assert!(solved.starts_with("OK a="), "{solved}");
+        run(&mut e, &mut d, "lock");
+        assert_eq!(
+            run(&mut e, &mut d, "cal result"),
+            solved,
+            "a solved fit is a read"
+        );
     }
 }
