@@ -199,6 +199,14 @@ impl SimDevice {
         }
     }
 
+    /// A new client on the serial link (a served board's new connection): the firmware's
+    /// session starts afresh (locked, no stream, empty line buffer) and output not yet taken
+    /// is dropped, as it was meant for the previous client.
+    pub fn new_session(&mut self) {
+        self.service.new_session();
+        self.output.clear();
+    }
+
     /// Everything sent to the host since the last call.
     pub fn take_output(&mut self) -> Vec<u8> {
         std::mem::take(&mut self.output)

@@ -83,6 +83,14 @@ impl Executor {
         self.access.restore_wrong_keys(wrong_keys, now_ms);
     }
 
+    /// A new client on the link (a new TCP connection to a served board): locked, streaming
+    /// off, so nothing of the previous client's session carries over. The calibration, the
+    /// coefficients and the wrong-key count are the board's, not the session's: they stay.
+    pub fn new_session(&mut self) {
+        self.access.lock();
+        let _ = self.stream.command(None);
+    }
+
     /// Wrong keys since the last correct one.
     pub fn wrong_keys(&self) -> u32 {
         self.access.wrong_keys()

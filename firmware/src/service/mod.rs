@@ -148,6 +148,13 @@ impl<F: NorFlash> Service<F> {
         self.saved_wrong_keys = wrong_keys;
     }
 
+    /// A new client on the link (the simulated board served over TCP: a new connection):
+    /// locked, no stream, an empty line buffer ([`Executor::new_session`]).
+    pub fn new_session(&mut self) {
+        self.executor.new_session();
+        self.line = LineAssembler::new();
+    }
+
     /// One received byte; a completed line is executed and answered through `ports`.
     pub fn on_byte<P: Clock + SerialTx + ReadoutAccess + DitherAccess + Secrets>(
         &mut self,
