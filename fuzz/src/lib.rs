@@ -69,7 +69,7 @@ pub const IDENTITY: Identity = Identity {
 };
 
 /// Every error code, for checking `ERR <n> <text>`.
-const CODES: [ErrorCode; 16] = ErrorCode::ALL;
+const CODES: [ErrorCode; 17] = ErrorCode::ALL;
 
 /// The in-memory device: settings staged and applied at the next cycle, a flash log, and the
 /// firmware's own dither controller (the F405 profile's settings; no ticks, so its state stays

@@ -19,6 +19,8 @@
 //!   neither start an hour-long run nor end someone else's;
 //! - while a calibration run collects cycles, those commands answer `ERR 10` (busy): the run's
 //!   data would no longer match the coefficients;
+//! - while online tracking runs, `set`, `comp`, `defaults`, `cal accept` and `reload` answer
+//!   `ERR 17`: the loop owns the coefficients and would overwrite theirs within a second;
 //! - `cal start` answers `ERR 11` while the dither drive is not locked (its cycles would all be
 //!   flagged invalid);
 //! - a refused command changes nothing, with one deliberate exception: `cal result` on a
@@ -140,6 +142,9 @@ impl Executor {
         if protected(&command) && self.calibration.running() {
             return Response::err(ErrorCode::Busy);
         }
+        if self.calibration.tracking() && overridden_by_tracking(&command) {
+            return Response::err(ErrorCode::Tracking);
+        }
         let answer = self.dispatch(id, device, now_ms, command);
         if needs_unlock && answer.is_ok() {
             self.access.touch(now_ms);
@@ -209,6 +214,20 @@ impl Executor {
             Command::Dither(command) => dither::command(device, id, command),
         }
     }
+}
+
+/// Commands whose coefficients or compensation switch the tracking loop would overwrite at its
+/// next update (it stages its own estimate, compensation on, about once a second): refused
+/// while tracking runs, so that no `OK` is silently undone.
+fn overridden_by_tracking(command: &Command) -> bool {
+    matches!(
+        command,
+        Command::Set(..)
+            | Command::Compensation(_)
+            | Command::Defaults
+            | Command::CalAccept
+            | Command::Reload
+    )
 }
 
 /// Commands that change coefficients, compensation, the dither drive or flash.
@@ -325,5 +344,35 @@ mod tests {
             solved,
             "a solved fit is a read"
         );
+    }
+
+    /// With tracking on, the commands whose effect the loop would undo at its next update are
+    /// refused with the reason (ERR 17) and change nothing; after `track off` they work again.
+    #[test]
+    fn tracking_refuses_what_it_would_undo() {
+        use crate::protocol::commands::calibration::tests::cycle;
+        let loaded = report(LoadOutcome::Defaults {
+            reason: DefaultsReason::Erased,
+        });
+        let mut e = Executor::new(&loaded, None, 1, AcceptanceLimits::DEFAULT);
+        let mut d = MemDevice::default();
+        run(&mut e, &mut d, &unlock_line());
+        assert!(run(&mut e, &mut d, "track on").starts_with("OK track=on"));
+        let before = d.clone();
+        for line in ["set a 5", "comp off", "defaults", "cal accept", "reload"] {
+            let answer = run(&mut e, &mut d, line);
+            assert!(answer.starts_with("ERR 17 tracking on"), "{line}: {answer}");
+        }
+        assert_eq!(d, before, "refusals change nothing");
+        // What an OK would have meant: the loop stages its own coefficients, compensation on,
+        // over a hand-set value within a few hundred cycles.
+        let rate = core::f64::consts::TAU * 13.888 / 1.8655;
+        let staged = (0..2000).find_map(|i| e.on_cycle(&cycle(i, rate), 1.0 / 389.0).stage);
+        assert!(
+            staged.is_some_and(|s| s.enabled),
+            "the loop overwrites the settings"
+        );
+        assert!(run(&mut e, &mut d, "track off").starts_with("OK track=off"));
+        assert_eq!(run(&mut e, &mut d, "set a 5"), "OK a=5");
     }
 }

@@ -58,11 +58,14 @@ pub enum ErrorCode {
     WrongKey = 15,
     /// `unlock` on a board whose key was never provisioned (`key provision`, production).
     NoKey = 16,
+    /// Online tracking owns the coefficients: a hand change would be undone within a second
+    /// (`track off` first).
+    Tracking = 17,
 }
 
 impl ErrorCode {
     /// Every code, in numeric order (for hosts that parse answers).
-    pub const ALL: [ErrorCode; 16] = [
+    pub const ALL: [ErrorCode; 17] = [
         Self::UnknownCommand,
         Self::Syntax,
         Self::BadNumber,
@@ -79,6 +82,7 @@ impl ErrorCode {
         Self::RateLimited,
         Self::WrongKey,
         Self::NoKey,
+        Self::Tracking,
     ];
 
     /// The number after `ERR`.
@@ -105,6 +109,7 @@ impl ErrorCode {
             Self::RateLimited => "too many attempts, wait",
             Self::WrongKey => "wrong key",
             Self::NoKey => "no key provisioned",
+            Self::Tracking => "tracking on (track off first)",
         }
     }
 }
