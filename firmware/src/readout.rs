@@ -177,14 +177,16 @@ impl Readout {
         Some(record)
     }
 
-    /// Starts counting afresh after the readout was paused (a flash store stalls the CPU for up
-    /// to 2 s: turnarounds were missed and the encoder moved by an unknown amount). The count
-    /// reference, the quadrant offset and the open cycle are dropped; the Lissajous coefficients,
-    /// the compensation settings and the counters are kept. The first cycle after it is flagged.
+    /// Picks up again after the readout was paused (a flash store stalls the CPU for up to
+    /// 2 s: turnarounds were missed while the encoder counted on in hardware). The count runs
+    /// on through the pause (one large step is accepted, `FringeCounter::expect_jump`), and the
+    /// first cycle after it spans the gap from the last closed cycle's end, flagged
+    /// `TURNAROUND_MISSED` (`CycleAssembler::gap`): the angle turned meanwhile is carried into
+    /// the output, not dropped. The Lissajous coefficients, the count-to-phase alignment, the
+    /// compensation settings and the counters are kept.
     pub fn resynchronise(&mut self) {
-        self.counter = FringeCounter::new();
-        self.resolver.realign();
-        self.cycles = CycleAssembler::new();
+        self.counter.expect_jump();
+        self.cycles.gap();
     }
 
     /// Stages compensation settings; they apply whole from the next cycle boundary.

@@ -374,3 +374,33 @@ fn every_protected_command_needs_the_unlock() {
     assert_eq!(ask(&mut dev, "get coeffs"), before);
     assert_eq!(field(&ask(&mut dev, "status"), "coeffs"), "defaults:erased");
 }
+
+/// The rotation during a `store`'s flash stall is not lost: the encoder counts on, and the
+/// first cycle after the stall carries the whole angle since the last cycle before it (flagged
+/// `TURNAROUND_MISSED`). So the streamed increments add up to the total phase the board
+/// reports (exactly: both are the same Q32 count), and the durations to the time elapsed
+/// (to one capture-timer tick per frame).
+#[test]
+fn the_angle_turned_during_a_store_stall_is_carried_into_the_stream() {
+    let mut dev = boot(CalibrationFlash::default(), 13.888, 0);
+    assert!(ask(&mut dev, &format!("unlock {KEY}")).starts_with("OK unlocked"));
+    dev.receive(b"stream on 1\n");
+    dev.run_for(0.5);
+    dev.receive(b"store\n");
+    dev.run_for(2.5);
+    let bytes = dev.take_output();
+    let frames: Vec<_> = bytes
+        .split(|&b| b == 0)
+        .filter_map(|c| decode_frame(c).ok())
+        .collect();
+    assert!(frames.len() > 700, "{} frames", frames.len());
+    let bridged = frames.iter().filter(|f| f.flags & 4 != 0).count();
+    assert!(bridged >= 1, "the cycle across the stall is flagged");
+    let summed: i64 = frames[1..].iter().map(|f| f.raw_increment_q32).sum();
+    let spanned = frames.last().unwrap().end_phase_q32 - frames[0].end_phase_q32;
+    let lost_fringes = (spanned - summed) as f64 / 2f64.powi(32);
+    assert!(
+        lost_fringes.abs() < 1e-6,
+        "{lost_fringes:.3} fringes turned during the stall are missing from the stream"
+    );
+}
