@@ -194,12 +194,20 @@ pub fn serve<F: NorFlash>(
     let mut health = Health::default();
     let mut health_logged_ms = resources::now_ms();
     let mut dither_state = None;
+    let mut records_dropped = 0;
     loop {
         ports.refresh_watchdog();
         let mut busy = false;
         while let Some(byte) = ports.serial.read_byte() {
             service.on_byte(byte, &mut ports);
             busy = true;
+        }
+        // Records the readout task could not queue (the queue was full): counted and shown
+        // as a stream gap before the records after them.
+        let dropped = resources::RECORDS_DROPPED.load(core::sync::atomic::Ordering::Relaxed);
+        if dropped != records_dropped {
+            service.on_cycles_lost(dropped.wrapping_sub(records_dropped));
+            records_dropped = dropped;
         }
         while let Some(record) = records.dequeue() {
             service.on_cycle(&record, &mut ports);

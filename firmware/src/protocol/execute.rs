@@ -93,6 +93,12 @@ impl Executor {
         let _ = self.stream.command(None);
     }
 
+    /// `n` closed cycles were lost before they reached the executor (a full record queue): the
+    /// stream leaves a sequence gap for the frames they were due.
+    pub fn on_cycles_lost(&mut self, n: u32) {
+        self.stream.skip(n);
+    }
+
     /// Wrong keys since the last correct one.
     pub fn wrong_keys(&self) -> u32 {
         self.access.wrong_keys()

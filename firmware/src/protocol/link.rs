@@ -55,6 +55,8 @@ pub struct DeviceStatus {
     pub missed_turnarounds: u32,
     /// Latest averaged output rate, deg/h.
     pub rate_deg_per_h: f32,
+    /// Closed cycles lost before the service saw them (a full record queue; saturating).
+    pub cycles_dropped: u32,
 }
 
 /// What the protocol needs from the rest of the firmware.

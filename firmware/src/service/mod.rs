@@ -199,6 +199,14 @@ impl<F: NorFlash> Service<F> {
         endpoint::send_answer(streaming, &answer, |bytes| ports.send(bytes));
     }
 
+    /// `n` closed cycles were lost on the way to the service (the board's record queue was
+    /// full): counted (`status`: `dropped=`), and the stream leaves a sequence gap for the
+    /// frames they were due, so no loss is silent.
+    pub fn on_cycles_lost(&mut self, n: u32) {
+        self.status.cycles_dropped = self.status.cycles_dropped.saturating_add(n);
+        self.executor.on_cycles_lost(n);
+    }
+
     /// One dither cycle the readout closed.
     pub fn on_cycle<P: SerialTx + ReadoutAccess>(&mut self, record: &CycleRecord, ports: &mut P) {
         let reading = self.averager.push(&self.config.rate_output, record.output);

@@ -332,3 +332,30 @@ fn a_reset_does_not_clear_the_wrong_key_penalty() {
         "the right key resets it"
     );
 }
+
+/// Cycles the board's record queue dropped are counted in `status` and show in the stream as
+/// a sequence gap of exactly the frames they were due.
+#[test]
+fn cycles_lost_before_the_service_show_as_a_gap_and_a_count() {
+    let (mut s, mut p) = boot(Flash::new());
+    ask(&mut s, &mut p, "stream on 1");
+    let mut sequences = Vec::new();
+    for i in 0..10 {
+        if i == 5 {
+            s.on_cycles_lost(3);
+        }
+        p.out.clear();
+        s.on_cycle(&record(CycleFlags::empty()), &mut p);
+        let frame = p.out.split(|&b| b == 0).find(|c| !c.is_empty()).unwrap();
+        sequences.push(
+            crate::protocol::stream::decode_frame(frame)
+                .unwrap()
+                .sequence,
+        );
+    }
+    let gaps: Vec<u32> = sequences.windows(2).map(|w| w[1] - w[0] - 1).collect();
+    assert_eq!(gaps, [0, 0, 0, 0, 3, 0, 0, 0, 0]);
+    ask(&mut s, &mut p, "stream off");
+    let status = ask(&mut s, &mut p, "status");
+    assert!(status.contains(" dropped=3 "), "{status}");
+}

@@ -55,8 +55,8 @@ pub fn status<D: DeviceLink>(id: &Identity, device: &mut D, flags: StatusFlags) 
     let drive = super::dither::state_word(device.dither_status().state);
     ok_with(format_args!(
         "signal={} drive={} dither_hz={:.3} dither_amp_arcsec={:.2} rate_deg_h={:.4} turnarounds={} \
-cycles={} counter_glitches={} phase_glitches={} signal_lost={} missed={} comp={} track={} coeffs={} \
-locked={} key={}",
+cycles={} counter_glitches={} phase_glitches={} signal_lost={} missed={} dropped={} comp={} track={} \
+coeffs={} locked={} key={}",
         if s.signal_ok { "ok" } else { "lost" },
         drive,
         s.dither_hz,
@@ -68,6 +68,7 @@ locked={} key={}",
         s.phase_glitches,
         s.signal_lost,
         s.missed_turnarounds,
+        s.cycles_dropped,
         if settings.enabled { "on" } else { "off" },
         if flags.tracking { "on" } else { "off" },
         SourceText(flags.source),
@@ -146,6 +147,7 @@ mod tests {
                 signal_lost: 3,
                 missed_turnarounds: 4,
                 rate_deg_per_h: 15.0,
+                cycles_dropped: 6,
             },
             ..MemDevice::default()
         };
@@ -158,8 +160,8 @@ mod tests {
         assert_eq!(
             text(status(&ID, &mut device, flags)).trim_end(),
             "OK signal=ok drive=locked dither_hz=389.000 dither_amp_arcsec=200.00 rate_deg_h=15.0000 \
-turnarounds=10 cycles=5 counter_glitches=1 phase_glitches=2 signal_lost=3 missed=4 comp=off \
-track=on coeffs=flash:3 locked=yes key=unprovisioned"
+turnarounds=10 cycles=5 counter_glitches=1 phase_glitches=2 signal_lost=3 missed=4 dropped=6 \
+comp=off track=on coeffs=flash:3 locked=yes key=unprovisioned"
         );
     }
 

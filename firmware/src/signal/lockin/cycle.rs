@@ -480,7 +480,10 @@ mod tests {
             periods += d;
         }
         let bridged = flagged[0].output.duration_ticks as f64 / TIMER_HZ as f64 * DITHER_HZ;
-        assert!(bridged.round() >= 2.0, "the flagged cycle spans the gap: {bridged}");
+        assert!(
+            bridged.round() >= 2.0,
+            "the flagged cycle spans the gap: {bridged}"
+        );
         assert!((periods - (cycles.len() as f64 + bridged - 1.0)).abs() < 1e-3);
     }
 
