@@ -314,12 +314,22 @@ impl CalibrationStore {
     }
 
     /// Room without erasing: first in the sector written last, else in the other one.
+    ///
+    /// An empty sector beside a used one is never appended to: in this log a sector becomes
+    /// empty only by an erase that no record followed, i.e. one cut by a power loss, possibly
+    /// at its very end, where the cells read 0xFF but are only weakly erased (a record
+    /// programmed there may not keep). Reading cannot tell, so such a sector is erased again
+    /// (`store_while_paused` erases what this refuses). The price: one extra erase when the log
+    /// first moves into the factory-blank second sector. On a blank flash (both sectors empty)
+    /// the first sector is used as it is.
     fn append_position(&self, scan: &Scan) -> Option<(usize, u32)> {
         let first = scan.head().unwrap_or(0);
+        let other_used = |sector: usize| scan.0[1 - sector].used_bytes > 0;
         [first, 1 - first].into_iter().find_map(|sector| {
             let used = scan.0[sector].used_bytes;
             let fits = used as usize + RECORD_BYTES <= self.geometry.sector_bytes as usize;
-            fits.then_some((sector, used))
+            let suspect = used == 0 && other_used(sector);
+            (fits && !suspect).then_some((sector, used))
         })
     }
 
