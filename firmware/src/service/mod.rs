@@ -120,7 +120,7 @@ impl<F: NorFlash> Service<F> {
         boot_count: Option<u32>,
     ) -> Result<Booted<F>, GeometryError> {
         let store = CalibrationStore::new(&flash, config.geometry)?;
-        let (record, report) = store.load(&mut flash);
+        let (record, report) = store.load_for_serial(&mut flash, config.identity.serial_number);
         let boots = boot_count.unwrap_or(record.boot_count.wrapping_add(1));
         let service = Self {
             executor: Executor::new(&report, record.fit, boots, AcceptanceLimits::DEFAULT),
@@ -181,6 +181,7 @@ impl<F: NorFlash> Service<F> {
         let mut device = ServiceDevice {
             flash: &mut self.flash,
             store: &self.store,
+            serial_number: self.config.identity.serial_number,
             status: self.status,
             ports,
         };
@@ -271,6 +272,8 @@ impl<F: NorFlash> Service<F> {
 struct ServiceDevice<'a, F, P> {
     flash: &'a mut F,
     store: &'a CalibrationStore,
+    /// This board's gyro: records of another are not loaded.
+    serial_number: u32,
     status: DeviceStatus,
     ports: &'a mut P,
 }
@@ -306,7 +309,7 @@ impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess + Secrets> DeviceLink
     }
 
     fn load(&mut self) -> (CalibrationRecord, LoadReport) {
-        self.store.load(self.flash)
+        self.store.load_for_serial(self.flash, self.serial_number)
     }
 
     fn dither_status(&mut self) -> DitherStatus {

@@ -359,3 +359,38 @@ fn cycles_lost_before_the_service_show_as_a_gap_and_a_count() {
     let status = ask(&mut s, &mut p, "status");
     assert!(status.contains(" dropped=3 "), "{status}");
 }
+
+/// A record stored for one gyro does not load on a board of another serial number: the
+/// defaults are in force, `status` says why, and `reload` refuses it the same way; the board
+/// it was stored for still loads it.
+#[test]
+fn the_calibration_of_another_gyro_does_not_load() {
+    let (mut s, mut p) = boot(Flash::new());
+    ask(&mut s, &mut p, &format!("unlock {KEY}"));
+    assert_eq!(ask(&mut s, &mut p, "set a 12.5").trim_end(), "OK a=12.5");
+    assert!(ask(&mut s, &mut p, "store").starts_with("OK stored seq=1"));
+    let flash = s.into_flash();
+    let mut other = config();
+    other.identity.serial_number = 8;
+    let booted = Service::boot(other, flash, None).unwrap();
+    assert_eq!(booted.settings, CalibrationRecord::DEFAULTS.settings);
+    let (mut s, mut p) = (
+        booted.service,
+        TestPorts::new(Readout::new(&other.readout, booted.settings)),
+    );
+    let status = ask(&mut s, &mut p, "status");
+    assert!(
+        status.contains(" coeffs=defaults:other_gyro:7 "),
+        "{status}"
+    );
+    ask(&mut s, &mut p, &format!("unlock {KEY}"));
+    assert!(ask(&mut s, &mut p, "reload").starts_with("OK coeffs=defaults:other_gyro:7"));
+    assert_eq!(ask(&mut s, &mut p, "get a").trim_end(), "OK a=0");
+    let (s, _) = boot(s.into_flash());
+    assert_eq!(s.config().identity.serial_number, 7);
+    let (mut s, mut p) = (
+        s,
+        TestPorts::new(Readout::new(&config().readout, Default::default())),
+    );
+    assert!(ask(&mut s, &mut p, "status").contains(" coeffs=flash:1 "));
+}

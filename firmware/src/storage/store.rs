@@ -111,6 +111,12 @@ pub enum DefaultsReason {
     },
     /// The flash could not be read.
     ReadFailed,
+    /// The newest record belongs to another gyro: its serial number (the record's existing
+    /// `serial_number` field) is not this board's. Its coefficients are not loaded.
+    OtherGyro {
+        /// The serial number in the record.
+        stored_serial: u32,
+    },
 }
 
 /// What `load` found: the flag the host reads.
@@ -264,6 +270,29 @@ impl CalibrationStore {
             }
         };
         (record, scan.report(outcome))
+    }
+
+    /// [`Self::load`], for the board whose gyro has `serial_number`: a newest record written
+    /// for another serial number gives the defaults ([`DefaultsReason::OtherGyro`]), so the
+    /// coefficients of another gyro never load silently (a board moved to another gyro, or a
+    /// flash image copied between boards). The record stays in flash, untouched.
+    pub fn load_for_serial<F: ReadNorFlash>(
+        &self,
+        flash: &mut F,
+        serial_number: u32,
+    ) -> (CalibrationRecord, LoadReport) {
+        let (record, mut report) = self.load(flash);
+        match report.outcome {
+            LoadOutcome::Loaded { .. } if record.serial_number != serial_number => {
+                report.outcome = LoadOutcome::Defaults {
+                    reason: DefaultsReason::OtherGyro {
+                        stored_serial: record.serial_number,
+                    },
+                };
+                (CalibrationRecord::DEFAULTS, report)
+            }
+            _ => (record, report),
+        }
     }
 
     /// Appends `record` and returns its sequence number, after reading it back.
