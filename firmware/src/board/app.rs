@@ -3,8 +3,8 @@
 //! The main loop is the lowest-priority context (thread mode). It owns the command service
 //! (`crate::service::Service`, the same one hal-sim's simulated board runs) and the board's
 //! ports for it ([`super::ports::BoardPorts`]), and does four things per pass: it hands the
-//! service every received byte and every dither cycle the readout task queued, refreshes the
-//! watchdog, logs the dither drive's status when its state changes, and logs the loss
+//! service the received bytes and the dither cycles the readout task queued, bounded per pass
+//! (at most one command line: `Service::pass`), refreshes the watchdog, logs the dither drive's status when its state changes, and logs the loss
 //! counters when they change. It sleeps (`WFI`) when both queues
 //! are empty; any interrupt wakes it, at the latest the 1 ms tick, which bounds the delay of a
 //! byte that arrived between the check and the `WFI`. Who runs above it and what they share:
@@ -197,11 +197,6 @@ pub fn serve<F: NorFlash>(
     let mut records_dropped = 0;
     loop {
         ports.refresh_watchdog();
-        let mut busy = false;
-        while let Some(byte) = ports.serial.read_byte() {
-            service.on_byte(byte, &mut ports);
-            busy = true;
-        }
         // Records the readout task could not queue (the queue was full): counted and shown
         // as a stream gap before the records after them.
         let dropped = resources::RECORDS_DROPPED.load(core::sync::atomic::Ordering::Relaxed);
@@ -209,10 +204,8 @@ pub fn serve<F: NorFlash>(
             service.on_cycles_lost(dropped.wrapping_sub(records_dropped));
             records_dropped = dropped;
         }
-        while let Some(record) = records.dequeue() {
-            service.on_cycle(&record, &mut ports);
-            busy = true;
-        }
+        // Bounded: one command line and one queue of records, then the watchdog again.
+        let busy = service.pass(&mut ports, |p| p.serial.read_byte(), || records.dequeue());
         let state = resources::DITHER.lock(|task| task.controller.state());
         if state != dither_state {
             if let Some(status) =

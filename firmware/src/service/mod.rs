@@ -44,6 +44,11 @@ use crate::storage::{
 };
 use ports::{Clock, DitherAccess, ReadoutAccess, Secrets, SerialTx};
 
+/// Lines a main-loop pass executes at most ([`Service::pass`]).
+pub const LINES_PER_PASS: usize = 1;
+/// Cycle records a main-loop pass takes at most: the board's whole record queue.
+pub const RECORDS_PER_PASS: usize = 32;
+
 /// What differs between services (immutable).
 #[derive(Clone, Copy, Debug)]
 pub struct ServiceConfig {
@@ -155,22 +160,54 @@ impl<F: NorFlash> Service<F> {
         self.line = LineAssembler::new();
     }
 
-    /// One received byte; a completed line is executed and answered through `ports`.
+    /// One main-loop pass with bounded work: bytes from `read_byte` until at most
+    /// [`LINES_PER_PASS`] lines were executed, then at most [`RECORDS_PER_PASS`] cycle records
+    /// from `next_record`. Returns whether anything was done (more may be waiting: the caller
+    /// runs another pass before it sleeps). The bound keeps a pass short whatever the host
+    /// sends, so the board's main loop refreshes its watchdog between any two commands (a
+    /// flood of `reload`, each a scan of both flash sectors, cannot starve it).
+    pub fn pass<P: Clock + SerialTx + ReadoutAccess + DitherAccess + Secrets>(
+        &mut self,
+        ports: &mut P,
+        mut read_byte: impl FnMut(&mut P) -> Option<u8>,
+        mut next_record: impl FnMut() -> Option<CycleRecord>,
+    ) -> bool {
+        let mut busy = false;
+        let mut lines = 0;
+        while lines < LINES_PER_PASS {
+            let Some(byte) = read_byte(ports) else {
+                break;
+            };
+            busy = true;
+            lines += usize::from(self.on_byte(byte, ports));
+        }
+        for _ in 0..RECORDS_PER_PASS {
+            let Some(record) = next_record() else {
+                break;
+            };
+            self.on_cycle(&record, ports);
+            busy = true;
+        }
+        busy
+    }
+
+    /// One received byte; a completed line is executed and answered through `ports`. Returns
+    /// whether the byte completed a line (a command executed, or a line refused).
     pub fn on_byte<P: Clock + SerialTx + ReadoutAccess + DitherAccess + Secrets>(
         &mut self,
         byte: u8,
         ports: &mut P,
-    ) {
+    ) -> bool {
         // Framing follows the mode the host was in when it sent the line.
         let streaming = self.executor.streaming();
         let mut line = String::<MAX_LINE>::new();
         let event = match self.line.push(byte) {
-            None => return,
+            None => return false,
             Some(LineEvent::Line(text)) => {
                 // The assembler is borrowed by `text`: copy (at most MAX_LINE bytes).
                 let _ = line.push_str(text);
                 if self.config.intercept.is_some_and(|hook| hook(&line)) {
-                    return;
+                    return true;
                 }
                 LineEvent::Line(&line)
             }
@@ -198,6 +235,7 @@ impl<F: NorFlash> Service<F> {
             self.saved_wrong_keys = wrong_keys;
         }
         endpoint::send_answer(streaming, &answer, |bytes| ports.send(bytes));
+        true
     }
 
     /// `n` closed cycles were lost on the way to the service (the board's record queue was

@@ -394,3 +394,25 @@ fn the_calibration_of_another_gyro_does_not_load() {
     );
     assert!(ask(&mut s, &mut p, "status").contains(" coeffs=flash:1 "));
 }
+
+/// A flood of `reload` (each a scan of both flash sectors): one pass executes one line and
+/// returns, so the main loop refreshes its watchdog between any two commands; the rest waits
+/// for the next passes, each answered in order.
+#[test]
+fn a_pass_executes_at_most_one_line() {
+    let (mut s, mut p) = boot(Flash::new());
+    ask(&mut s, &mut p, &format!("unlock {KEY}"));
+    p.out.clear();
+    let mut flood: std::collections::VecDeque<u8> = "reload\n".repeat(200).bytes().collect();
+    let mut passes = 0;
+    while s.pass(&mut p, |_| flood.pop_front(), || None) {
+        passes += 1;
+        let answers = StdString::from_utf8(p.out.clone()).unwrap();
+        assert_eq!(
+            answers.matches("\r\n").count(),
+            passes.min(200),
+            "pass {passes}"
+        );
+    }
+    assert_eq!(passes, 200);
+}
