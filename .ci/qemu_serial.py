@@ -124,6 +124,9 @@ def protocol_checks(exchange, link, check, qemu):
     exchange("unlock", f"unlock {KEY}".encode(), lambda a: a.startswith("OK unlocked"))
     exchange("set", b"set a 12.5", lambda a: a == "OK a=12.5")
     exchange("get", b"get a", lambda a: a == "OK a=12.5")
+    echo = link.ask(b"set a 2.5")  # `set a 12.5` with a byte lost: shown, not executed
+    check("echo without crc", echo == "ERR 18 confirm (send yes) cmd=set a 2.5", repr(echo))
+    exchange("echoed command not run", b"get a", lambda a: a == "OK a=12.5")
     exchange("crc request", with_crc("get a"), lambda a: crc_answer_ok(a, "OK a=12.5"))
     exchange("bad crc", b"get a*0000", lambda a: a.startswith("ERR 6 "))
     exchange("store", b"store", lambda a: a.startswith("OK stored seq=1 "))
@@ -198,8 +201,12 @@ def main(elf: str, board: bool) -> int:
         check("banner", banner == BANNER, banner.decode("ascii", "replace"))
 
         def exchange(name, request, predicate):
+            # A person at a terminal: a state-changing line without CRC is echoed as parsed
+            # (ERR 18 ... cmd=...) and runs on `yes`.
             try:
                 answer = link.ask(request)
+                if answer.startswith("ERR 18 confirm (send yes) cmd="):
+                    answer = link.ask(b"yes")
             except (TimeoutError, ConnectionError) as e:
                 check(name, False, f"{request[:40]!r} -> {e}")
                 return

@@ -69,7 +69,7 @@ pub const IDENTITY: Identity = Identity {
 };
 
 /// Every error code, for checking `ERR <n> <text>`.
-const CODES: [ErrorCode; 17] = ErrorCode::ALL;
+const CODES: [ErrorCode; 18] = ErrorCode::ALL;
 
 /// The in-memory device: settings staged and applied at the next cycle, a flash log, and the
 /// firmware's own dither controller (the F405 profile's settings; no ticks, so its state stays
@@ -362,6 +362,7 @@ pub fn check(data: &[u8]) {
     let (mut nonempty_lines, mut events) = (0usize, 0usize);
     let mut line_bytes = 0usize; // bytes of the current line, a lone trailing '\r' excepted
     let mut pending_cr = false;
+    let mut after_lf = false; // a '\r' right after a '\n' is dropped (LF CR endings)
     for &byte in data {
         match byte {
             TICK => h.device.now_ms = h.device.now_ms.wrapping_add(60_000),
@@ -369,7 +370,10 @@ pub fn check(data: &[u8]) {
             FAIL_STORE => h.device.fail_next_store = true,
             _ => {
                 h.device.now_ms = h.device.now_ms.wrapping_add(7);
-                if byte == b'\n' {
+                let dropped = core::mem::replace(&mut after_lf, byte == b'\n') && byte == b'\r';
+                if dropped {
+                    after_lf = false;
+                } else if byte == b'\n' {
                     nonempty_lines += (line_bytes > 0) as usize;
                     line_bytes = 0;
                     pending_cr = false;

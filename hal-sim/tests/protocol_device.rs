@@ -41,8 +41,23 @@ fn boot(flash: CalibrationFlash, rate_deg_h: f64, boot_count: u32) -> SimDevice 
     dev
 }
 
-/// Sends one line, returns the answer line (without `\r\n`); asserts exactly one answer.
+/// Sends one line as a person at a terminal does (no CRC), returns the answer line (without
+/// `\r\n`); asserts exactly one answer. A state-changing command is echoed for confirmation
+/// (`ERR 18 ... cmd=`): the echo is checked and `yes` sent, and its answer returned.
 fn ask(dev: &mut SimDevice, line: &str) -> String {
+    let answer = ask_once(dev, line);
+    match answer.strip_prefix("ERR 18 confirm (send yes) cmd=") {
+        Some(echo) => {
+            let parsed = firmware::protocol::parse::parse(line).unwrap();
+            assert_eq!(firmware::protocol::parse::parse(echo), Ok(parsed), "{line}");
+            ask_once(dev, "yes")
+        }
+        None => answer,
+    }
+}
+
+/// One line, its one answer line.
+fn ask_once(dev: &mut SimDevice, line: &str) -> String {
     dev.receive(line.as_bytes());
     dev.receive(b"\n");
     let out = String::from_utf8(dev.take_output()).expect("text answer");
@@ -386,7 +401,7 @@ fn the_angle_turned_during_a_store_stall_is_carried_into_the_stream() {
     assert!(ask(&mut dev, &format!("unlock {KEY}")).starts_with("OK unlocked"));
     dev.receive(b"stream on 1\n");
     dev.run_for(0.5);
-    dev.receive(b"store\n");
+    dev.receive(format!("store*{:04X}\n", crc16(b"store")).as_bytes());
     dev.run_for(2.5);
     let bytes = dev.take_output();
     let frames: Vec<_> = bytes

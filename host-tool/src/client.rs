@@ -28,7 +28,7 @@ use std::str::FromStr;
 use std::time::Duration;
 
 /// Every error code of the protocol, to name the number in an `ERR` answer.
-const CODES: [ErrorCode; 17] = ErrorCode::ALL;
+const CODES: [ErrorCode; 18] = ErrorCode::ALL;
 
 /// The firmware's name for an error number, if it has one.
 pub fn error_code(code: u8) -> Option<ErrorCode> {

@@ -177,7 +177,8 @@ impl Link for AbortingLink {
         self.pauses += 1;
         if self.pauses == 3 {
             let device = self.inner.device_mut();
-            device.receive(b"cal abort\n");
+            let crc = firmware::protocol::parse::crc16(b"cal abort");
+            device.receive(format!("cal abort*{crc:04X}\n").as_bytes());
             let _ = device.take_output();
         }
     }

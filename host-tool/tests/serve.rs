@@ -110,6 +110,11 @@ fn each_tcp_connection_starts_locked_without_stream_and_with_an_empty_line() {
     first.write_all(unlock.as_bytes()).unwrap();
     assert!(read_line(&mut first).starts_with("OK unlocked"));
     first.write_all(b"set a 300\r\n").unwrap();
+    assert_eq!(
+        read_line(&mut first),
+        "ERR 18 confirm (send yes) cmd=set a 300\r\n"
+    );
+    first.write_all(b"yes\r\n").unwrap();
     assert_eq!(read_line(&mut first), "OK a=300\r\n");
     first.write_all(b"stream on 1\r\n").unwrap();
     std::thread::sleep(Duration::from_millis(300));
@@ -128,6 +133,8 @@ fn each_tcp_connection_starts_locked_without_stream_and_with_an_empty_line() {
         "ERR 1 unknown command (try help)\r\n"
     );
     second.write_all(b"set b 1\r\n").unwrap();
+    assert!(read_line(&mut second).starts_with("ERR 18 "));
+    second.write_all(b"yes\r\n").unwrap();
     assert_eq!(read_line(&mut second), "ERR 9 locked (unlock first)\r\n");
     second.write_all(b"get a\r\n").unwrap();
     assert_eq!(

@@ -33,6 +33,7 @@ use super::commands::info::{self, StatusFlags};
 use super::commands::provenance::Provenance;
 use super::commands::stream::StreamState;
 use super::commands::{dither, settings, storage, Answer};
+use super::confirm::{needs_confirmation, Canonical};
 use super::parse::{Command, DitherCommand};
 use super::respond::Response;
 use super::stream::StreamRecord;
@@ -53,6 +54,8 @@ pub struct Executor {
     calibration: CalibrationState,
     provenance: Provenance,
     stream: StreamState,
+    /// A state-changing command typed without a CRC, echoed, waiting for `yes`.
+    pending: Option<Command>,
 }
 
 /// What a dither cycle asks of the serial task.
@@ -77,6 +80,7 @@ impl Executor {
             calibration: CalibrationState::new(limits),
             provenance: Provenance::new(report, fit, boot_count),
             stream: StreamState::default(),
+            pending: None,
         }
     }
 
@@ -90,6 +94,7 @@ impl Executor {
     /// coefficients and the wrong-key count are the board's, not the session's: they stay.
     pub fn new_session(&mut self) {
         self.access.lock();
+        self.pending = None;
         let _ = self.stream.command(None);
     }
 
@@ -131,6 +136,37 @@ impl Executor {
             frame: self.stream.on_cycle(record),
             stage,
         }
+    }
+
+    /// Executes one command from a line: a state-changing one without a CRC is not executed
+    /// but echoed for confirmation (`ERR 18 ... cmd=<as parsed>`), and `yes` then executes it
+    /// ([`super::confirm`]); any other line drops a pending one.
+    pub fn execute_line<D: DeviceLink>(
+        &mut self,
+        id: &Identity,
+        device: &mut D,
+        command: Command,
+        with_crc: bool,
+    ) -> Response {
+        let pending = self.pending.take();
+        if command == Command::Confirm {
+            return match pending {
+                Some(pending) => self.execute(id, device, pending),
+                None => Response::err(ErrorCode::WrongState),
+            };
+        }
+        if !with_crc && needs_confirmation(&command) {
+            self.pending = Some(command);
+            let mut r = Response::err(ErrorCode::Confirm);
+            r.field(format_args!("cmd={}", Canonical(&command)));
+            return r;
+        }
+        self.execute(id, device, command)
+    }
+
+    /// A line that was no command (bad CRC, parse error, garbage): a pending confirmation ends.
+    pub fn drop_pending(&mut self) {
+        self.pending = None;
     }
 
     /// Executes one command.
@@ -218,6 +254,8 @@ impl Executor {
             Command::KeyProvision(key) => self.access.provision(id, device, key),
             Command::Lock => Ok(self.access.lock()),
             Command::Dither(command) => dither::command(device, id, command),
+            // Confirmation is a line-level matter (`execute_line`); alone it confirms nothing.
+            Command::Confirm => Err(ErrorCode::WrongState),
         }
     }
 }
@@ -380,5 +418,58 @@ mod tests {
         );
         assert!(run(&mut e, &mut d, "track off").starts_with("OK track=off"));
         assert_eq!(run(&mut e, &mut d, "set a 5"), "OK a=5");
+    }
+
+    /// Without a CRC a state-changing command is echoed as parsed and waits for `yes`; with
+    /// a CRC it runs at once; any other line in between drops it; reads run at once.
+    #[test]
+    fn state_changes_without_crc_wait_for_a_confirmation_of_the_echo() {
+        let loaded = report(LoadOutcome::Defaults {
+            reason: DefaultsReason::Erased,
+        });
+        let mut e = Executor::new(&loaded, None, 1, AcceptanceLimits::DEFAULT);
+        let mut d = MemDevice::default();
+        let line = |e: &mut Executor, d: &mut MemDevice, text: &str, crc: bool| {
+            let command = parse(text).unwrap();
+            e.execute_line(&ID, d, command, crc)
+                .finish(false)
+                .as_str()
+                .trim_end()
+                .to_owned()
+        };
+        assert!(line(&mut e, &mut d, &unlock_line(), false).starts_with("OK unlocked"));
+        // `set a 12.5` with its "1" dropped on the line: shown before anything happens.
+        let before = d.clone();
+        assert_eq!(
+            line(&mut e, &mut d, "set a 2.5", false),
+            "ERR 18 confirm (send yes) cmd=set a 2.5"
+        );
+        assert_eq!(d, before, "nothing executed");
+        assert_eq!(line(&mut e, &mut d, "yes", false), "OK a=2.5");
+        assert_eq!(
+            line(&mut e, &mut d, "yes", false),
+            "ERR 11 not possible now"
+        );
+        assert!(line(&mut e, &mut d, "store", false).starts_with("ERR 18 "));
+        assert!(line(&mut e, &mut d, "get a", false).starts_with("OK a=2.5"));
+        assert_eq!(
+            line(&mut e, &mut d, "yes", false),
+            "ERR 11 not possible now"
+        );
+        assert!(
+            d.stored.is_empty(),
+            "the store was dropped by the read in between"
+        );
+        assert_eq!(
+            line(&mut e, &mut d, "set a 3", true),
+            "OK a=3",
+            "CRC: at once"
+        );
+        e.execute_line(&ID, &mut d, parse("set b 1").unwrap(), false);
+        e.drop_pending();
+        assert_eq!(
+            line(&mut e, &mut d, "yes", false),
+            "ERR 11 not possible now"
+        );
     }
 }

@@ -76,6 +76,12 @@ impl Key {
         words
     }
 
+    /// The key as typed (32 lower-case hex digits), for echoing a `key provision` back to the
+    /// person who typed it.
+    pub fn hex(&self) -> KeyHex<'_> {
+        KeyHex(self)
+    }
+
     /// Compares with `given` in time independent of where they differ.
     pub fn matches(&self, given: &Key) -> bool {
         let diff = self
@@ -89,6 +95,15 @@ impl Key {
 
     fn is_erased(&self) -> bool {
         self.0.iter().all(|&b| b == 0xFF)
+    }
+}
+
+/// [`Key::hex`].
+pub struct KeyHex<'a>(&'a Key);
+
+impl core::fmt::Display for KeyHex<'_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        self.0 .0.iter().try_for_each(|b| write!(f, "{b:02x}"))
     }
 }
 

@@ -11,6 +11,7 @@
 
 pub mod access;
 pub mod commands;
+pub mod confirm;
 pub mod endpoint;
 pub mod execute;
 pub mod key;
@@ -61,11 +62,14 @@ pub enum ErrorCode {
     /// Online tracking owns the coefficients: a hand change would be undone within a second
     /// (`track off` first).
     Tracking = 17,
+    /// A state-changing command without a CRC: not executed; echoed as parsed, `yes` executes
+    /// it (`confirm`).
+    Confirm = 18,
 }
 
 impl ErrorCode {
     /// Every code, in numeric order (for hosts that parse answers).
-    pub const ALL: [ErrorCode; 17] = [
+    pub const ALL: [ErrorCode; 18] = [
         Self::UnknownCommand,
         Self::Syntax,
         Self::BadNumber,
@@ -83,6 +87,7 @@ impl ErrorCode {
         Self::WrongKey,
         Self::NoKey,
         Self::Tracking,
+        Self::Confirm,
     ];
 
     /// The number after `ERR`.
@@ -110,6 +115,7 @@ impl ErrorCode {
             Self::WrongKey => "wrong key",
             Self::NoKey => "no key provisioned",
             Self::Tracking => "tracking on (track off first)",
+            Self::Confirm => "confirm (send yes)",
         }
     }
 }

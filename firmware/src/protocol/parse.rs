@@ -81,6 +81,9 @@ pub enum Command {
     Lock,
     /// `dither on|off|amp <arcsec>|noise <percent>|status`: the dither drive.
     Dither(DitherCommand),
+    /// `yes`: executes the state-changing command typed without a CRC just before, after the
+    /// board echoed it as parsed ([`super::confirm`]).
+    Confirm,
 }
 
 /// Largest run length `cal start` accepts: one hour at 1 kHz dither.
@@ -261,6 +264,8 @@ pub fn parse(text: &str) -> Result<Command, ErrorCode> {
         }
     } else if is("lock") {
         Command::Lock
+    } else if is("yes") {
+        Command::Confirm
     } else {
         return Err(ErrorCode::UnknownCommand);
     };

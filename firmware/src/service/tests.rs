@@ -124,12 +124,28 @@ fn boot(flash: Flash) -> (Service<Flash>, TestPorts) {
     (booted.service, ports)
 }
 
+/// One line as the host tool sends it (with its CRC, so state changes run at once); the
+/// answer with its CRC suffix checked and removed.
 fn ask(service: &mut Service<Flash>, ports: &mut TestPorts, line: &str) -> StdString {
     ports.out.clear();
-    for &b in line.as_bytes().iter().chain(b"\n") {
+    let crc = crate::protocol::parse::crc16(line.as_bytes());
+    for &b in format!("{line}*{crc:04X}\n").as_bytes() {
         service.on_byte(b, ports);
     }
-    StdString::from_utf8(ports.out.clone()).unwrap()
+    let answer = StdString::from_utf8(ports.out.clone()).unwrap();
+    let Some((body, suffix)) = answer
+        .rsplit_once('*')
+        .filter(|_| !answer.starts_with('\0'))
+    else {
+        return answer; // a framed stream answer or no answer
+    };
+    let suffix = suffix.trim_end();
+    assert_eq!(
+        suffix,
+        format!("{:04X}", crate::protocol::parse::crc16(body.as_bytes())),
+        "{answer:?}"
+    );
+    format!("{body}\r\n")
 }
 
 fn record(flags: CycleFlags) -> CycleRecord {
@@ -242,7 +258,8 @@ fn a_failed_store_is_reported_and_still_restarts_the_readout() {
     let mut s = booted.service;
     let mut p = TestPorts::new(Readout::new(&s.config().readout, booted.settings));
     p.out.clear();
-    for &b in format!("unlock {KEY}\nstore\n").as_bytes() {
+    let store_crc = crate::protocol::parse::crc16(b"store");
+    for &b in format!("unlock {KEY}\nstore*{store_crc:04X}\n").as_bytes() {
         s.on_byte(b, &mut p);
     }
     let answers = StdString::from_utf8(p.out.clone()).unwrap();
@@ -299,7 +316,10 @@ fn the_intercept_hook_sees_lines_first() {
     let booted = Service::boot(c, Flash::new(), None).unwrap();
     let mut s = booted.service;
     let mut p = TestPorts::new(Readout::new(&c.readout, booted.settings));
-    assert_eq!(ask(&mut s, &mut p, "quit"), "");
+    for &b in b"quit\n" {
+        s.on_byte(b, &mut p);
+    }
+    assert!(p.out.is_empty(), "consumed, no answer");
     assert!(ask(&mut s, &mut p, "id").starts_with("OK "));
 }
 
