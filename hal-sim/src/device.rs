@@ -10,7 +10,9 @@
 //!
 //! Like the board, a `store` stalls: the flash model books the erase and programming time, the
 //! simulated gyro runs on meanwhile without the readout seeing it, and the readout is
-//! re-synchronised afterwards. Power can be cut ([`SimDevice::power_off`] returns the flash,
+//! re-synchronised afterwards. The answer to `store` comes when the stall is over (up to
+//! about 2 s after the command with an erase, as on the board), and bytes received meanwhile
+//! are taken after it. Power can be cut ([`SimDevice::power_off`] returns the flash,
 //! whose contents survive; [`SimDevice::boot`] starts again from it).
 //!
 //! While streaming, cycle frames (COBS, ending in 0x00) and text answers share the line: a text
@@ -45,6 +47,11 @@ pub struct SimDevice {
     output: Vec<u8>,
     /// Simulated seconds the CPU is still stalled by a flash operation.
     stall_s: f64,
+    /// The answer of the command that stalled, sent when the stall is over (as on the board,
+    /// whose main loop sends it after the store returns).
+    held_output: Vec<u8>,
+    /// Bytes that arrived during the stall, taken when it is over.
+    held_input: Vec<u8>,
     /// The simulated OTP key words: the identity's key at boot, or what `key provision` wrote.
     otp_key: Option<Key>,
 }
@@ -127,6 +134,8 @@ impl SimDevice {
             service: booted.service,
             output: Vec::new(),
             stall_s: 0.0,
+            held_output: Vec::new(),
+            held_input: Vec::new(),
             otp_key: identity.key,
         })
     }
@@ -171,6 +180,10 @@ impl SimDevice {
             self.stall_s -= self.harness.time_s() - before_s;
             if self.stall_s <= 0.0 {
                 self.harness.readout_mut().resynchronise();
+                // The store returned: its answer goes out, then the bytes that waited.
+                self.output.append(&mut self.held_output);
+                let input = std::mem::take(&mut self.held_input);
+                self.receive(&input);
             }
             return;
         }
@@ -184,7 +197,13 @@ impl SimDevice {
     /// Serial bytes from the host: every completed line is executed and answered at once, by
     /// the firmware's own command service.
     pub fn receive(&mut self, bytes: &[u8]) {
-        for &byte in bytes {
+        for (i, &byte) in bytes.iter().enumerate() {
+            if self.stall_s > 0.0 {
+                // The CPU is stalled: the rest waits (a host waits for the answer anyway).
+                self.held_input.extend_from_slice(&bytes[i..]);
+                return;
+            }
+            let output_before = self.output.len();
             let busy_before_s = self.service.flash().stats().busy_s;
             let mut ports = SimPorts::new(&mut self.harness, &mut self.output, &mut self.otp_key);
             self.service.on_byte(byte, &mut ports);
@@ -193,6 +212,9 @@ impl SimDevice {
                 // after it (`half_cycle`); the drive is paused for it as on the board.
                 let busy_s = self.service.flash().stats().busy_s - busy_before_s;
                 self.stall_s += busy_s.max(1e-3);
+                // The answer comes when the store is over, not before.
+                let answer = self.output.split_off(output_before);
+                self.held_output.extend_from_slice(&answer);
                 let until_s = self.harness.time_s() + self.stall_s;
                 self.harness.stall_drive(until_s);
             }

@@ -56,11 +56,18 @@ fn ask(dev: &mut SimDevice, line: &str) -> String {
     }
 }
 
-/// One line, its one answer line.
+/// One line, its one answer line (waiting up to 3 simulated seconds for it: a `store` answers
+/// when its flash stall is over).
 fn ask_once(dev: &mut SimDevice, line: &str) -> String {
     dev.receive(line.as_bytes());
     dev.receive(b"\n");
-    let out = String::from_utf8(dev.take_output()).expect("text answer");
+    let mut out = dev.take_output();
+    let sent_s = dev.time_s();
+    while out.is_empty() && dev.time_s() - sent_s < 3.0 {
+        dev.run_for(0.001);
+        out = dev.take_output();
+    }
+    let out = String::from_utf8(out).expect("text answer");
     let lines: Vec<&str> = out.split_terminator("\r\n").collect();
     assert_eq!(lines.len(), 1, "one answer to {line:?}: {out:?}");
     lines[0].to_string()
@@ -417,5 +424,45 @@ fn the_angle_turned_during_a_store_stall_is_carried_into_the_stream() {
     assert!(
         lost_fringes.abs() < 1e-6,
         "{lost_fringes:.3} fringes turned during the stall are missing from the stream"
+    );
+}
+
+/// A store that erases stalls the board for the erase (1 s typical in the flash model): its
+/// answer comes when the stall is over, not at once, and a command sent meanwhile is answered
+/// after it. (Sector 0 is filled with damage, so the store erases sector 1 first.)
+#[test]
+fn a_store_answers_after_its_stall() {
+    use embedded_storage::nor_flash::NorFlash;
+    let mut flash = CalibrationFlash::default();
+    flash.write(0, &vec![0u8; 128 * 1024]).unwrap();
+    let mut dev = boot(flash, 5.0, 0);
+    assert!(ask(&mut dev, &format!("unlock {KEY}")).starts_with("OK unlocked"));
+    let busy_before_s = dev.flash_mut().stats().busy_s;
+    let sent_s = dev.time_s();
+    dev.receive(format!("store*{:04X}\n", crc16(b"store")).as_bytes());
+    dev.receive(b"id\n");
+    assert!(dev.take_output().is_empty(), "no answer during the stall");
+    let mut out = Vec::new();
+    while !out.ends_with(b"\r\n") || out.split(|&b| b == b'\n').count() < 3 {
+        assert!(
+            dev.time_s() - sent_s < 3.0,
+            "no answers within 3 s: {out:?}"
+        );
+        dev.run_for(0.001);
+        out.extend(dev.take_output());
+    }
+    let answered_s = dev.time_s() - sent_s;
+    let stall_s = dev.flash_mut().stats().busy_s - busy_before_s;
+    assert!(stall_s >= 0.9, "the store erased: {stall_s} s");
+    assert!(
+        (answered_s - stall_s).abs() < 0.01,
+        "answered after {answered_s:.3} s, stall {stall_s:.3} s"
+    );
+    let text = String::from_utf8(out).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(lines[0].starts_with("OK stored seq=1"), "{text}");
+    assert!(
+        lines[1].starts_with("OK fw="),
+        "then the command sent meanwhile: {text}"
     );
 }

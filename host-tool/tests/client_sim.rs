@@ -237,3 +237,28 @@ fn stream_capture_and_commands_while_streaming() {
     assert_eq!(seconds.len(), 2);
     assert!(seconds.iter().all(|s| (s.raw_deg_per_h - 10.0).abs() < 1.5));
 }
+
+/// A store with the worst-case sector erase (2 s, the F405 datasheet's maximum) answers after
+/// the client's default 2 s timeout would have run out: the client waits for `store` as long
+/// as a store can stall (plus its timeout), and still times out other commands at 2 s.
+#[test]
+fn a_store_with_a_worst_case_erase_is_waited_for() {
+    use hal_sim::flash::FlashTiming;
+    let mut flash = CalibrationFlash::default().with_timing(FlashTiming {
+        sector_erase_s: 2.0,
+        ..FlashTiming::default()
+    });
+    // Sector 0 looks full (its last byte programmed): the store erases blank sector 1 first.
+    flash.corrupt(128 * 1024 - 1, 0xFF);
+    let mut c = board(5.0, flash, 0);
+    ops::unlock(&mut c, &sim::key_hex(&sim::test_key())).unwrap();
+    let before = c.elapsed();
+    let stored = ask(&mut c, "store").expect("store answered");
+    assert!(stored.starts_with("stored seq=1"), "{stored}");
+    let waited = c.elapsed() - before;
+    assert!(waited > Duration::from_millis(2000), "{waited:?}");
+    assert_eq!(
+        rlg_cal::client::answer_timeout("get a", Duration::from_secs(2)),
+        Duration::from_secs(2)
+    );
+}
