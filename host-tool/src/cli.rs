@@ -1,6 +1,7 @@
 //! Command-line arguments.
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use rlg_cal::ranges;
 use std::path::PathBuf;
 
 const AFTER_HELP: &str = "\
@@ -40,7 +41,7 @@ pub struct Cli {
     #[arg(long, value_name = "KEY")]
     pub key: Option<String>,
     /// How long to wait for an answer, ms.
-    #[arg(long, default_value_t = 2000, value_name = "MS")]
+    #[arg(long, default_value_t = 2000, value_name = "MS", value_parser = ranges::timeout_ms, allow_negative_numbers = true)]
     pub timeout_ms: u64,
     #[command(subcommand)]
     pub command: Command,
@@ -52,7 +53,7 @@ pub struct ConnectionArgs {
     #[arg(long, value_name = "PATH")]
     pub port: Option<String>,
     /// Baud rate of --port.
-    #[arg(long, default_value_t = 115_200, value_name = "N")]
+    #[arg(long, default_value_t = 115_200, value_name = "N", value_parser = ranges::baud, allow_negative_numbers = true)]
     pub baud: u32,
     /// A board served on TCP.
     #[arg(long, value_name = "HOST:PORT")]
@@ -65,6 +66,7 @@ pub struct ConnectionArgs {
         long,
         default_value_t = 13.888,
         value_name = "DEG_H",
+        value_parser = ranges::rate_deg_h,
         allow_negative_numbers = true
     )]
     pub sim_rate: f64,
@@ -151,10 +153,10 @@ pub enum Command {
 #[derive(Debug, Args)]
 pub struct CalibrateArgs {
     /// Dither cycles in the fit.
-    #[arg(long, default_value_t = 4000)]
+    #[arg(long, default_value_t = 4000, value_parser = ranges::cal_cycles, allow_negative_numbers = true)]
     pub cycles: u32,
     /// Cycles discarded first.
-    #[arg(long, default_value_t = 400)]
+    #[arg(long, default_value_t = 400, value_parser = ranges::warmup_cycles, allow_negative_numbers = true)]
     pub warmup: u32,
     /// Apply the fit (`cal accept`) when it passes.
     #[arg(long)]
@@ -163,14 +165,14 @@ pub struct CalibrateArgs {
     #[arg(long, requires = "accept")]
     pub store: bool,
     /// Between two `cal status` polls, ms.
-    #[arg(long, default_value_t = 250, value_name = "MS")]
+    #[arg(long, default_value_t = 250, value_name = "MS", value_parser = ranges::poll_ms, allow_negative_numbers = true)]
     pub poll_ms: u64,
 }
 
 #[derive(Debug, Args)]
 pub struct StreamArgs {
     /// How long to stream, s.
-    #[arg(long)]
+    #[arg(long, value_parser = ranges::seconds, allow_negative_numbers = true)]
     pub seconds: f64,
     /// One row per streamed cycle.
     #[arg(long, value_name = "PATH")]
@@ -179,48 +181,49 @@ pub struct StreamArgs {
     #[arg(long, value_name = "PATH")]
     pub svg: Option<PathBuf>,
     /// Stream every n-th cycle (1 = every cycle; needs about 18 kB/s at 389 Hz).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..))]
+    #[arg(long, default_value_t = 1, value_parser = ranges::divider, allow_negative_numbers = true)]
     pub divider: u16,
     /// Override the capture-timer frequency the board reports in `id`, Hz.
-    #[arg(long)]
+    #[arg(long, value_parser = ranges::timer_hz, allow_negative_numbers = true)]
     pub timer_hz: Option<f64>,
 }
 
 #[derive(Debug, Args)]
 pub struct SweepArgs {
     /// Latitude of the rotary table, deg.
-    #[arg(long, default_value_t = 22.2, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 22.2, value_parser = ranges::latitude_deg, allow_negative_numbers = true)]
     pub latitude: f64,
     /// Table azimuths, deg (comma-separated).
     #[arg(
         long,
         value_delimiter = ',',
         default_value = "0,30,60,90,120,150,180,210,240,270,300,330",
+        value_parser = ranges::azimuth_deg,
         allow_negative_numbers = true
     )]
     pub azimuths: Vec<f64>,
     /// Settling time after the dither drive has locked (the board waits for that first), s:
     /// the locked amplitude loop takes about 2 s to settle the last 0.2 %.
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(long, default_value_t = 3.0, value_parser = ranges::settle_s, allow_negative_numbers = true)]
     pub settle: f64,
     /// Measuring time per azimuth, s.
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, value_parser = ranges::seconds, allow_negative_numbers = true)]
     pub seconds: f64,
     /// Where the rate is read.
     #[arg(long, value_enum, default_value = "stream")]
     pub rate_from: RateFrom,
     /// Stream every n-th cycle.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..))]
+    #[arg(long, default_value_t = 1, value_parser = ranges::divider, allow_negative_numbers = true)]
     pub divider: u16,
     /// Calibrate first (through the protocol), accept and store.
     #[arg(long)]
     pub calibrate: bool,
     /// Azimuth of the calibration run, deg.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, value_parser = ranges::azimuth_deg, allow_negative_numbers = true)]
     pub cal_azimuth: f64,
-    #[arg(long, default_value_t = 3000)]
+    #[arg(long, default_value_t = 3000, value_parser = ranges::cal_cycles, allow_negative_numbers = true)]
     pub cal_cycles: u32,
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 100, value_parser = ranges::warmup_cycles, allow_negative_numbers = true)]
     pub cal_warmup: u32,
     /// One row per azimuth.
     #[arg(long, value_name = "PATH")]
@@ -247,20 +250,20 @@ pub struct ServeArgs {
     #[arg(long)]
     pub pty: bool,
     /// Simulated seconds per wall-clock second.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = ranges::speed, allow_negative_numbers = true)]
     pub speed: f64,
     /// Constant input rate, deg/h (unless --azimuth is given).
-    #[arg(long, default_value_t = 13.888, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 13.888, value_parser = ranges::rate_deg_h, allow_negative_numbers = true)]
     pub rate: f64,
     /// Rotary table: Earth rate at this azimuth, deg (with --latitude).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, value_parser = ranges::azimuth_deg, allow_negative_numbers = true)]
     pub azimuth: Option<f64>,
-    #[arg(long, default_value_t = 22.2, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 22.2, value_parser = ranges::latitude_deg, allow_negative_numbers = true)]
     pub latitude: f64,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Stop after this many wall-clock seconds (default: run until killed).
-    #[arg(long)]
+    #[arg(long, value_parser = ranges::seconds, allow_negative_numbers = true)]
     pub seconds: Option<f64>,
     /// The simulated board's key, 32 hex digits (default: $RLG_SIM_BOARD_KEY; neither: the
     /// board starts unprovisioned, as a new board).

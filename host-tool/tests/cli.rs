@@ -209,3 +209,57 @@ fn a_served_board_talks_to_a_second_process() {
     assert_eq!(over_pty.0, 0, "{}", over_pty.2);
     assert!(over_pty.1.contains("serial=4242"), "{}", over_pty.1);
 }
+
+/// Every numeric argument has a range: outside it (a leading minus included where the value
+/// cannot be negative), exit status 2 within a second, with a message naming the flag and the
+/// range; a negative value where it is legal is accepted.
+#[test]
+fn numeric_arguments_outside_their_range_are_usage_errors() {
+    let cases: [&[&str]; 9] = [
+        &["--timeout-ms", "-1", "id"],
+        &["--baud", "0", "--port", "/dev/null", "id"],
+        &["--sim", "--sim-rate", "1e300", "id"],
+        &["stream", "--seconds", "-5", "--csv", "/dev/null"],
+        &[
+            "stream",
+            "--seconds",
+            "1",
+            "--csv",
+            "/dev/null",
+            "--divider",
+            "-1",
+        ],
+        &["calibrate", "--cycles", "0"],
+        &["sweep", "--latitude", "-91"],
+        &["sweep", "--azimuths", "0,400"],
+        &["serve-sim", "--tcp", "127.0.0.1:0", "--speed", "0"],
+    ];
+    for args in cases {
+        let started = std::time::Instant::now();
+        let (code, _, err) = run(args);
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert!(
+            err.contains("invalid value") && err.contains("outside"),
+            "{args:?}: {err}"
+        );
+        let flag = args
+            .iter()
+            .rev()
+            .find(|a| a.starts_with("--") && **a != "--csv" && **a != "--port" && **a != "--tcp");
+        assert!(err.contains(flag.unwrap()), "{args:?}: {err}");
+        assert!(
+            started.elapsed() < std::time::Duration::from_secs(1),
+            "{args:?}"
+        );
+    }
+    let (code, out, err) = run(&[
+        "--sim",
+        "--sim-rate",
+        "-13.888",
+        "--key",
+        TEST_KEY,
+        "get",
+        "a",
+    ]);
+    assert_eq!((code, out.trim()), (0, "a=0"), "{err}");
+}
