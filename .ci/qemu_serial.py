@@ -233,6 +233,14 @@ def main(elf: str, board: bool) -> int:
                     out = subprocess.run(["defmt-print", "-e", elf], stdin=f,
                                          capture_output=True, timeout=10)
                 print("defmt log:\n" + out.stdout.decode(errors="replace")[-4000:])
+        elif shutil.which("defmt-print"):
+            # The firmware's painted-stack figure for the run (README "Stack").
+            with open(log.name, "rb") as f:
+                out = subprocess.run(["defmt-print", "-e", elf], stdin=f,
+                                     capture_output=True, timeout=10)
+            for line in out.stdout.decode(errors="replace").splitlines():
+                if "stack:" in line:
+                    print(line)
         os.unlink(log.name)
     print(f"qemu-serial: {passed} passed, {failed} failed")
     return 0 if failed == 0 else 1

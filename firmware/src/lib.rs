@@ -34,3 +34,5 @@ pub mod board;
 pub mod icount;
 #[cfg(target_os = "none")]
 pub mod rt;
+#[cfg(target_os = "none")]
+pub mod stack;
