@@ -129,7 +129,7 @@ mod app {
                     tick = DITHER.lock(|t| t.controller.on_tick(&t.config, code));
                 });
             };
-            if i % 97 == 0 {
+            if i.is_multiple_of(97) {
                 // Painting the stack costs ~100 k instructions: every 97th tick (co-prime with
                 // the 103-tick half cycle, so the half-cycle updates are sampled too).
                 stack_bytes = stack_bytes.max(firmware::stack::depth_of(run));

@@ -27,7 +27,7 @@ mod app {
             defmt::error!("static overwritten by the stack at depth {=u32}", depth);
             semihosting::process::exit(3);
         }
-        if depth % 256 == 0 {
+        if depth.is_multiple_of(256) {
             defmt::info!(
                 "depth {=u32}, sp {=u32:#010x}",
                 depth,
