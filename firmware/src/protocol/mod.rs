@@ -12,6 +12,7 @@
 pub mod access;
 pub mod commands;
 pub mod confirm;
+pub mod decimal;
 pub mod endpoint;
 pub mod execute;
 pub mod key;

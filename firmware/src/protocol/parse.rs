@@ -130,7 +130,7 @@ fn key(word: Option<&str>) -> Result<Key, ErrorCode> {
 
 fn number(word: Option<&str>) -> Result<f32, ErrorCode> {
     let word = word.ok_or(ErrorCode::Syntax)?;
-    let v: f32 = word.parse().map_err(|_| ErrorCode::BadNumber)?;
+    let v = super::decimal::parse_f32(word).ok_or(ErrorCode::BadNumber)?;
     if !v.is_finite() {
         return Err(ErrorCode::NotFinite);
     }
