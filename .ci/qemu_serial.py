@@ -19,6 +19,7 @@ Closing line: `qemu-serial: N passed, M failed`; exit status 0 when M == 0, else
 Standard library only.
 """
 import os
+import secrets
 import shutil
 import signal
 import socket
@@ -28,7 +29,9 @@ import tempfile
 import time
 
 BANNER = b"# rlg-readout ready"
-KEY = "c0ffee42"
+# A fresh 128-bit key per run: the emulated board boots unprovisioned (QEMU's OTP is a blank RAM
+# model) and is provisioned first, as at production.
+KEY = secrets.token_hex(16)
 LINE_TIMEOUT_S = 5.0
 OVERALL_TIMEOUT_S = 90
 
@@ -99,16 +102,32 @@ def crc_answer_ok(answer: str, body: str) -> bool:
     return text == body and crc == f"{crc16(text.encode()):04X}"
 
 
+def provision(exchange):
+    """An unprovisioned board: no key unlocks it (the old published one neither); provisioned
+    once, a second provisioning is refused."""
+    exchange("unprovisioned status", b"status", lambda a: " key=unprovisioned " in a + " ")
+    exchange("unprovisioned unlock", f"unlock {KEY}".encode(), lambda a: a.startswith("ERR 16 "))
+    exchange("32-bit key refused", b"unlock c0ffee42", lambda a: a.startswith("ERR 3 "))
+    exchange("key provision", f"key provision {KEY}".encode(), lambda a: a == "OK key=provisioned")
+    exchange("provisioned status", b"status", lambda a: " key=provisioned " in a + " ")
+    exchange("second provision refused", b"key provision " + b"1" * 32,
+             lambda a: a.startswith("ERR 11 "))
+
+
 def protocol_checks(exchange, link, check, qemu):
     """The serial_protocol example: the protocol end to end, RAM-backed flash."""
     exchange("id", b"id", lambda a: a.startswith("OK fw=") and "board=netduinoplus2" in a)
     exchange("status", b"status",
              lambda a: a.startswith("OK signal=") and "turnarounds=0" in a and "locked=yes" in a)
     exchange("locked set", b"set a 1", lambda a: a.startswith("ERR 9 "))
-    exchange("wrong key", b"unlock 12345678", lambda a: a.startswith("ERR 15 "))
+    provision(exchange)
+    exchange("wrong key", b"unlock " + b"12345678" * 4, lambda a: a.startswith("ERR 15 "))
     exchange("unlock", f"unlock {KEY}".encode(), lambda a: a.startswith("OK unlocked"))
     exchange("set", b"set a 12.5", lambda a: a == "OK a=12.5")
     exchange("get", b"get a", lambda a: a == "OK a=12.5")
+    echo = link.ask(b"set a 2.5")  # `set a 12.5` with a byte lost: shown, not executed
+    check("echo without crc", echo == "ERR 18 confirm (send yes) cmd=set a 2.5", repr(echo))
+    exchange("echoed command not run", b"get a", lambda a: a == "OK a=12.5")
     exchange("crc request", with_crc("get a"), lambda a: crc_answer_ok(a, "OK a=12.5"))
     exchange("bad crc", b"get a*0000", lambda a: a.startswith("ERR 6 "))
     exchange("store", b"store", lambda a: a.startswith("OK stored seq=1 "))
@@ -150,6 +169,7 @@ def board_checks(exchange):
     """The complete board image: comes up, serves the protocol, survives a failing store."""
     exchange("id", b"id", lambda a: a.startswith("OK fw=") and "board=rlg-readout-f405" in a)
     exchange("status", b"status", lambda a: a.startswith("OK signal=") and "locked=yes" in a)
+    provision(exchange)
     exchange("unlock", f"unlock {KEY}".encode(), lambda a: a.startswith("OK unlocked"))
     exchange("set", b"set a 12.5", lambda a: a == "OK a=12.5")
     exchange("store fails cleanly (no flash model)", b"store", lambda a: a.startswith("ERR 13 "))
@@ -182,8 +202,12 @@ def main(elf: str, board: bool) -> int:
         check("banner", banner == BANNER, banner.decode("ascii", "replace"))
 
         def exchange(name, request, predicate):
+            # A person at a terminal: a state-changing line without CRC is echoed as parsed
+            # (ERR 18 ... cmd=...) and runs on `yes`.
             try:
                 answer = link.ask(request)
+                if answer.startswith("ERR 18 confirm (send yes) cmd="):
+                    answer = link.ask(b"yes")
             except (TimeoutError, ConnectionError) as e:
                 check(name, False, f"{request[:40]!r} -> {e}")
                 return
@@ -210,6 +234,14 @@ def main(elf: str, board: bool) -> int:
                     out = subprocess.run(["defmt-print", "-e", elf], stdin=f,
                                          capture_output=True, timeout=10)
                 print("defmt log:\n" + out.stdout.decode(errors="replace")[-4000:])
+        elif shutil.which("defmt-print"):
+            # The firmware's painted-stack figure for the run (README "Stack").
+            with open(log.name, "rb") as f:
+                out = subprocess.run(["defmt-print", "-e", elf], stdin=f,
+                                     capture_output=True, timeout=10)
+            for line in out.stdout.decode(errors="replace").splitlines():
+                if "stack:" in line:
+                    print(line)
         os.unlink(log.name)
     print(f"qemu-serial: {passed} passed, {failed} failed")
     return 0 if failed == 0 else 1

@@ -44,18 +44,24 @@ for _ in $(seq 50); do
     sleep 0.2
 done
 
+# The emulated board boots unprovisioned (blank OTP model): a fresh key per run, provisioned first.
+key=$(python3 -c 'import secrets; print(secrets.token_hex(16))')
 check "id"                          0 "board=netduinoplus2" id
+check "unprovisioned status"        0 "key=unprovisioned" status
+check "unprovisioned unlock ERR 16" 1 "ERR 16 no key provisioned" unlock "$key"
+check "key provision"               0 "key=provisioned" send key provision "$key"
+check "second provision ERR 11"     1 "ERR 11" send key provision 11111111111111111111111111111111
 check "status"                      0 "coeffs=defaults:erased" status
 check "locked set is ERR 9"         1 "ERR 9 locked" set a 1
-check "wrong key is ERR 15"         1 "ERR 15 wrong key" unlock 1234
-check "set with the key"            0 "a=344.12344" --key c0ffee42 set a 344.123456
+check "wrong key is ERR 15"         1 "ERR 15 wrong key" unlock 12341234123412341234123412341234
+check "set with the key"            0 "a=344.12344" --key "$key" set a 344.123456
 check "get applied value"           0 "a=344.12344" get a
-check "comp on"                     0 "comp=on" --key c0ffee42 comp on
-check "store"                       0 "result=stored" --key c0ffee42 store
-check "defaults"                    0 "comp=off" --key c0ffee42 defaults
-check "reload"                      0 "coeffs=flash:1" --key c0ffee42 reload
+check "comp on"                     0 "comp=on" --key "$key" comp on
+check "store"                       0 "result=stored" --key "$key" store
+check "defaults"                    0 "comp=off" --key "$key" defaults
+check "reload"                      0 "coeffs=flash:1" --key "$key" reload
 check "reloaded value"              0 "a=344.12344" get a
-check "NaN is ERR 4"                1 "ERR 4" --key c0ffee42 set b NaN
+check "NaN is ERR 4"                1 "ERR 4" --key "$key" set b NaN
 check "cal result without a run"    1 "ERR 11" send cal result
 check "help"                        0 "commands=id status" send help
 check "lock"                        0 "result=locked" lock

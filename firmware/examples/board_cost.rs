@@ -93,8 +93,11 @@ mod app {
         };
         turnaround::arm(tim2, armed, tim2.cnt().read().bits());
         let latch = counter.count(isr::adc);
+        turnaround::arm(tim2, armed, tim2.cnt().read().bits());
+        let latch_stack = firmware::stack::depth_of(isr::adc);
 
         let pickoff_registers = counter.count(isr::tim2);
+        let pickoff_stack = firmware::stack::depth_of(isr::tim2);
         let mut scheduler = Scheduler::new();
         let half = 84_000_000 / 389 / 2;
         let mut t = 1000u32;
@@ -108,8 +111,11 @@ mod app {
             t = t.wrapping_add(half);
         }
         let mut scheduled = None;
-        let prediction = counter.count(|| {
-            scheduled = scheduler.on_edge(Edge::Rising, t, 123);
+        let mut prediction = 0;
+        let prediction_stack = firmware::stack::depth_of(|| {
+            prediction = counter.count(|| {
+                scheduled = scheduler.on_edge(Edge::Rising, t, 123);
+            });
         });
 
         let mut serial = usart::init(dp.USART1);
@@ -117,6 +123,8 @@ mod app {
         const BYTES: u32 = 32;
         serial.write(&[b'.'; BYTES as usize]);
         let usart_tx = counter.count(isr::usart1);
+        serial.write(&[b'.'; BYTES as usize]);
+        let usart_stack = firmware::stack::depth_of(isr::usart1);
         let per_byte = usart_tx.saturating_sub(usart_idle) / BYTES;
 
         let rate_shift = counter.count(|| {
@@ -131,7 +139,8 @@ mod app {
         });
 
         let mut recs = [None; 8];
-        records(&config, &mut recs);
+        // The readout task's work: the signal chain over the turnarounds of eight cycles.
+        let readout_stack = firmware::stack::depth_of(|| records(&config, &mut recs));
         let averager_config = AveragerConfig {
             window_cycles: 389,
             mode: AveragingMode::WholePeriods,
@@ -142,7 +151,17 @@ mod app {
         let mut session = CalibrationSession::new(AcceptanceLimits::DEFAULT);
         session.start_run(0, 1_000_000).unwrap();
         let (mut averaging, mut calibration, mut stream, mut measured) = (0, 0, 0, 0);
+        let mut cycle_stack = 0;
         for (i, record) in recs.iter().flatten().enumerate() {
+            cycle_stack = cycle_stack.max(firmware::stack::depth_of(|| {
+                core::hint::black_box(averager.clone().push(&averager_config, record.output));
+                session
+                    .clone()
+                    .on_cycle(record, record.duration_s(&config.cycle));
+                let mut buf = [0u8; MAX_FRAME];
+                let frame = StreamRecord::from_cycle(i as u32, record);
+                core::hint::black_box(encode_frame(&frame, &mut buf));
+            }));
             averaging = averaging.max(counter.count(|| {
                 core::hint::black_box(averager.push(&averager_config, record.output));
             }));
@@ -182,6 +201,15 @@ mod app {
             averaging,
             calibration,
             stream
+        );
+        defmt::info!(
+            "stack: ADC latch {=u32}, TIM2 pick-off {=u32} (registers) / {=u32} (prediction), USART1 {=u32}, readout task (signal chain, 8 cycles) {=u32}, main loop cycle work {=u32} bytes",
+            latch_stack,
+            pickoff_stack,
+            prediction_stack,
+            usart_stack,
+            readout_stack,
+            cycle_stack
         );
         semihosting::process::exit(if scheduled.is_some() && measured > 0 {
             0

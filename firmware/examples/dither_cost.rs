@@ -106,7 +106,8 @@ mod app {
         );
         let mut dac_code = 2048u16;
         let mut locked_ticks = 0u32;
-        for _ in 0..(4 * profile.drive_tick_hz + profile.drive_tick_hz / 2) {
+        let mut stack_bytes = 0u32;
+        for i in 0..(4 * profile.drive_tick_hz + profile.drive_tick_hz / 2) {
             // The drive's phase at this sample's instant: the DAC sample in force, less the
             // zero-order hold's half step, plus the ADC's aperture (what the controller assumes).
             let (turns, drive) = DITHER
@@ -122,9 +123,19 @@ mod app {
                 .unwrap();
             let code = model.pickoff(turns, drive);
             let mut tick = None;
-            let n = counter.count(|| {
-                tick = DITHER.lock(|t| t.controller.on_tick(&t.config, code));
-            });
+            let mut n = 0;
+            let mut run = || {
+                n = counter.count(|| {
+                    tick = DITHER.lock(|t| t.controller.on_tick(&t.config, code));
+                });
+            };
+            if i.is_multiple_of(97) {
+                // Painting the stack costs ~100 k instructions: every 97th tick (co-prime with
+                // the 103-tick half cycle, so the half-cycle updates are sampled too).
+                stack_bytes = stack_bytes.max(firmware::stack::depth_of(run));
+            } else {
+                run();
+            }
             let tick = tick.unwrap();
             dac_code = tick.dac_code;
             let locked = DITHER.lock(|t| t.controller.state()) == Some(DitherState::Locked);
@@ -215,6 +226,10 @@ mod app {
                 c4
             );
         }
+        defmt::info!(
+            "stack: TIM4 dither tick (on_tick in the DITHER lock) {=u32} bytes deepest of every 97th tick",
+            stack_bytes
+        );
         let state = DITHER.lock(|t| t.controller.status(&t.config)).unwrap();
         defmt::info!(
             "dither state after 4.5 s: {} (last DAC code {=u16})",

@@ -34,9 +34,19 @@ mod app {
 
     const SECTOR_BYTES: usize = 8 * 1024;
 
-    /// `quit`: the test is over (example only).
+    /// The stack pointer when the stack was painted (start of `main`).
+    static PAINTED_SP: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
+
+    /// `quit`: the test is over (example only). Logs the deepest stack of the whole run: the
+    /// main loop serving every command of `.ci/qemu_serial.py` (store and reload included),
+    /// with the USART1 and SysTick interrupts nested on it.
     fn quit(line: &str) -> bool {
         if line == "quit" {
+            let sp = PAINTED_SP.load(core::sync::atomic::Ordering::Relaxed);
+            defmt::info!(
+                "stack: main loop with USART1 and SysTick nested, deepest {=u32} bytes below main's frame",
+                sp - firmware::stack::deepest()
+            );
             defmt::info!("serial_protocol: quit received, exiting");
             semihosting::process::exit(0);
         }
@@ -45,6 +55,10 @@ mod app {
 
     #[cortex_m_rt::entry]
     fn main() -> ! {
+        PAINTED_SP.store(
+            firmware::stack::paint(),
+            core::sync::atomic::Ordering::Relaxed,
+        );
         let mut cp = cortex_m::Peripherals::take().unwrap();
         let dp = pac::Peripherals::take().unwrap();
         let source = clocks::init(&dp.RCC, &dp.FLASH);
@@ -58,7 +72,8 @@ mod app {
             build: "qemu",
             board: "netduinoplus2",
             serial_number: 4242,
-            key: 0xC0FF_EE42,
+            // Unprovisioned, as QEMU's blank OTP model: the host provisions a key first.
+            key: firmware::board::otp::read().1,
             scale_factor_arcsec: profile.scale_factor_arcsec as f32,
             capture_timer_hz: profile.timer_hz,
         };

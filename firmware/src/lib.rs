@@ -15,6 +15,7 @@
 pub mod calibration;
 pub mod dither;
 pub mod math;
+pub mod millis;
 pub mod profile;
 pub mod protocol;
 pub mod readout;
@@ -33,3 +34,5 @@ pub mod board;
 pub mod icount;
 #[cfg(target_os = "none")]
 pub mod rt;
+#[cfg(target_os = "none")]
+pub mod stack;

@@ -305,15 +305,19 @@ impl Readout {
             .restart_from(&config.output.strip, k, k_previous);
     }
 
-    /// Starts counting afresh after the readout was paused (a flash store stalls the CPU for up
-    /// to 2 s: turnarounds were missed and the encoder moved by an unknown amount). The count
-    /// reference, the quadrant offset and the open cycle are dropped; the Lissajous coefficients,
-    /// the compensation settings and the counters are kept. The first cycle after it is flagged.
+    /// Picks up again after the readout was paused (a flash store stalls the CPU for up to
+    /// 2 s: turnarounds were missed while the encoder counted on in hardware). The count runs
+    /// on through the pause (one large step is accepted, `FringeCounter::expect_jump`), and the
+    /// first cycle after it spans the gap from the last closed cycle's end, flagged
+    /// `TURNAROUND_MISSED` (`CycleAssembler::gap`): the angle turned meanwhile is carried into
+    /// the per-cycle output, not dropped. The Lissajous coefficients, the count-to-phase
+    /// alignment, the compensation settings and the counters are kept. The fixed-rate output
+    /// does not splice across the stall: its next record is a restart (invalid, its period
+    /// spanning the stall), since the lock-in corrections of the cycles in the stall are
+    /// missing from it.
     pub fn resynchronise(&mut self) {
-        self.counter = FringeCounter::new();
-        self.resolver.realign();
-        self.cycles = CycleAssembler::new();
-        // The output's chain of increments breaks too: the next record is a restart.
+        self.counter.expect_jump();
+        self.cycles.gap();
         self.recorder.restart();
         self.output_faults = self.output_faults.union(OutputStatus::RESTART);
     }

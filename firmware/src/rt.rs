@@ -36,11 +36,14 @@ pub struct MemoryMap {
     pub calibration_start: u32,
     /// First byte after the calibration store.
     pub calibration_end: u32,
-    /// Start of SRAM.
-    pub ram_start: u32,
-    /// First byte after `.data`, `.bss` and `.uninit`; the stack grows down towards it.
-    pub static_ram_end: u32,
-    /// Initial stack pointer: the top of SRAM.
+    /// Start of the statics (`.data`, then `.bss` and `.uninit`).
+    pub static_start: u32,
+    /// First byte after the statics.
+    pub static_end: u32,
+    /// Lowest address of the stack: with flip-link the start of SRAM, below the statics, so
+    /// an overflow faults instead of overwriting them (README "Stack").
+    pub stack_bottom: u32,
+    /// Initial stack pointer: the stack grows down from here to `stack_bottom`.
     pub stack_top: u32,
 }
 
@@ -52,7 +55,7 @@ extern "C" {
     static __edata: u8;
     static _stack_start: u8;
     static _stack_end: u8;
-    static _ram_start: u8;
+    static __euninit: u8;
 }
 
 /// The address of a linker symbol (its value; the symbol is never read, so no `unsafe`).
@@ -73,8 +76,9 @@ impl MemoryMap {
             flash_end: addr!(__sidata) + (addr!(__edata) - addr!(__sdata)),
             calibration_start: addr!(__calibration_start),
             calibration_end: addr!(__calibration_end),
-            ram_start: addr!(_ram_start),
-            static_ram_end: addr!(_stack_end),
+            static_start: addr!(__sdata),
+            static_end: addr!(__euninit),
+            stack_bottom: addr!(_stack_end),
             stack_top: addr!(_stack_start),
         }
     }
@@ -94,11 +98,13 @@ impl MemoryMap {
             self.calibration_end
         );
         defmt::info!(
-            "ram    {=u32:#010x}..{=u32:#010x}: {=u32} bytes static, stack top {=u32:#010x}",
-            self.ram_start,
-            self.static_ram_end,
-            self.static_ram_end - self.ram_start,
-            self.stack_top
+            "ram    {=u32:#010x}..{=u32:#010x}: {=u32} bytes static; stack {=u32:#010x}..{=u32:#010x} ({=u32} bytes) below it",
+            self.static_start,
+            self.static_end,
+            self.static_end.wrapping_sub(self.static_start),
+            self.stack_bottom,
+            self.stack_top,
+            self.stack_top.wrapping_sub(self.stack_bottom)
         );
     }
 }

@@ -31,7 +31,9 @@ use firmware::dither::{CommandError, DitherConfig, DitherController, DitherStatu
 use firmware::profile::BoardProfile;
 use firmware::protocol::endpoint;
 use firmware::protocol::execute::{DeviceLink, DeviceStatus, Executor, Identity};
+use firmware::protocol::key::Key;
 use firmware::protocol::line::{LineAssembler, LineEvent};
+use firmware::protocol::link::KeyWriteError;
 use firmware::protocol::parse::{crc16, parse};
 use firmware::protocol::respond::MAX_RESPONSE;
 use firmware::protocol::stream::{decode_frame, encode_frame, MAX_FRAME};
@@ -52,29 +54,30 @@ pub const CYCLES: u8 = 0x02;
 /// Event byte: the next store fails.
 pub const FAIL_STORE: u8 = 0x03;
 
-/// The unlock key of [`IDENTITY`].
-pub const KEY: u32 = 0xC0FF_EE42;
-
-/// The identity the harness answers `id` with.
+/// The identity the harness answers `id` with; its key, as the seeds type it, is
+/// `f0e1d2c3b4a5968778695a4b3c2d1e0f`.
 pub const IDENTITY: Identity = Identity {
     firmware_version: "0.0.0-fuzz",
     build: "fuzz",
     board: "memory",
     serial_number: 7,
-    key: KEY,
+    key: Some(Key::from_bytes([
+        0xf0, 0xe1, 0xd2, 0xc3, 0xb4, 0xa5, 0x96, 0x87, 0x78, 0x69, 0x5a, 0x4b, 0x3c, 0x2d, 0x1e,
+        0x0f,
+    ])),
     scale_factor_arcsec: 1.8655,
     capture_timer_hz: 84_000_000,
 };
 
 /// Every error code, for checking `ERR <n> <text>`.
-const CODES: [ErrorCode; 15] = ErrorCode::ALL;
+const CODES: [ErrorCode; 18] = ErrorCode::ALL;
 
 /// The in-memory device: settings staged and applied at the next cycle, a flash log, and the
 /// firmware's own dither controller (the F405 profile's settings; no ticks, so its state stays
 /// where the commands put it, and its range checks are the real ones).
 #[derive(Clone, Debug)]
 struct MemDevice {
-    now_ms: u32,
+    now_ms: u64,
     active: CompensationSettings,
     staged: Option<CompensationSettings>,
     stored: Vec<CalibrationRecord>,
@@ -87,7 +90,7 @@ struct MemDevice {
 impl DeviceLink for MemDevice {
     type FlashError = ();
 
-    fn now_ms(&self) -> u32 {
+    fn now_ms(&self) -> u64 {
         self.now_ms
     }
 
@@ -153,6 +156,11 @@ impl DeviceLink for MemDevice {
     }
     fn apply_strip(&mut self, strip: StripCoefficients) {
         self.strip = Some(strip);
+    }
+
+    /// The identity's OTP is programmed: a second key is refused, as on a provisioned board.
+    fn program_key(&mut self, _key: &Key) -> Result<(), KeyWriteError> {
+        Err(KeyWriteError::NotBlank)
     }
 }
 
@@ -363,6 +371,7 @@ pub fn check(data: &[u8]) {
     let (mut nonempty_lines, mut events) = (0usize, 0usize);
     let mut line_bytes = 0usize; // bytes of the current line, a lone trailing '\r' excepted
     let mut pending_cr = false;
+    let mut after_lf = false; // a '\r' right after a '\n' is dropped (LF CR endings)
     for &byte in data {
         match byte {
             TICK => h.device.now_ms = h.device.now_ms.wrapping_add(60_000),
@@ -370,7 +379,10 @@ pub fn check(data: &[u8]) {
             FAIL_STORE => h.device.fail_next_store = true,
             _ => {
                 h.device.now_ms = h.device.now_ms.wrapping_add(7);
-                if byte == b'\n' {
+                let dropped = core::mem::replace(&mut after_lf, byte == b'\n') && byte == b'\r';
+                if dropped {
+                    after_lf = false;
+                } else if byte == b'\n' {
                     nonempty_lines += (line_bytes > 0) as usize;
                     line_bytes = 0;
                     pending_cr = false;

@@ -10,7 +10,9 @@
 //!
 //! Like the board, a `store` stalls: the flash model books the erase and programming time, the
 //! simulated gyro runs on meanwhile without the readout seeing it, and the readout is
-//! re-synchronised afterwards. Power can be cut ([`SimDevice::power_off`] returns the flash,
+//! re-synchronised afterwards. The answer to `store` comes when the stall is over (up to
+//! about 2 s after the command with an erase, as on the board), and bytes received meanwhile
+//! are taken after it. Power can be cut ([`SimDevice::power_off`] returns the flash,
 //! whose contents survive; [`SimDevice::boot`] starts again from it).
 //!
 //! While streaming, cycle frames (COBS, ending in 0x00) and text answers share the line: a text
@@ -33,8 +35,10 @@ use crate::params::GyroParams;
 use firmware::dither::{DitherConfig, DitherController};
 use firmware::profile::BoardProfile;
 use firmware::protocol::execute::Identity;
+use firmware::protocol::key::Key;
+use firmware::protocol::link::KeyWriteError;
 use firmware::readout::Readout;
-use firmware::service::ports::{Clock, DitherAccess, ReadoutAccess, SerialTx};
+use firmware::service::ports::{Clock, DitherAccess, ReadoutAccess, Secrets, SerialTx};
 use firmware::service::{Service, ServiceConfig};
 use firmware::storage::Geometry;
 
@@ -48,15 +52,24 @@ pub struct SimDevice {
     output: Vec<u8>,
     /// Simulated seconds the CPU is still stalled by a flash operation.
     stall_s: f64,
+    /// The answer of the command that stalled, sent when the stall is over (as on the board,
+    /// whose main loop sends it after the store returns).
+    held_output: Vec<u8>,
+    /// Bytes that arrived during the stall, taken when it is over.
+    held_input: Vec<u8>,
+    /// The simulated OTP key words: the identity's key at boot, or what `key provision` wrote.
+    otp_key: Option<Key>,
 }
 
-/// An identity for simulated boards.
+/// An identity for simulated boards: unprovisioned. A simulated board with a key is
+/// `Identity { key: Some(key), ..SIM_IDENTITY }`, the key given on its command line (rlg-cal's
+/// `--board-key` / `RLG_SIM_BOARD_KEY`); there is no fixed simulator key.
 pub const SIM_IDENTITY: Identity = Identity {
     firmware_version: env!("CARGO_PKG_VERSION"),
     build: "hal-sim",
     board: "rlg-readout-sim",
     serial_number: 4242,
-    key: 0xC0FF_EE42,
+    key: None,
     scale_factor_arcsec: BoardProfile::F405.scale_factor_arcsec as f32,
     capture_timer_hz: BoardProfile::F405.timer_hz,
 };
@@ -135,6 +148,9 @@ impl SimDevice {
             service: booted.service,
             output: Vec::new(),
             stall_s: 0.0,
+            held_output: Vec::new(),
+            held_input: Vec::new(),
+            otp_key: identity.key,
         })
     }
 
@@ -178,6 +194,10 @@ impl SimDevice {
             self.stall_s -= self.harness.time_s() - before_s;
             if self.stall_s <= 0.0 {
                 self.harness.readout_mut().resynchronise();
+                // The store returned: its answer goes out, then the bytes that waited.
+                self.output.append(&mut self.held_output);
+                let input = std::mem::take(&mut self.held_input);
+                self.receive(&input);
             }
             return;
         }
@@ -185,7 +205,7 @@ impl SimDevice {
         // The output latches of the half cycle came first (the output latch's context), then
         // the cycle its closing turnaround made (the cycle task).
         let outputs: Vec<OutputRecord> = self.harness.outputs().iter().map(|(_, r)| *r).collect();
-        let mut ports = SimPorts::new(&mut self.harness, &mut self.output);
+        let mut ports = SimPorts::new(&mut self.harness, &mut self.output, &mut self.otp_key);
         for output in &outputs {
             self.service.on_output(output, &mut ports);
         }
@@ -197,19 +217,36 @@ impl SimDevice {
     /// Serial bytes from the host: every completed line is executed and answered at once, by
     /// the firmware's own command service.
     pub fn receive(&mut self, bytes: &[u8]) {
-        for &byte in bytes {
+        for (i, &byte) in bytes.iter().enumerate() {
+            if self.stall_s > 0.0 {
+                // The CPU is stalled: the rest waits (a host waits for the answer anyway).
+                self.held_input.extend_from_slice(&bytes[i..]);
+                return;
+            }
+            let output_before = self.output.len();
             let busy_before_s = self.service.flash().stats().busy_s;
-            let mut ports = SimPorts::new(&mut self.harness, &mut self.output);
+            let mut ports = SimPorts::new(&mut self.harness, &mut self.output, &mut self.otp_key);
             self.service.on_byte(byte, &mut ports);
             if ports.paused {
                 // The stall: the readout misses what happens meanwhile and re-synchronises
                 // after it (`half_cycle`); the drive is paused for it as on the board.
                 let busy_s = self.service.flash().stats().busy_s - busy_before_s;
                 self.stall_s += busy_s.max(1e-3);
+                // The answer comes when the store is over, not before.
+                let answer = self.output.split_off(output_before);
+                self.held_output.extend_from_slice(&answer);
                 let until_s = self.harness.time_s() + self.stall_s;
                 self.harness.stall_drive(until_s);
             }
         }
+    }
+
+    /// A new client on the serial link (a served board's new connection): the firmware's
+    /// session starts afresh (locked, no stream, empty line buffer) and output not yet taken
+    /// is dropped, as it was meant for the previous client.
+    pub fn new_session(&mut self) {
+        self.service.new_session();
+        self.output.clear();
     }
 
     /// Everything sent to the host since the last call.
@@ -226,20 +263,27 @@ struct SimPorts<'a> {
     readout: &'a mut Readout,
     drive: &'a mut FirmwareDrive,
     output: &'a mut Vec<u8>,
-    now_ms: u32,
+    otp_key: &'a mut Option<Key>,
+    now_ms: u64,
     paused: bool,
 }
 
 impl<'a> SimPorts<'a> {
     /// The ports at the harness's present simulated time.
-    fn new(harness: &'a mut Harness, output: &'a mut Vec<u8>) -> Self {
-        let now_ms = (harness.time_s() * 1000.0) as u32;
+    fn new(
+        harness: &'a mut Harness,
+        output: &'a mut Vec<u8>,
+        otp_key: &'a mut Option<Key>,
+    ) -> Self {
+        // 64-bit milliseconds: no saturation at 49.7 days as a u32 would.
+        let now_ms = (harness.time_s() * 1000.0) as u64;
         let (readout, drive) = harness.firmware_parts_mut();
         Self {
             now_ms,
             readout,
             drive: drive.expect("the simulated board's dither is driven by the firmware"),
             output,
+            otp_key,
             paused: false,
         }
     }
@@ -252,8 +296,24 @@ impl DitherAccess for SimPorts<'_> {
     }
 }
 
+impl Secrets for SimPorts<'_> {
+    /// The simulated OTP: written once, refused when not blank.
+    fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError> {
+        if self.otp_key.is_some() {
+            return Err(KeyWriteError::NotBlank);
+        }
+        *self.otp_key = Some(*key);
+        Ok(())
+    }
+
+    /// The simulated board has no backup domain: a power cycle ([`SimDevice::power_off`],
+    /// then [`SimDevice::boot`]) is a cold start, as a board without VBAT (the service's
+    /// tests check that a reset keeping the count keeps the penalty).
+    fn save_wrong_keys(&mut self, _count: u32) {}
+}
+
 impl Clock for SimPorts<'_> {
-    fn now_ms(&self) -> u32 {
+    fn now_ms(&self) -> u64 {
         self.now_ms
     }
 }

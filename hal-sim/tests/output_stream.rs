@@ -3,17 +3,52 @@
 //! numbered by the records' own 64-bit sequence, decoded by the host's
 //! `protocol::output_frame`; `status` reports the stripping's K and its convergence.
 
+use firmware::protocol::execute::Identity;
+use firmware::protocol::key::Key;
 use firmware::protocol::output_frame::{decode_output_frame, OutputGaps};
+use firmware::protocol::parse::crc16;
 use firmware::signal::output::record::OutputStatus;
 use hal_sim::device::{SimDevice, OUTPUT_RATE_HZ, SIM_IDENTITY};
 use hal_sim::flash::CalibrationFlash;
 use hal_sim::input::InputProfile;
 use hal_sim::params::GyroParams;
 
+/// The key this test gives its simulated board (a fixture: the simulator has no fixed key).
+const KEY: &str = "3a7c5e91b2d4f60819e3c5a7b9d1f2e4";
+
+fn boot(seed: u64, rate_deg_h: f64, flash: CalibrationFlash, boot_count: u32) -> SimDevice {
+    SimDevice::boot(
+        GyroParams {
+            seed,
+            ..GyroParams::default()
+        },
+        InputProfile::constant(rate_deg_h),
+        Identity {
+            key: Key::parse_hex(KEY),
+            ..SIM_IDENTITY
+        },
+        flash,
+        boot_count,
+    )
+    .unwrap()
+}
+
+/// One line with its CRC (the host tool's way: a state-changing command runs at once), its
+/// answer without the CRC suffix; waits up to 3 simulated seconds (a `store` answers when its
+/// flash stall is over).
 fn ask(dev: &mut SimDevice, line: &str) -> String {
-    dev.receive(line.as_bytes());
-    dev.receive(b"\n");
-    String::from_utf8(dev.take_output()).expect("text answer")
+    dev.receive(format!("{line}*{:04X}\n", crc16(line.as_bytes())).as_bytes());
+    let mut out = dev.take_output();
+    let sent_s = dev.time_s();
+    while out.is_empty() && dev.time_s() - sent_s < 3.0 {
+        dev.run_for(0.001);
+        out = dev.take_output();
+    }
+    let text = String::from_utf8(out).expect("text answer");
+    let line = text.trim_end();
+    line.rsplit_once('*')
+        .map_or(line, |(body, _)| body)
+        .to_owned()
 }
 
 fn field<'a>(answer: &'a str, key: &str) -> &'a str {
@@ -31,18 +66,7 @@ fn field<'a>(answer: &'a str, key: &str) -> &'a str {
 /// 0.06 deg/h rms on the slope of 1000 records; the uncompensated lock-in error the rest).
 #[test]
 fn stream_output_sends_every_record_numbered_and_valid() {
-    let params = GyroParams {
-        seed: 77,
-        ..GyroParams::default()
-    };
-    let mut dev = SimDevice::boot(
-        params,
-        InputProfile::constant(50.0),
-        SIM_IDENTITY,
-        CalibrationFlash::default(),
-        0,
-    )
-    .unwrap();
+    let mut dev = boot(77, 50.0, CalibrationFlash::default(), 0);
     while field(&ask(&mut dev, "status"), "drive") != "locked" {
         assert!(dev.time_s() < 3.0, "the drive did not lock");
         dev.run_for(0.1);
@@ -116,21 +140,8 @@ fn stream_output_sends_every_record_numbered_and_valid() {
 /// output latch; a record stored while still learning carries none.
 #[test]
 fn k_is_stored_with_the_calibration_and_restored_at_power_up() {
-    let boot = |flash, boot_count| {
-        SimDevice::boot(
-            GyroParams {
-                seed: 78,
-                ..GyroParams::default()
-            },
-            InputProfile::constant(20.0),
-            SIM_IDENTITY,
-            flash,
-            boot_count,
-        )
-        .unwrap()
-    };
-    let mut dev = boot(CalibrationFlash::default(), 0);
-    assert!(ask(&mut dev, "unlock c0ffee42").starts_with("OK"));
+    let mut dev = boot(78, 20.0, CalibrationFlash::default(), 0);
+    assert!(ask(&mut dev, &format!("unlock {KEY}")).starts_with("OK"));
     assert_eq!(field(&ask(&mut dev, "status"), "strip"), "learning");
     assert!(ask(&mut dev, "store").starts_with("OK"));
     assert_eq!(field(&ask(&mut dev, "reload"), "strip"), "kept");
@@ -140,7 +151,7 @@ fn k_is_stored_with_the_calibration_and_restored_at_power_up() {
     assert_eq!(field(&status, "strip"), "converged", "{status}");
     let k: f64 = field(&status, "strip_k").parse().unwrap();
     assert!(ask(&mut dev, "store").starts_with("OK"));
-    let mut dev = boot(dev.power_off(), 1);
+    let mut dev = boot(78, 20.0, dev.power_off(), 1);
     let status = ask(&mut dev, "status");
     let restored: f64 = field(&status, "strip_k").parse().unwrap();
     assert!((restored - k).abs() < 1e-6, "{restored} vs {k}: {status}");

@@ -2,6 +2,8 @@
 //! calibration session and flash store, driven by text lines as a technician or the host tool
 //! would send them. Seeded; every exchange is one line in, exactly one line out.
 
+use firmware::protocol::execute::Identity;
+use firmware::protocol::key::Key;
 use firmware::protocol::parse::crc16;
 use firmware::protocol::stream::{decode_frame, GapCounter};
 use hal_sim::device::{SimDevice, SIM_IDENTITY};
@@ -9,7 +11,8 @@ use hal_sim::flash::{CalibrationFlash, PowerCut};
 use hal_sim::input::InputProfile;
 use hal_sim::params::GyroParams;
 
-const KEY: &str = "c0ffee42";
+/// The key this test gives its simulated board (a fixture: the simulator has no fixed key).
+const KEY: &str = "3a7c5e91b2d4f60819e3c5a7b9d1f2e4";
 
 /// Powers the simulated board up and waits, as a technician does, until `status` shows the
 /// dither drive locked (the board's start-up from the ringing dither takes about 1.1 s; 3 s at
@@ -22,7 +25,10 @@ fn boot(flash: CalibrationFlash, rate_deg_h: f64, boot_count: u32) -> SimDevice 
     let mut dev = SimDevice::boot(
         params,
         InputProfile::constant(rate_deg_h),
-        SIM_IDENTITY,
+        Identity {
+            key: Key::parse_hex(KEY),
+            ..SIM_IDENTITY
+        },
         flash,
         boot_count,
     )
@@ -35,11 +41,33 @@ fn boot(flash: CalibrationFlash, rate_deg_h: f64, boot_count: u32) -> SimDevice 
     dev
 }
 
-/// Sends one line, returns the answer line (without `\r\n`); asserts exactly one answer.
+/// Sends one line as a person at a terminal does (no CRC), returns the answer line (without
+/// `\r\n`); asserts exactly one answer. A state-changing command is echoed for confirmation
+/// (`ERR 18 ... cmd=`): the echo is checked and `yes` sent, and its answer returned.
 fn ask(dev: &mut SimDevice, line: &str) -> String {
+    let answer = ask_once(dev, line);
+    match answer.strip_prefix("ERR 18 confirm (send yes) cmd=") {
+        Some(echo) => {
+            let parsed = firmware::protocol::parse::parse(line).unwrap();
+            assert_eq!(firmware::protocol::parse::parse(echo), Ok(parsed), "{line}");
+            ask_once(dev, "yes")
+        }
+        None => answer,
+    }
+}
+
+/// One line, its one answer line (waiting up to 3 simulated seconds for it: a `store` answers
+/// when its flash stall is over).
+fn ask_once(dev: &mut SimDevice, line: &str) -> String {
     dev.receive(line.as_bytes());
     dev.receive(b"\n");
-    let out = String::from_utf8(dev.take_output()).expect("text answer");
+    let mut out = dev.take_output();
+    let sent_s = dev.time_s();
+    while out.is_empty() && dev.time_s() - sent_s < 3.0 {
+        dev.run_for(0.001);
+        out = dev.take_output();
+    }
+    let out = String::from_utf8(out).expect("text answer");
     let lines: Vec<&str> = out.split_terminator("\r\n").collect();
     assert_eq!(lines.len(), 1, "one answer to {line:?}: {out:?}");
     lines[0].to_string()
@@ -51,6 +79,38 @@ fn field<'a>(answer: &'a str, key: &str) -> &'a str {
         .split(' ')
         .find_map(|w| w.strip_prefix(key).and_then(|w| w.strip_prefix('=')))
         .unwrap_or_else(|| panic!("{key} in {answer}"))
+}
+
+/// A simulated board booted without a key is a new board: no key unlocks it (the old
+/// published development key included), `status` says `key=unprovisioned`; `key provision`
+/// sets the key once, after which it unlocks and a second provisioning is refused.
+#[test]
+fn an_unprovisioned_board_accepts_no_key_until_provisioned_once() {
+    let params = GyroParams {
+        seed: 5,
+        ..GyroParams::default()
+    };
+    let input = InputProfile::constant(0.0);
+    let flash = CalibrationFlash::default();
+    let mut dev = SimDevice::boot(params, input, SIM_IDENTITY, flash, 0).unwrap();
+    assert!(ask(&mut dev, "status").contains(" key=unprovisioned "));
+    assert!(ask(&mut dev, &format!("unlock {KEY}")).starts_with("ERR 16 no key provisioned"));
+    assert!(ask(&mut dev, "unlock c0ffee42").starts_with("ERR 3 "));
+    assert!(ask(&mut dev, "set a 300").starts_with("ERR 9 "));
+    assert_eq!(
+        ask(&mut dev, &format!("key provision {KEY}")),
+        "OK key=provisioned"
+    );
+    assert!(ask(&mut dev, "status").contains(" key=provisioned "));
+    assert!(
+        ask(&mut dev, "set a 300").starts_with("ERR 9 "),
+        "still locked"
+    );
+    let other = KEY.replace('a', "b");
+    assert!(ask(&mut dev, &format!("key provision {other}")).starts_with("ERR 11 "));
+    assert!(ask(&mut dev, &format!("unlock {other}")).starts_with("ERR 15 "));
+    assert!(ask(&mut dev, &format!("unlock {KEY}")).starts_with("OK unlocked"));
+    assert_eq!(ask(&mut dev, "set a 300"), "OK a=300");
 }
 
 #[test]
@@ -100,7 +160,11 @@ fn calibrate_accept_store_and_survive_a_power_cycle() {
         ask(&mut dev, "set a 300").starts_with("ERR 9 "),
         "locked at reset"
     );
-    assert!(ask(&mut dev, "unlock 1234").starts_with("ERR 15 "));
+    assert!(
+        ask(&mut dev, "unlock 1234").starts_with("ERR 3 "),
+        "no 128-bit key"
+    );
+    assert!(ask(&mut dev, &format!("unlock {}", KEY.replace('3', "4"))).starts_with("ERR 15 "));
     assert!(ask(&mut dev, &format!("unlock {KEY}")).starts_with("OK unlocked"));
     assert!(ask(&mut dev, "cal start 3000 100").starts_with("OK cal=running"));
     assert!(
@@ -331,4 +395,74 @@ fn every_protected_command_needs_the_unlock() {
     }
     assert_eq!(ask(&mut dev, "get coeffs"), before);
     assert_eq!(field(&ask(&mut dev, "status"), "coeffs"), "defaults:erased");
+}
+
+/// The rotation during a `store`'s flash stall is not lost: the encoder counts on, and the
+/// first cycle after the stall carries the whole angle since the last cycle before it (flagged
+/// `TURNAROUND_MISSED`). So the streamed increments add up to the total phase the board
+/// reports (exactly: both are the same Q32 count), and the durations to the time elapsed
+/// (to one capture-timer tick per frame).
+#[test]
+fn the_angle_turned_during_a_store_stall_is_carried_into_the_stream() {
+    let mut dev = boot(CalibrationFlash::default(), 13.888, 0);
+    assert!(ask(&mut dev, &format!("unlock {KEY}")).starts_with("OK unlocked"));
+    dev.receive(b"stream on 1\n");
+    dev.run_for(0.5);
+    dev.receive(format!("store*{:04X}\n", crc16(b"store")).as_bytes());
+    dev.run_for(2.5);
+    let bytes = dev.take_output();
+    let frames: Vec<_> = bytes
+        .split(|&b| b == 0)
+        .filter_map(|c| decode_frame(c).ok())
+        .collect();
+    assert!(frames.len() > 700, "{} frames", frames.len());
+    let bridged = frames.iter().filter(|f| f.flags & 4 != 0).count();
+    assert!(bridged >= 1, "the cycle across the stall is flagged");
+    let summed: i64 = frames[1..].iter().map(|f| f.raw_increment_q32).sum();
+    let spanned = frames.last().unwrap().end_phase_q32 - frames[0].end_phase_q32;
+    let lost_fringes = (spanned - summed) as f64 / 2f64.powi(32);
+    assert!(
+        lost_fringes.abs() < 1e-6,
+        "{lost_fringes:.3} fringes turned during the stall are missing from the stream"
+    );
+}
+
+/// A store that erases stalls the board for the erase (1 s typical in the flash model): its
+/// answer comes when the stall is over, not at once, and a command sent meanwhile is answered
+/// after it. (Sector 0 is filled with damage, so the store erases sector 1 first.)
+#[test]
+fn a_store_answers_after_its_stall() {
+    use embedded_storage::nor_flash::NorFlash;
+    let mut flash = CalibrationFlash::default();
+    flash.write(0, &vec![0u8; 128 * 1024]).unwrap();
+    let mut dev = boot(flash, 5.0, 0);
+    assert!(ask(&mut dev, &format!("unlock {KEY}")).starts_with("OK unlocked"));
+    let busy_before_s = dev.flash_mut().stats().busy_s;
+    let sent_s = dev.time_s();
+    dev.receive(format!("store*{:04X}\n", crc16(b"store")).as_bytes());
+    dev.receive(b"id\n");
+    assert!(dev.take_output().is_empty(), "no answer during the stall");
+    let mut out = Vec::new();
+    while !out.ends_with(b"\r\n") || out.split(|&b| b == b'\n').count() < 3 {
+        assert!(
+            dev.time_s() - sent_s < 3.0,
+            "no answers within 3 s: {out:?}"
+        );
+        dev.run_for(0.001);
+        out.extend(dev.take_output());
+    }
+    let answered_s = dev.time_s() - sent_s;
+    let stall_s = dev.flash_mut().stats().busy_s - busy_before_s;
+    assert!(stall_s >= 0.9, "the store erased: {stall_s} s");
+    assert!(
+        (answered_s - stall_s).abs() < 0.01,
+        "answered after {answered_s:.3} s, stall {stall_s:.3} s"
+    );
+    let text = String::from_utf8(out).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(lines[0].starts_with("OK stored seq=1"), "{text}");
+    assert!(
+        lines[1].starts_with("OK fw="),
+        "then the command sent meanwhile: {text}"
+    );
 }

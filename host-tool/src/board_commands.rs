@@ -85,9 +85,9 @@ pub fn prepare(command: &Command, have_key: bool) -> Result<Outputs, Failure> {
                 svg: None,
             })
         }
-        Command::Calibrate(args) if args.accept && !have_key => Err(Failure::Usage(
-            "calibrate --accept needs the unlock key (--key, --key-file or RLG_KEY): \
-             `cal accept` is protected"
+        Command::Calibrate(_) if !have_key => Err(Failure::Usage(
+            "calibrate needs the unlock key (--key, --key-file or RLG_KEY): `cal start` takes \
+             the board's time and is protected"
                 .into(),
         )),
         _ => Ok(Outputs::default()),
@@ -194,9 +194,8 @@ impl<'a, L: Link> Device<'a, L> {
         let stop = interrupt::install();
         // The board answers, and a wrong key is refused, before the run.
         self.probe()?;
-        if args.accept {
-            self.unlocked()?;
-        }
+        // `cal start` takes the board's time: protected like the rest.
+        self.unlocked()?;
         let options = CalibrateOptions {
             poll: Duration::from_millis(args.poll_ms.max(10)),
             ..CalibrateOptions::new(args.cycles, args.warmup)

@@ -9,6 +9,7 @@
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use firmware::protocol::SERIAL_BAUD;
+use rlg_cal::ranges;
 use std::path::PathBuf;
 
 const AFTER_HELP: &str = "\
@@ -18,20 +19,25 @@ Connections (one of, before or after the subcommand):
   --tcp 127.0.0.1:7878                 the simulated board served by `rlg-cal serve-sim --tcp`
   --sim                                a simulated board inside this process; with
                                        --sim-state FILE it lasts from one call to the next
+                                       (its key: $RLG_SIM_BOARD_KEY, else the key given)
 
 Environment (used when the command line does not say):
   RLG_PORT, RLG_TCP, RLG_BAUD          the connection
-  RLG_KEY                              the unlock key (or --key-file FILE; a --key shows in the
-                                       process list)
+  RLG_KEY                              the unlock key, 32 hex digits (or --key-file FILE; a
+                                       --key shows in the process list)
   RLG_SIM_STATE                        the --sim board's state file
+  RLG_SIM_BOARD_KEY                    the key of a simulated board (--sim, serve-sim)
 
 Examples:
   rlg-cal --tcp 127.0.0.1:7878 status
-  RLG_TCP=127.0.0.1:7878 RLG_KEY=c0ffee42 rlg-cal set a 344.25
+  RLG_TCP=127.0.0.1:7878 RLG_KEY=$KEY rlg-cal set a 344.25
   rlg-cal console --tcp 127.0.0.1:7878
   rlg-cal --port /dev/ttyUSB0 --key-file key.txt calibrate --cycles 4000 --warmup 400 --accept --store
+  rlg-cal --port /dev/ttyUSB0 send key provision $KEY   (production, once per board)
+  rlg-cal serve-sim --tcp 127.0.0.1:7878 --board-key $KEY
   rlg-cal --port /dev/ttyUSB0 stream --seconds 10 --csv run.csv --svg run.svg
-  rlg-cal --sim --sim-state board.state --key c0ffee42 store
+  rlg-cal --port /dev/ttyUSB0 record --seconds 600 --csv output.csv
+  rlg-cal --sim --sim-state board.state --key $KEY store
   rlg-cal sweep --calibrate --svg sweep.svg
   rlg-cal serve-sim --pty
 
@@ -58,15 +64,22 @@ Exit status:
 pub struct Cli {
     #[command(flatten)]
     pub connection: ConnectionArgs,
-    /// Unlock key (hex) sent before protected commands (set, comp, track, store, reload,
-    /// defaults, calibrate --accept). Also from --key-file or RLG_KEY.
+    /// Unlock key (32 hex digits) sent before protected commands (set, comp, track, store,
+    /// reload, defaults, calibrate). Also from --key-file or RLG_KEY.
     #[arg(long, value_name = "KEY", global = true)]
     pub key: Option<String>,
     /// A file holding the unlock key (first line; keeps it out of the process list).
     #[arg(long, value_name = "PATH", global = true, conflicts_with = "key")]
     pub key_file: Option<PathBuf>,
     /// How long to wait for an answer, ms.
-    #[arg(long, default_value_t = 2000, value_name = "MS", global = true)]
+    #[arg(
+        long,
+        default_value_t = 2000,
+        value_name = "MS",
+        global = true,
+        value_parser = ranges::timeout_ms,
+        allow_negative_numbers = true
+    )]
     pub timeout_ms: u64,
     /// Results as one JSON object per command (for scripts) instead of `key=value` lines.
     #[arg(long, global = true)]
@@ -85,6 +98,8 @@ pub struct ConnectionArgs {
         long,
         value_name = "N",
         global = true,
+        value_parser = ranges::baud,
+        allow_negative_numbers = true,
         help = format!("Baud rate of --port (or RLG_BAUD; default: the board's, {SERIAL_BAUD})")
     )]
     pub baud: Option<u32>,
@@ -99,6 +114,7 @@ pub struct ConnectionArgs {
         long,
         default_value_t = 13.888,
         value_name = "DEG_H",
+        value_parser = ranges::rate_deg_h,
         allow_negative_numbers = true,
         global = true
     )]
@@ -288,10 +304,10 @@ pub enum Command {
 #[derive(Debug, Args)]
 pub struct CalibrateArgs {
     /// Dither cycles in the fit.
-    #[arg(long, default_value_t = 4000)]
+    #[arg(long, default_value_t = 4000, value_parser = ranges::cal_cycles, allow_negative_numbers = true)]
     pub cycles: u32,
     /// Cycles discarded first.
-    #[arg(long, default_value_t = 400)]
+    #[arg(long, default_value_t = 400, value_parser = ranges::warmup_cycles, allow_negative_numbers = true)]
     pub warmup: u32,
     /// Apply the fit (`cal accept`) when it passes.
     #[arg(long)]
@@ -300,14 +316,14 @@ pub struct CalibrateArgs {
     #[arg(long, requires = "accept")]
     pub store: bool,
     /// Between two `cal status` polls, ms.
-    #[arg(long, default_value_t = 250, value_name = "MS")]
+    #[arg(long, default_value_t = 250, value_name = "MS", value_parser = ranges::poll_ms, allow_negative_numbers = true)]
     pub poll_ms: u64,
 }
 
 #[derive(Debug, Args)]
 pub struct StreamArgs {
     /// How long to stream, s.
-    #[arg(long)]
+    #[arg(long, value_parser = ranges::seconds, allow_negative_numbers = true)]
     pub seconds: f64,
     /// One row per streamed cycle.
     #[arg(long, value_name = "PATH")]
@@ -316,10 +332,10 @@ pub struct StreamArgs {
     #[arg(long, value_name = "PATH")]
     pub svg: Option<PathBuf>,
     /// Stream every n-th cycle (1 = every cycle; needs about 18 kB/s at 389 Hz).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..))]
+    #[arg(long, default_value_t = 1, value_parser = ranges::divider, allow_negative_numbers = true)]
     pub divider: u16,
     /// Override the capture-timer frequency the board reports in `id`, Hz.
-    #[arg(long)]
+    #[arg(long, value_parser = ranges::timer_hz, allow_negative_numbers = true)]
     pub timer_hz: Option<f64>,
 }
 
@@ -341,38 +357,39 @@ pub struct RecordArgs {
 #[derive(Debug, Args)]
 pub struct SweepArgs {
     /// Latitude of the rotary table, deg.
-    #[arg(long, default_value_t = 22.2, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 22.2, value_parser = ranges::latitude_deg, allow_negative_numbers = true)]
     pub latitude: f64,
     /// Table azimuths, deg (comma-separated).
     #[arg(
         long,
         value_delimiter = ',',
         default_value = "0,30,60,90,120,150,180,210,240,270,300,330",
+        value_parser = ranges::azimuth_deg,
         allow_negative_numbers = true
     )]
     pub azimuths: Vec<f64>,
     /// Settling time after the dither drive has locked (the board waits for that first), s:
     /// the locked amplitude loop takes about 2 s to settle the last 0.2 %.
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(long, default_value_t = 3.0, value_parser = ranges::settle_s, allow_negative_numbers = true)]
     pub settle: f64,
     /// Measuring time per azimuth, s.
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, value_parser = ranges::seconds, allow_negative_numbers = true)]
     pub seconds: f64,
     /// Where the rate is read.
     #[arg(long, value_enum, default_value = "stream")]
     pub rate_from: RateFrom,
     /// Stream every n-th cycle.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..))]
+    #[arg(long, default_value_t = 1, value_parser = ranges::divider, allow_negative_numbers = true)]
     pub divider: u16,
     /// Calibrate first (through the protocol), accept and store.
     #[arg(long)]
     pub calibrate: bool,
     /// Azimuth of the calibration run, deg.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, value_parser = ranges::azimuth_deg, allow_negative_numbers = true)]
     pub cal_azimuth: f64,
-    #[arg(long, default_value_t = 3000)]
+    #[arg(long, default_value_t = 3000, value_parser = ranges::cal_cycles, allow_negative_numbers = true)]
     pub cal_cycles: u32,
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 100, value_parser = ranges::warmup_cycles, allow_negative_numbers = true)]
     pub cal_warmup: u32,
     /// One row per azimuth.
     #[arg(long, value_name = "PATH")]
@@ -392,21 +409,25 @@ pub struct ServeArgs {
     #[arg(long)]
     pub pty: bool,
     /// Simulated seconds per wall-clock second.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = ranges::speed, allow_negative_numbers = true)]
     pub speed: f64,
     /// Constant input rate, deg/h (unless --azimuth is given).
-    #[arg(long, default_value_t = 13.888, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 13.888, value_parser = ranges::rate_deg_h, allow_negative_numbers = true)]
     pub rate: f64,
     /// Rotary table: Earth rate at this azimuth, deg (with --latitude).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, value_parser = ranges::azimuth_deg, allow_negative_numbers = true)]
     pub azimuth: Option<f64>,
-    #[arg(long, default_value_t = 22.2, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 22.2, value_parser = ranges::latitude_deg, allow_negative_numbers = true)]
     pub latitude: f64,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Stop after this many wall-clock seconds (default: run until killed).
-    #[arg(long)]
+    #[arg(long, value_parser = ranges::seconds, allow_negative_numbers = true)]
     pub seconds: Option<f64>,
+    /// The simulated board's key, 32 hex digits (default: $RLG_SIM_BOARD_KEY; neither: the
+    /// board starts unprovisioned, as a new board).
+    #[arg(long, value_name = "KEY")]
+    pub board_key: Option<String>,
 }
 
 /// Any number the board's parser may see: the board itself says what it refuses (NaN,
@@ -483,10 +504,10 @@ mod tests {
 
     #[test]
     fn the_key_from_the_line_a_file_or_the_environment() {
-        let env = env_of(&[("RLG_KEY", " c0ffee42 ")]);
+        let env = env_of(&[("RLG_KEY", " 3a7c5e91b2d4f60819e3c5a7b9d1f2e4 ")]);
         assert_eq!(
             parse(&["status"]).resolve_key(&env),
-            Ok(Some("c0ffee42".into()))
+            Ok(Some("3a7c5e91b2d4f60819e3c5a7b9d1f2e4".into()))
         );
         assert_eq!(
             parse(&["status", "--key", "ab"]).resolve_key(&env),

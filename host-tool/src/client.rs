@@ -28,7 +28,7 @@ use std::str::FromStr;
 use std::time::Duration;
 
 /// Every error code of the protocol, to name the number in an `ERR` answer.
-const CODES: [ErrorCode; 15] = ErrorCode::ALL;
+const CODES: [ErrorCode; 18] = ErrorCode::ALL;
 
 /// The firmware's name for an error number, if it has one.
 pub fn error_code(code: u8) -> Option<ErrorCode> {
@@ -284,6 +284,26 @@ pub struct Client<L> {
     answer_overdue: bool,
 }
 
+/// How long to wait for the answer to `command`: the client's `timeout`, or longer for a
+/// command whose execution takes longer on the board. `store` (and `key provision`, which
+/// programs OTP through the same flash controller) may stall the board for a sector erase
+/// plus the programming, `firmware::storage::STORE_STALL_MAX_MS` (2.002 s on the F405), during
+/// which it cannot answer: those wait that long plus the client's timeout. The other commands
+/// answer within microseconds to milliseconds on the board.
+pub fn answer_timeout(command: &str, timeout: Duration) -> Duration {
+    let word = |w: &str| {
+        command
+            .split_whitespace()
+            .next()
+            .is_some_and(|first| first.eq_ignore_ascii_case(w))
+    };
+    if word("store") || word("key") {
+        timeout + Duration::from_millis(firmware::storage::STORE_STALL_MAX_MS as u64)
+    } else {
+        timeout
+    }
+}
+
 /// Default answer timeout.
 pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(2);
 
@@ -417,7 +437,8 @@ impl<L: Link> Client<L> {
     }
 
     fn read_answer_line(&mut self, command: &str) -> Result<Vec<u8>, ClientError> {
-        let deadline = self.link.elapsed() + self.timeout;
+        let timeout = answer_timeout(command, self.timeout);
+        let deadline = self.link.elapsed() + timeout;
         loop {
             let found = if self.streaming {
                 self.next_wrapped_answer()
@@ -432,7 +453,7 @@ impl<L: Link> Client<L> {
                 self.answer_overdue = true;
                 return Err(ClientError::Timeout {
                     command: command.to_owned(),
-                    after: self.timeout,
+                    after: timeout,
                 });
             }
             self.link.receive(&mut self.inbox, deadline - now)?;

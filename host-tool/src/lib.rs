@@ -11,6 +11,7 @@
 //! - [`sweep`]: a rotary-table sweep on the simulated board, through the protocol.
 //! - [`serve`]: the simulated board served on TCP or a pty for any serial client.
 //! - [`sim`]: booting the simulated board; [`sim_state`]: its state file (`--sim-state`).
+//! - [`ranges`]: the valid range of every numeric command-line argument.
 //!
 //! The protocol itself (commands, answers, error codes, frames, access control) is described
 //! in `docs/protocol.md`; its implementation is the firmware's `protocol` module, which this
@@ -25,6 +26,7 @@ pub mod link;
 pub mod ops;
 pub mod output;
 pub mod output_capture;
+pub mod ranges;
 pub mod serve;
 pub mod sim;
 pub mod sim_state;

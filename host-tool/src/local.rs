@@ -120,7 +120,8 @@ pub fn serve(args: &ServeArgs, connection: &ConnectionArgs) -> Result<(), Failur
             rate_deg_per_h: args.rate,
         },
     };
-    let device = sim::boot(input, args.seed, CalibrationFlash::default(), 0)
+    let board_key = sim::board_key(args.board_key.as_deref()).map_err(Failure::Usage)?;
+    let device = sim::boot(input, args.seed, CalibrationFlash::default(), 0, board_key)
         .map_err(|e| Failure::Run(e.to_string()))?;
     let options = ServeOptions {
         speed: args.speed,
@@ -132,10 +133,14 @@ pub fn serve(args: &ServeArgs, connection: &ConnectionArgs) -> Result<(), Failur
         let _ = std::io::stdout().flush();
         eprintln!(
             "rlg-cal: a simulated board is served on {where_}: {}, running at {} times real time; \
-             its unlock key is {}. Ctrl-C stops it.",
+             {}. Ctrl-C stops it.",
             describe(&input),
             args.speed,
-            sim::sim_key()
+            if board_key.is_some() {
+                "its key is the one given (--board-key or RLG_SIM_BOARD_KEY)"
+            } else {
+                "it has no key yet: `key provision <32 hex digits>` sets one, once"
+            }
         );
     };
     let served = if let Some(address) = &connection.tcp {

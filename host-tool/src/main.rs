@@ -87,6 +87,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
     let target = cli.connection.resolve(&env).map_err(Failure::Usage)?;
     let outputs = board_commands::prepare(&cli.command, key.is_some())?;
     let timeout = Duration::from_millis(cli.timeout_ms);
+    let session_key = key.clone();
     let session = Session {
         key,
         format,
@@ -109,8 +110,12 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 Some(path) => load_state(path)?,
                 None => None,
             };
-            let mut client =
-                boot_sim(cli.connection.sim_rate, saved.as_ref())?.with_timeout(timeout);
+            let mut client = boot_sim(
+                cli.connection.sim_rate,
+                saved.as_ref(),
+                session_key.as_deref(),
+            )?
+            .with_timeout(timeout);
             let result = Device::new(&mut client, session).run(&cli.command);
             if let Some(path) = &state {
                 save_state(path, client, saved.map_or(0, |s| s.boot_count))?;
@@ -136,14 +141,26 @@ fn load_state(path: &Path) -> Result<Option<SimState>, Failure> {
 }
 
 /// A simulated board that has been on for a moment: its dither drive locked and settled, the
-/// readout with a first rate; booted on the saved flash and given the saved settings.
-fn boot_sim(rate_deg_per_h: f64, saved: Option<&SimState>) -> Result<Client<SimLink>, Failure> {
+/// readout with a first rate; booted on the saved flash and given the saved settings. Its key
+/// (the in-process board has none of its own): `RLG_SIM_BOARD_KEY`, else the client's key,
+/// else a fresh random one (the board then refuses every unlock, as a board would whose key
+/// one does not know).
+fn boot_sim(
+    rate_deg_per_h: f64,
+    saved: Option<&SimState>,
+    client_key: Option<&str>,
+) -> Result<Client<SimLink>, Failure> {
     let mut flash = CalibrationFlash::default();
     if let Some(s) = saved {
         flash.restore(&s.flash);
     }
     let boot_count = saved.map_or(0, |s| s.boot_count);
-    let device = sim::boot(SimInput::Constant { rate_deg_per_h }, 1, flash, boot_count)
+    let board_key = sim::board_key(None)
+        .map_err(Failure::Usage)?
+        .or_else(|| client_key.and_then(firmware::protocol::key::Key::parse_hex))
+        .unwrap_or_else(sim::fresh_key);
+    let input = SimInput::Constant { rate_deg_per_h };
+    let device = sim::boot(input, 1, flash, boot_count, Some(board_key))
         .map_err(|e| Failure::Connect(e.to_string()))?;
     let mut client = Client::new(SimLink::new(device));
     let connect = |e: ClientError| Failure::Connect(e.to_string());
@@ -154,7 +171,8 @@ fn boot_sim(rate_deg_per_h: f64, saved: Option<&SimState>) -> Result<Client<SimL
     )
     .map_err(connect)?;
     if let Some(s) = saved {
-        sim_state::restore_settings(&mut client, &s.settings, &sim::sim_key()).map_err(connect)?;
+        let key = sim::key_hex(&board_key);
+        sim_state::restore_settings(&mut client, &s.settings, &key).map_err(connect)?;
     }
     client.pause(Duration::from_secs(2)).map_err(connect)?;
     Ok(client)

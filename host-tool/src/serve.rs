@@ -8,7 +8,9 @@
 //! goes to the client. The board keeps running with nobody attached, and what it sends then is
 //! lost, as on a UART with nothing connected.
 //!
-//! - TCP: one client at a time; a new connection takes over from the previous one.
+//! - TCP: one client at a time; a new connection takes over from the previous one, and starts
+//!   a session of its own: locked, no stream, an empty line buffer, none of the previous
+//!   client's output ([`SimDevice::new_session`]). Nobody inherits another client's unlock.
 //! - pty: the server owns the master side and prints the slave's path; the slave is in raw mode
 //!   (no echo, no line editing, no CR/LF translation, 8-bit clean for the stream). A client
 //!   opens the path as a serial port (any baud rate). While no one has the slave open, reading
@@ -52,6 +54,8 @@ pub trait Endpoint {
     fn write(&mut self, bytes: &[u8]) -> io::Result<usize>;
     /// Whether a client is attached (as far as the last read told).
     fn attached(&self) -> bool;
+    /// Whether a new client attached since the last call (true once per client).
+    fn take_new_client(&mut self) -> bool;
 }
 
 /// Keeps the simulation at `speed` times the wall clock.
@@ -109,7 +113,12 @@ pub fn serve(
         && options.max_duration.is_none_or(|d| started.elapsed() < d)
     {
         let mut busy = false;
-        if let Some(n) = endpoint.read(&mut buf)? {
+        let read = endpoint.read(&mut buf)?;
+        if endpoint.take_new_client() {
+            device.new_session();
+            outbox.clear();
+        }
+        if let Some(n) = read {
             device.receive(&buf[..n]);
             busy = true;
         }
@@ -136,6 +145,7 @@ pub fn serve(
 pub struct TcpEndpoint {
     listener: TcpListener,
     client: Option<TcpStream>,
+    new_client: bool,
 }
 
 impl TcpEndpoint {
@@ -145,6 +155,7 @@ impl TcpEndpoint {
         Ok(Self {
             listener,
             client: None,
+            new_client: false,
         })
     }
 
@@ -159,6 +170,7 @@ impl TcpEndpoint {
                     eprintln!("rlg-cal: {peer} connected");
                 }
                 self.client = Some(stream);
+                self.new_client = true;
                 Ok(())
             }
             Err(e) if e.kind() == io::ErrorKind::WouldBlock => Ok(()),
@@ -210,6 +222,10 @@ impl Endpoint for TcpEndpoint {
     fn attached(&self) -> bool {
         self.client.is_some()
     }
+
+    fn take_new_client(&mut self) -> bool {
+        std::mem::take(&mut self.new_client)
+    }
 }
 
 /// A pseudo-terminal: the server holds the master, a client opens [`PtyEndpoint::path`].
@@ -217,6 +233,7 @@ pub struct PtyEndpoint {
     master: File,
     path: PathBuf,
     attached: bool,
+    new_client: bool,
 }
 
 fn os_result(ret: libc::c_int) -> io::Result<libc::c_int> {
@@ -260,7 +277,13 @@ impl PtyEndpoint {
             master: File::from(master),
             path,
             attached: false,
+            new_client: false,
         })
+    }
+
+    fn attach(&mut self) {
+        self.new_client |= !self.attached;
+        self.attached = true;
     }
 
     /// The slave's path, for the client.
@@ -298,11 +321,11 @@ impl Endpoint for PtyEndpoint {
         match self.master.read(buf) {
             Ok(0) => Ok(None),
             Ok(n) => {
-                self.attached = true;
+                self.attach();
                 Ok(Some(n))
             }
             Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
-                self.attached = true;
+                self.attach();
                 Ok(None)
             }
             Err(e) if e.raw_os_error() == Some(libc::EIO) => {
@@ -330,5 +353,10 @@ impl Endpoint for PtyEndpoint {
 
     fn attached(&self) -> bool {
         self.attached
+    }
+
+    /// A client that opened the slave after nobody had it open.
+    fn take_new_client(&mut self) -> bool {
+        std::mem::take(&mut self.new_client)
     }
 }

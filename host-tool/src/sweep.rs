@@ -103,14 +103,16 @@ pub fn sweep(
         azimuth_deg,
     };
     let mut calibration = None;
+    // The boards of this run live only in this process: a key of their own.
+    let key = sim::fresh_key();
     if let Some((cal, azimuth)) = &options.calibrate {
         progress(&format!("calibrating at azimuth {azimuth} deg"));
-        let device = sim::boot(table(*azimuth), options.seed, flash, boot_count)?;
+        let device = sim::boot(table(*azimuth), options.seed, flash, boot_count, Some(key))?;
         boot_count += 1;
         let mut client = Client::new(SimLink::new(device));
         ops::wait_for_drive_lock(&mut client, ops::DRIVE_LOCK_TIMEOUT, LOCK_POLL)?;
         client.pause(options.settle)?;
-        ops::unlock(&mut client, &sim::sim_key())?;
+        ops::unlock(&mut client, &sim::key_hex(&key))?;
         calibration = Some(ops::calibrate_until(
             &mut client,
             cal,
@@ -126,7 +128,13 @@ pub fn sweep(
         if stop.load(Ordering::SeqCst) {
             break;
         }
-        let device = sim::boot(table(azimuth_deg), options.seed, flash, boot_count)?;
+        let device = sim::boot(
+            table(azimuth_deg),
+            options.seed,
+            flash,
+            boot_count,
+            Some(key),
+        )?;
         boot_count += 1;
         let mut client = Client::new(SimLink::new(device));
         ops::wait_for_drive_lock(&mut client, ops::DRIVE_LOCK_TIMEOUT, LOCK_POLL)?;

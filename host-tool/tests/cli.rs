@@ -6,6 +6,10 @@ use std::net::TcpListener;
 use std::path::PathBuf;
 use std::process::{Child, Command, Output, Stdio};
 
+/// The key the `--sim` and served boards of these tests are given (`--key` provisions the
+/// `--sim` board; `--board-key` the served one).
+const TEST_KEY: &str = "3a7c5e91b2d4f60819e3c5a7b9d1f2e4";
+
 fn rlg_cal(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_rlg-cal"))
         .args(args)
@@ -76,10 +80,10 @@ fn the_board_refusing_exits_1_and_says_why() {
     let (code, _, err) = run(&["--sim", "set", "a", "1"]);
     assert_eq!(code, 1);
     assert!(err.contains("ERR 9 locked"), "{err}");
-    let (code, _, err) = run(&["--sim", "--key", "c0ffee42", "set", "a", "NaN"]);
+    let (code, _, err) = run(&["--sim", "--key", TEST_KEY, "set", "a", "NaN"]);
     assert_eq!(code, 1);
     assert!(err.contains("ERR 4"), "{err}");
-    let (code, out, _) = run(&["--sim", "--key", "c0ffee42", "set", "b", "-344.123456"]);
+    let (code, out, _) = run(&["--sim", "--key", TEST_KEY, "set", "b", "-344.123456"]);
     assert_eq!((code, out.trim()), (0, "b=-344.12344"));
 }
 
@@ -101,7 +105,7 @@ fn calibrate_with_accept_and_store() {
     let (code, out, err) = run(&[
         "--sim",
         "--key",
-        "c0ffee42",
+        TEST_KEY,
         "calibrate",
         "--cycles",
         "3000",
@@ -192,11 +196,11 @@ fn serve_sim(args: &[&str]) -> (Child, String) {
 
 #[test]
 fn a_served_board_talks_to_a_second_process() {
-    let (mut tcp_server, address) = serve_sim(&["--tcp", "127.0.0.1:0"]);
+    let (mut tcp_server, address) = serve_sim(&["--tcp", "127.0.0.1:0", "--board-key", TEST_KEY]);
     let (mut pty_server, path) = serve_sim(&["--pty"]);
     assert!(address.starts_with("127.0.0.1:"), "{address}");
     assert!(path.starts_with("/dev/pts/"), "{path}");
-    let over_tcp = run(&["--tcp", &address, "--key", "c0ffee42", "set", "a", "12.5"]);
+    let over_tcp = run(&["--tcp", &address, "--key", TEST_KEY, "set", "a", "12.5"]);
     let again = run(&["--tcp", &address, "get", "a"]);
     let over_pty = run(&["--port", &path, "--baud", "460800", "id"]);
     tcp_server.kill().unwrap();
@@ -293,4 +297,58 @@ fn record_writes_the_fixed_rate_output() {
     ]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("--seconds must be in"), "{err}");
+}
+
+/// Every numeric argument has a range: outside it (a leading minus included where the value
+/// cannot be negative), exit status 2 within a second, with a message naming the flag and the
+/// range; a negative value where it is legal is accepted.
+#[test]
+fn numeric_arguments_outside_their_range_are_usage_errors() {
+    let cases: [&[&str]; 9] = [
+        &["--timeout-ms", "-1", "id"],
+        &["--baud", "0", "--port", "/dev/null", "id"],
+        &["--sim", "--sim-rate", "1e300", "id"],
+        &["stream", "--seconds", "-5", "--csv", "/dev/null"],
+        &[
+            "stream",
+            "--seconds",
+            "1",
+            "--csv",
+            "/dev/null",
+            "--divider",
+            "-1",
+        ],
+        &["calibrate", "--cycles", "0"],
+        &["sweep", "--latitude", "-91"],
+        &["sweep", "--azimuths", "0,400"],
+        &["serve-sim", "--tcp", "127.0.0.1:0", "--speed", "0"],
+    ];
+    for args in cases {
+        let started = std::time::Instant::now();
+        let (code, _, err) = run(args);
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert!(
+            err.contains("invalid value") && err.contains("outside"),
+            "{args:?}: {err}"
+        );
+        let flag = args
+            .iter()
+            .rev()
+            .find(|a| a.starts_with("--") && **a != "--csv" && **a != "--port" && **a != "--tcp");
+        assert!(err.contains(flag.unwrap()), "{args:?}: {err}");
+        assert!(
+            started.elapsed() < std::time::Duration::from_secs(1),
+            "{args:?}"
+        );
+    }
+    let (code, out, err) = run(&[
+        "--sim",
+        "--sim-rate",
+        "-13.888",
+        "--key",
+        TEST_KEY,
+        "get",
+        "a",
+    ]);
+    assert_eq!((code, out.trim()), (0, "a=0"), "{err}");
 }

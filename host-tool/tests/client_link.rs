@@ -65,6 +65,7 @@ fn board_answer(line: &str) -> Vec<u8> {
         3,
         CalibrationFlash::default(),
         0,
+        Some(sim::test_key()),
     )
     .unwrap();
     let mut link = SimLink::new(device);

@@ -15,6 +15,7 @@ fn board(rate_deg_per_h: f64, flash: CalibrationFlash, boot_count: u32) -> Clien
         7 + boot_count as u64,
         flash,
         boot_count,
+        Some(sim::test_key()),
     )
     .unwrap();
     let mut client = Client::new(SimLink::new(device));
@@ -76,15 +77,17 @@ fn protected_commands_need_the_key_and_answer_the_applied_value() {
     ] {
         assert_eq!(err_code(ask(&mut c, line)), 9, "{line} while locked");
     }
-    assert_eq!(err_code(ask(&mut c, "unlock 1234")), 15);
-    match c.command("unlock 1234").unwrap_err() {
+    let wrong = "unlock 12341234123412341234123412341234";
+    assert_eq!(err_code(ask(&mut c, "unlock 1234")), 3, "no 128-bit key");
+    assert_eq!(err_code(ask(&mut c, wrong)), 15);
+    match c.command(wrong).unwrap_err() {
         ClientError::Device(e) => {
             assert_eq!(e.kind, Some(firmware::protocol::ErrorCode::WrongKey));
             assert_eq!(e.text, "wrong key");
         }
         e => panic!("{e}"),
     }
-    assert!(ops::unlock(&mut c, &sim::sim_key())
+    assert!(ops::unlock(&mut c, &sim::key_hex(&sim::test_key()))
         .unwrap()
         .text
         .starts_with("unlocked"));
@@ -113,7 +116,7 @@ fn protected_commands_need_the_key_and_answer_the_applied_value() {
 #[test]
 fn calibrate_accept_store_and_power_cycle() {
     let mut c = board(13.888, CalibrationFlash::default(), 0);
-    ops::unlock(&mut c, &sim::sim_key()).unwrap();
+    ops::unlock(&mut c, &sim::key_hex(&sim::test_key())).unwrap();
     let mut seen: Vec<(u64, u64)> = Vec::new();
     let options = CalibrateOptions::new(3000, 100);
     let fit = ops::calibrate(&mut c, &options, &mut |done, total| {
@@ -143,7 +146,7 @@ fn calibrate_accept_store_and_power_cycle() {
 #[test]
 fn a_refused_fit_and_a_busy_board_are_typed_errors() {
     let mut c = board(0.5, CalibrationFlash::default(), 0);
-    ops::unlock(&mut c, &sim::sim_key()).unwrap();
+    ops::unlock(&mut c, &sim::key_hex(&sim::test_key())).unwrap();
     ask(&mut c, "cal start 1000 10").unwrap();
     assert_eq!(err_code(ask(&mut c, "set a 1")), 10, "busy during a run");
     assert_eq!(err_code(ask(&mut c, "cal result")), 10);
@@ -174,7 +177,8 @@ impl Link for AbortingLink {
         self.pauses += 1;
         if self.pauses == 3 {
             let device = self.inner.device_mut();
-            device.receive(b"cal abort\n");
+            let crc = firmware::protocol::parse::crc16(b"cal abort");
+            device.receive(format!("cal abort*{crc:04X}\n").as_bytes());
             let _ = device.take_output();
         }
     }
@@ -182,7 +186,9 @@ impl Link for AbortingLink {
 
 #[test]
 fn a_run_aborted_meanwhile_is_a_failed_run() {
-    let c = board(13.888, CalibrationFlash::default(), 0);
+    let mut c = board(13.888, CalibrationFlash::default(), 0);
+    // The unlocked user (this session) aborts: the only way a run ends early.
+    ops::unlock(&mut c, &sim::key_hex(&sim::test_key())).unwrap();
     let mut c = Client::new(AbortingLink {
         inner: c.into_link(),
         pauses: 0,
@@ -230,4 +236,29 @@ fn stream_capture_and_commands_while_streaming() {
     let seconds = capture.per_second(&scale);
     assert_eq!(seconds.len(), 2);
     assert!(seconds.iter().all(|s| (s.raw_deg_per_h - 10.0).abs() < 1.5));
+}
+
+/// A store with the worst-case sector erase (2 s, the F405 datasheet's maximum) answers after
+/// the client's default 2 s timeout would have run out: the client waits for `store` as long
+/// as a store can stall (plus its timeout), and still times out other commands at 2 s.
+#[test]
+fn a_store_with_a_worst_case_erase_is_waited_for() {
+    use hal_sim::flash::FlashTiming;
+    let mut flash = CalibrationFlash::default().with_timing(FlashTiming {
+        sector_erase_s: 2.0,
+        ..FlashTiming::default()
+    });
+    // Sector 0 looks full (its last byte programmed): the store erases blank sector 1 first.
+    flash.corrupt(128 * 1024 - 1, 0xFF);
+    let mut c = board(5.0, flash, 0);
+    ops::unlock(&mut c, &sim::key_hex(&sim::test_key())).unwrap();
+    let before = c.elapsed();
+    let stored = ask(&mut c, "store").expect("store answered");
+    assert!(stored.starts_with("stored seq=1"), "{stored}");
+    let waited = c.elapsed() - before;
+    assert!(waited > Duration::from_millis(2000), "{waited:?}");
+    assert_eq!(
+        rlg_cal::client::answer_timeout("get a", Duration::from_secs(2)),
+        Duration::from_secs(2)
+    );
 }

@@ -34,6 +34,9 @@ impl Endpoint for Recording {
     fn attached(&self) -> bool {
         self.inner.attached()
     }
+    fn take_new_client(&mut self) -> bool {
+        self.inner.take_new_client()
+    }
 }
 
 /// The keystrokes and what each must bring, for Python's pty: Tab completes `ge` to `get `
@@ -100,6 +103,7 @@ fn console_edits_completes_recalls_and_adds_the_crc() {
             1,
             CalibrationFlash::default(),
             0,
+            None,
         )
         .unwrap();
         let options = ServeOptions {

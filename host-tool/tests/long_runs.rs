@@ -61,9 +61,20 @@ impl Drop for Served {
     }
 }
 
+/// The served boards' key (a test fixture: the simulated board has no key of its own).
+const KEY: &str = "3a7c5e91b2d4f60819e3c5a7b9d1f2e4";
+
 fn served() -> Served {
     let mut child = rlg_cal(
-        &["serve-sim", "--tcp", "127.0.0.1:0", "--seconds", "30"],
+        &[
+            "serve-sim",
+            "--tcp",
+            "127.0.0.1:0",
+            "--seconds",
+            "30",
+            "--board-key",
+            KEY,
+        ],
         &[],
     )
     .stdout(Stdio::piped())
@@ -167,7 +178,15 @@ fn sigint_keeps_every_streamed_frame() {
 fn sigint_during_calibrate_aborts_the_run_on_the_board() {
     let board = served();
     let mut child = rlg_cal(
-        &["--tcp", &board.address, "calibrate", "--cycles", "100000"],
+        &[
+            "--tcp",
+            &board.address,
+            "--key",
+            KEY,
+            "calibrate",
+            "--cycles",
+            "100000",
+        ],
         &[],
     )
     .stdout(Stdio::piped())
@@ -276,16 +295,13 @@ fn one_way_to_connect() {
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("serial=4242"), "{out}");
     let key = scratch("key.txt");
-    std::fs::write(&key, "c0ffee42\n").unwrap();
+    std::fs::write(&key, format!("{KEY}\n")).unwrap();
     let (code, out, err, _) = run(
         &["set", "a", "12.5", "--key-file", key.to_str().unwrap()],
         &[("RLG_TCP", a)],
     );
     assert_eq!((code, out.trim()), (0, "a=12.5"), "{err}");
-    let (code, out, err, _) = run(
-        &["set", "b", "-3.25"],
-        &[("RLG_TCP", a), ("RLG_KEY", "c0ffee42")],
-    );
+    let (code, out, err, _) = run(&["set", "b", "-3.25"], &[("RLG_TCP", a), ("RLG_KEY", KEY)]);
     assert_eq!((code, out.trim()), (0, "b=-3.25"), "{err}");
     // The command line wins over the environment.
     let (code, _, err, _) = run(&["--tcp", a, "id"], &[("RLG_PORT", "/dev/nonexistent")]);
@@ -303,7 +319,7 @@ fn the_sim_board_keeps_its_state_file() {
     let _ = std::fs::remove_file(&state);
     let s = state.to_str().unwrap();
     let sim = |args: &[&str]| {
-        let mut all = vec!["--sim", "--sim-state", s, "--key", "c0ffee42"];
+        let mut all = vec!["--sim", "--sim-state", s, "--key", KEY];
         all.extend_from_slice(args);
         run(&all, &[])
     };
@@ -338,7 +354,7 @@ fn the_sim_board_keeps_its_state_file() {
 /// `key=value`.
 #[test]
 fn results_for_scripts() {
-    let (code, out, err, _) = run(&["--sim", "--json", "--key", "c0ffee42", "store"], &[]);
+    let (code, out, err, _) = run(&["--sim", "--json", "--key", KEY, "store"], &[]);
     assert_eq!(code, 0, "{err}");
     assert_eq!(out.lines().count(), 1, "{out}");
     let line = out.trim();
@@ -425,7 +441,7 @@ fn a_silent_board_fails_before_the_run() {
             "--csv",
             "/dev/null",
         ][..],
-        &["--tcp", address.as_str(), "calibrate"][..],
+        &["--tcp", address.as_str(), "--key", KEY, "calibrate"][..],
     ] {
         let (code, _, err, took) = run(args, &[]);
         assert_eq!(code, 3, "{args:?}: {err}");

@@ -24,6 +24,7 @@ fn device() -> SimDevice {
         11,
         CalibrationFlash::default(),
         0,
+        Some(sim::test_key()),
     )
     .unwrap()
 }
@@ -50,7 +51,7 @@ fn tcp_server_answers_a_real_socket() {
 
     let mut c = Client::new(link::tcp(&address, Duration::from_secs(2)).unwrap());
     assert!(c.command("id").unwrap().text.contains("serial=4242"));
-    ops::unlock(&mut c, &sim::sim_key()).unwrap();
+    ops::unlock(&mut c, &sim::key_hex(&sim::test_key())).unwrap();
     assert_eq!(c.command("set a 300").unwrap().text, "a=300");
     assert_eq!(c.command("get a").unwrap().text, "a=300");
     // Half a second of streaming on the wall clock: frames at 4 x 389 Hz / 4.
@@ -92,6 +93,58 @@ fn read_line(r: &mut impl Read) -> String {
         line.push(byte[0]);
     }
     String::from_utf8(line).unwrap()
+}
+
+/// A new TCP connection starts its own session: the previous client's unlock, stream and
+/// half-typed line do not carry over (the board's coefficients do).
+#[test]
+fn each_tcp_connection_starts_locked_without_stream_and_with_an_empty_line() {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let address = listener.local_addr().unwrap().to_string();
+    let (stop, server) = spawn(TcpEndpoint::new(listener).unwrap());
+    let mut first = std::net::TcpStream::connect(&address).unwrap();
+    first
+        .set_read_timeout(Some(Duration::from_secs(2)))
+        .unwrap();
+    let unlock = format!("unlock {}\r\n", sim::key_hex(&sim::test_key()));
+    first.write_all(unlock.as_bytes()).unwrap();
+    assert!(read_line(&mut first).starts_with("OK unlocked"));
+    first.write_all(b"set a 300\r\n").unwrap();
+    assert_eq!(
+        read_line(&mut first),
+        "ERR 18 confirm (send yes) cmd=set a 300\r\n"
+    );
+    first.write_all(b"yes\r\n").unwrap();
+    assert_eq!(read_line(&mut first), "OK a=300\r\n");
+    first.write_all(b"stream on 1\r\n").unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    first.write_all(b"set a 12").unwrap(); // no end of line: left in the board's buffer
+    std::thread::sleep(Duration::from_millis(100));
+
+    let mut second = std::net::TcpStream::connect(&address).unwrap();
+    second
+        .set_read_timeout(Some(Duration::from_secs(2)))
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    // Not "set a 123.5": the first client's fragment is gone. Plain text: no stream is on.
+    second.write_all(b"3.5\r\n").unwrap();
+    assert_eq!(
+        read_line(&mut second),
+        "ERR 1 unknown command (try help)\r\n"
+    );
+    second.write_all(b"set b 1\r\n").unwrap();
+    assert!(read_line(&mut second).starts_with("ERR 18 "));
+    second.write_all(b"yes\r\n").unwrap();
+    assert_eq!(read_line(&mut second), "ERR 9 locked (unlock first)\r\n");
+    second.write_all(b"get a\r\n").unwrap();
+    assert_eq!(
+        read_line(&mut second),
+        "OK a=300\r\n",
+        "the board's state stays"
+    );
+    drop(first);
+    stop.store(true, Ordering::Relaxed);
+    server.join().unwrap();
 }
 
 #[test]

@@ -214,6 +214,7 @@ fn frames_lost_on_a_real_stream_are_counted_exactly() {
         5,
         CalibrationFlash::default(),
         0,
+        Some(sim::test_key()),
     )
     .unwrap();
     let mut link = SimLink::new(device);

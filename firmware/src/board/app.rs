@@ -3,8 +3,8 @@
 //! The main loop is the lowest-priority context (thread mode). It owns the command service
 //! (`crate::service::Service`, the same one hal-sim's simulated board runs) and the board's
 //! ports for it ([`super::ports::BoardPorts`]), and does four things per pass: it hands the
-//! service every received byte and every dither cycle the readout task queued, refreshes the
-//! watchdog, logs the dither drive's status when its state changes, and logs the loss
+//! service the received bytes and the dither cycles the readout task queued, bounded per pass
+//! (at most one command line: `Service::pass`), refreshes the watchdog, logs the dither drive's status when its state changes, and logs the loss
 //! counters when they change. It sleeps (`WFI`) when both queues
 //! are empty; any interrupt wakes it, at the latest the 1 ms tick, which bounds the delay of a
 //! byte that arrived between the check and the `WFI`. Who runs above it and what they share:
@@ -17,7 +17,9 @@ use embedded_storage::nor_flash::NorFlash;
 
 use super::ports::BoardPorts;
 use super::resources::{self, init_core, start_dither, unmask_readout, ReadoutQueues, SCHEDULER};
-use super::{adc, clocks, dither, encoder, flash, pac, sync, turnaround, usart, watchdog};
+use super::{
+    adc, backup, clocks, dither, encoder, flash, otp, pac, sync, turnaround, usart, watchdog,
+};
 use crate::dither::DitherConfig;
 use crate::profile::BoardProfile;
 use crate::protocol::execute::Identity;
@@ -26,7 +28,7 @@ use crate::service::{Service, ServiceConfig};
 use crate::storage::{DitherSetpoints, Geometry};
 
 /// Milliseconds between health logs (defmt, only when a counter changed).
-const HEALTH_LOG_MS: u32 = 10_000;
+const HEALTH_LOG_MS: u64 = 10_000;
 
 /// The board-level loss counters the protocol's `status` does not carry, for the defmt log.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, defmt::Format)]
@@ -87,39 +89,40 @@ impl Health {
     }
 }
 
-/// The board's identity: serial number and unlock key from OTP block 0 (0x1FFF_7800, words 0
-/// and 1, written at production). Unprogrammed OTP (0xFFFF_FFFF) gives serial 0 and the
-/// development key 0xC0FF_EE42: a production board must have its key programmed. (QEMU does
-/// not map the OTP area: a read there faults, so the `qemu` build uses the defaults.)
+/// The board's identity: serial number and unlock key from OTP block 0 ([`otp`]). Unprogrammed
+/// OTP gives serial 0 and no key: the board refuses every protected command until `key
+/// provision` (there is no default key).
 fn identity(profile: &BoardProfile) -> Identity {
-    let otp = |word: usize| {
-        if cfg!(feature = "qemu") {
-            return u32::MAX;
-        }
-        // SAFETY: the OTP area is always readable on the F405.
-        unsafe { (0x1FFF_7800 as *const u32).add(word).read_volatile() }
-    };
-    let or = |value: u32, default: u32| if value == u32::MAX { default } else { value };
+    let (serial_number, key) = otp::read();
     Identity {
         firmware_version: env!("CARGO_PKG_VERSION"),
         build: env!("FW_BUILD_PROFILE"),
         board: profile.name,
-        serial_number: or(otp(0), 0),
-        key: or(otp(1), 0xC0FF_EE42),
+        serial_number,
+        key,
         scale_factor_arcsec: profile.scale_factor_arcsec as f32,
         capture_timer_hz: profile.timer_hz,
     }
 }
 
 /// Boots the service on `flash` and creates the readout with the settings it loaded; returns
-/// the service, the main loop's ends of the cycle and output record queues and the dither drive's stored
-/// setpoints (for [`start_dither`]). The readout's interrupts are the caller's to unmask.
+/// the service, the main loop's ends of the cycle and output record queues and the dither
+/// drive's stored setpoints (for [`start_dither`]). The wrong-key count comes back from backup
+/// RAM ([`backup`]). The readout's interrupts are the caller's to unmask.
 pub fn boot<F: NorFlash>(
     config: ServiceConfig,
     flash: F,
 ) -> (Service<F>, ReadoutQueues, Option<DitherSetpoints>) {
-    let booted = Service::boot(config, flash, None)
+    let mut booted = Service::boot(config, flash, None)
         .unwrap_or_else(|e| defmt::panic!("calibration store geometry: {}", e));
+    // The wrong-key back-off goes on where it was before the reset.
+    let wrong_keys = backup::load_wrong_keys();
+    booted
+        .service
+        .restore_wrong_keys(wrong_keys, resources::now_ms());
+    if wrong_keys > 0 {
+        defmt::warn!("wrong keys before the reset: {}", wrong_keys);
+    }
     defmt::info!("calibration: {}", booted.report);
     let mut readout = Readout::new(&config.readout, booted.settings);
     if let Some(strip) = booted.strip {
@@ -142,8 +145,13 @@ pub fn run() -> ! {
     let watchdog = watchdog::Watchdog::start(dp.IWDG);
     clocks::enable(
         &dp.RCC,
-        clocks::AHB1_GPIOA | clocks::AHB1_GPIOB | clocks::AHB1_GPIOC | clocks::AHB1_DMA2,
-        clocks::APB1_TIM2
+        clocks::AHB1_GPIOA
+            | clocks::AHB1_GPIOB
+            | clocks::AHB1_GPIOC
+            | clocks::AHB1_DMA2
+            | clocks::AHB1_BKPSRAM,
+        clocks::APB1_PWR
+            | clocks::APB1_TIM2
             | clocks::APB1_TIM3
             | clocks::APB1_TIM4
             | clocks::APB1_TIM5
@@ -151,6 +159,7 @@ pub fn run() -> ! {
         clocks::APB2_USART1 | clocks::APB2_ADC1 | clocks::APB2_ADC2 | clocks::APB2_ADC3,
     );
     defmt::info!("clocks: 168 MHz from {}", source);
+    backup::init(&dp.PWR);
     init_core(&mut cp.SCB, &mut cp.NVIC, &mut cp.SYST);
     let serial = usart::init(dp.USART1);
     let config = ServiceConfig::for_profile(
@@ -196,21 +205,25 @@ pub fn serve<F: NorFlash>(
     let mut health = Health::default();
     let mut health_logged_ms = resources::now_ms();
     let mut dither_state = None;
+    let mut records_dropped = 0;
     loop {
         ports.refresh_watchdog();
-        let mut busy = false;
-        while let Some(byte) = ports.serial.read_byte() {
-            service.on_byte(byte, &mut ports);
-            busy = true;
+        // Records the readout task could not queue (the queue was full): counted and shown
+        // as a stream gap before the records after them.
+        let dropped = resources::RECORDS_DROPPED.load(core::sync::atomic::Ordering::Relaxed);
+        if dropped != records_dropped {
+            service.on_cycles_lost(dropped.wrapping_sub(records_dropped));
+            records_dropped = dropped;
         }
-        while let Some(record) = queues.outputs.dequeue() {
-            service.on_output(&record, &mut ports);
-            busy = true;
-        }
-        while let Some(record) = queues.cycles.dequeue() {
-            service.on_cycle(&record, &mut ports);
-            busy = true;
-        }
+        // Bounded: one command line and one queue of records of each kind, then the watchdog
+        // again.
+        let ReadoutQueues { cycles, outputs } = &mut queues;
+        let busy = service.pass(
+            &mut ports,
+            |p| p.serial.read_byte(),
+            || cycles.dequeue(),
+            || outputs.dequeue(),
+        );
         let state = resources::DITHER.lock(|task| task.controller.state());
         if state != dither_state {
             if let Some(status) =
@@ -221,7 +234,7 @@ pub fn serve<F: NorFlash>(
             dither_state = state;
         }
         let now = resources::now_ms();
-        if now.wrapping_sub(health_logged_ms) >= HEALTH_LOG_MS {
+        if now - health_logged_ms >= HEALTH_LOG_MS {
             health_logged_ms = now;
             let current = Health::now(service.frames_dropped());
             if current != health {

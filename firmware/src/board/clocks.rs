@@ -99,6 +99,8 @@ pub const AHB1_GPIOA: u32 = 1 << 0;
 pub const AHB1_GPIOB: u32 = 1 << 1;
 /// GPIOC clock enable (AHB1ENR).
 pub const AHB1_GPIOC: u32 = 1 << 2;
+/// Backup SRAM interface clock enable (AHB1ENR).
+pub const AHB1_BKPSRAM: u32 = 1 << 18;
 /// DMA2 clock enable (AHB1ENR).
 pub const AHB1_DMA2: u32 = 1 << 22;
 /// TIM2 clock enable (APB1ENR).
@@ -109,6 +111,8 @@ pub const APB1_TIM3: u32 = 1 << 1;
 pub const APB1_TIM4: u32 = 1 << 2;
 /// TIM5 clock enable (APB1ENR).
 pub const APB1_TIM5: u32 = 1 << 3;
+/// Power interface clock enable (APB1ENR): needed to open the backup domain.
+pub const APB1_PWR: u32 = 1 << 28;
 /// DAC clock enable (APB1ENR).
 pub const APB1_DAC: u32 = 1 << 29;
 /// USART1 clock enable (APB2ENR).

@@ -53,6 +53,7 @@ const SR_BSY: u32 = 1 << 16;
 const CR_PG: u32 = 1 << 0;
 const CR_SER: u32 = 1 << 1;
 const CR_PSIZE_X32: u32 = 0b10 << 8;
+const CR_PSIZE_X8: u32 = 0b00 << 8;
 const CR_STRT: u32 = 1 << 16;
 const CR_LOCK: u32 = 1 << 31;
 // FLASH_ACR
@@ -154,7 +155,47 @@ impl InternalFlash {
         self.regs.cr().write(|w| unsafe { w.bits(0) });
         result
     }
+
+    /// Programs `words` into OTP block `block` (16 blocks of 32 bytes at 0x1FFF_7800) from word
+    /// `first`, then writes the block's lock byte (0x1FFF_7A00 + block) to 0x00, after which no
+    /// word of the block can be programmed again (RM0090 3.7.6). Each bit can only go from 1 to
+    /// 0, once: the caller checks the words are blank first (`super::otp`).
+    pub fn program_otp_and_lock(
+        &mut self,
+        block: u32,
+        first: u32,
+        words: &[u32],
+    ) -> Result<(), FlashError> {
+        if block >= OTP_BLOCKS || first as usize + words.len() > OTP_BLOCK_WORDS {
+            return Err(FlashError::OutOfBounds);
+        }
+        let base = OTP_BASE + 32 * block + 4 * first;
+        self.unlocked(|f| {
+            for (i, &word) in words.iter().enumerate() {
+                f.regs
+                    .cr()
+                    .write(|w| unsafe { w.bits(CR_PSIZE_X32 | CR_PG) });
+                // SAFETY: an aligned word of OTP block `block` (checked above), PG set.
+                unsafe { ((base + 4 * i as u32) as *mut u32).write_volatile(word) };
+                f.finish()?;
+            }
+            f.regs
+                .cr()
+                .write(|w| unsafe { w.bits(CR_PSIZE_X8 | CR_PG) });
+            // SAFETY: the lock byte of block `block`, PG set with byte parallelism.
+            unsafe { ((OTP_LOCK_BASE + block) as *mut u8).write_volatile(0x00) };
+            let result = f.finish();
+            f.regs.cr().write(|w| unsafe { w.bits(0) });
+            result
+        })
+    }
 }
+
+/// The OTP area: 16 blocks of 32 bytes, then 16 lock bytes.
+const OTP_BASE: u32 = 0x1FFF_7800;
+const OTP_LOCK_BASE: u32 = 0x1FFF_7A00;
+const OTP_BLOCKS: u32 = 16;
+const OTP_BLOCK_WORDS: usize = 8;
 
 fn writable(from: u32, len: u32) -> Result<(), FlashError> {
     let end = from.checked_add(len).ok_or(FlashError::OutOfBounds)?;

@@ -16,7 +16,9 @@
 //! | [`adc`] | ADC1+ADC2, DMA2 stream 0, TIM3 | injected pair at the turnaround; regular pairs for the Lissajous fit |
 //! | [`dither`] | TIM4, DAC1, ADC3 | the dither drive's 40 kHz tick: pick-off sample and DAC update on one timer edge, `crate::dither` in the handler |
 //! | [`usart`] | USART1 | the calibration protocol's serial link (RXNE/TXE interrupts, bounded queues) |
-//! | [`flash`] | FLASH | sectors 10-11 as an `embedded_storage` `NorFlash` |
+//! | [`flash`] | FLASH | sectors 10-11 as an `embedded_storage` `NorFlash`; OTP programming |
+//! | [`otp`] | OTP block 0 | serial number and the 128-bit key (`key provision`) |
+//! | [`backup`] | PWR, backup SRAM | the wrong-key count across resets |
 //! | [`watchdog`] | IWDG | reset if the main loop stops |
 //!
 //! and the contexts around them, in three files that import one way (`app` -> `ports` ->
@@ -39,11 +41,13 @@
 
 pub mod adc;
 pub mod app;
+pub mod backup;
 pub mod clocks;
 pub mod dither;
 pub mod encoder;
 pub mod flash;
 pub mod isr;
+pub mod otp;
 pub mod ports;
 pub mod resources;
 pub mod sync;

@@ -1,7 +1,7 @@
 //! The board's side of the command service's ports (`crate::service::ports`): the SysTick
 //! clock, the USART1 transmit queue, the readout behind its priority lock, stopped for a flash
-//! store by masking the readout interrupts, and the dither controller behind the drive tick's
-//! priority lock.
+//! store by masking the readout interrupts, the dither controller behind the drive tick's
+//! priority lock, and the key's OTP block.
 //!
 //! The watchdog lives here too: the service may wait (a full TX queue, a flash stall), and every
 //! wait refreshes it, so the main loop's own refresh is not the only one.
@@ -13,9 +13,11 @@ use super::turnaround;
 use super::usart::SerialPort;
 use super::watchdog::Watchdog;
 use crate::dither::{DitherConfig, DitherController};
+use crate::protocol::key::Key;
+use crate::protocol::link::KeyWriteError;
 use crate::protocol::respond::MAX_RESPONSE;
 use crate::readout::Readout;
-use crate::service::ports::{Clock, DitherAccess, ReadoutAccess, SerialTx};
+use crate::service::ports::{Clock, DitherAccess, ReadoutAccess, Secrets, SerialTx};
 
 /// What the main loop hands the service.
 pub struct BoardPorts {
@@ -38,7 +40,7 @@ impl BoardPorts {
 }
 
 impl Clock for BoardPorts {
-    fn now_ms(&self) -> u32 {
+    fn now_ms(&self) -> u64 {
         resources::now_ms()
     }
 }
@@ -93,6 +95,22 @@ impl ReadoutAccess for BoardPorts {
     /// Turnarounds the hardware path lost: scheduled too late, or dropped from a full queue.
     fn missed_below_readout(&self) -> u32 {
         turnaround::LATE.load(Ordering::Relaxed) + TURNAROUNDS_DROPPED.load(Ordering::Relaxed)
+    }
+}
+
+impl Secrets for BoardPorts {
+    /// OTP block 0 ([`super::otp`]); the watchdog is refreshed around the few programming
+    /// stalls (16 us per word).
+    fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError> {
+        self.refresh_watchdog();
+        let result = super::otp::program_key(key);
+        self.refresh_watchdog();
+        result
+    }
+
+    /// Backup SRAM ([`super::backup`]).
+    fn save_wrong_keys(&mut self, count: u32) {
+        super::backup::save_wrong_keys(count);
     }
 }
 

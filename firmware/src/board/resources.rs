@@ -56,8 +56,9 @@
 //! stream 1.7 %); with a calibration run and the binary stream on every cycle: 17.1 %. At
 //! 1 kHz: 17.7 %; with a calibration run and the stream on every second cycle: 23.4 %.
 
+use crate::millis::Millis;
 use core::cell::UnsafeCell;
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::sync::atomic::AtomicU32;
 
 use cortex_m::peripheral::{scb::SystemHandler, NVIC, SCB, SYST};
 use heapless::spsc::{Consumer, Producer, Queue};
@@ -106,8 +107,8 @@ pub static RECORDS_DROPPED: AtomicU32 = AtomicU32::new(0);
 pub static OUTPUT_LATCHES_DROPPED: AtomicU32 = AtomicU32::new(0);
 /// Output records the main loop did not take in time: gaps in the records' sequence numbers.
 pub static OUTPUT_RECORDS_DROPPED: AtomicU32 = AtomicU32::new(0);
-/// Milliseconds since start (SysTick), wrapping.
-static MILLIS: AtomicU32 = AtomicU32::new(0);
+/// Milliseconds since start (SysTick), 64 bits: never wraps.
+static MILLIS: Millis = Millis::new();
 
 /// A value shared by contexts up to a priority ceiling: whoever locks raises BASEPRI to the
 /// ceiling, so no other user can run meanwhile (the stack resource policy, as RTIC does it).
@@ -226,14 +227,14 @@ pub fn init_readout(config: ReadoutConfig, readout: Readout) -> ReadoutQueues {
     }
 }
 
-/// Milliseconds since start (wrapping).
-pub fn now_ms() -> u32 {
-    MILLIS.load(Ordering::Relaxed)
+/// Milliseconds since start (64 bits, monotonic).
+pub fn now_ms() -> u64 {
+    MILLIS.now_ms()
 }
 
-/// One SysTick: a millisecond passed (`isr::systick` only).
+/// One SysTick: a millisecond passed (`isr::systick` only, the clock's single writer).
 pub fn tick_ms() {
-    MILLIS.fetch_add(1, Ordering::Relaxed);
+    MILLIS.tick();
 }
 
 /// Sets the priorities of every board context and starts the 1 ms tick. Interrupt lines stay

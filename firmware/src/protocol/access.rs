@@ -10,9 +10,17 @@
 //!   serial line takes geological time. A correct key resets the count. A wrong key also locks
 //!   a board that was unlocked: whoever types it is not to be trusted with the open session.
 //! - Reads never need an unlock.
+//! - The wrong-key count survives a reset: the service saves it whenever it changes (backup
+//!   RAM on the board) and restores it at boot ([`Access::restored`]), which restarts the
+//!   penalty of that count; resetting the board is no way around the back-off.
 //!
-//! Time is a millisecond tick passed in by the caller (wrapping `u32`, 49 days), so this is
+//! The key itself ([`super::key::Key`], 128 bits) is compared in constant time.
+//!
+//! Time is a 64-bit monotonic millisecond count passed in by the caller (it never wraps: 584
+//! million years), so a deadline is reached exactly when `now >= deadline`, after any uptime;
 //! plain logic, testable on the host.
+
+use super::key::Key;
 
 /// Access-control settings (immutable).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -47,21 +55,21 @@ pub enum UnlockOutcome {
     /// Refused unchecked: wait this long.
     RateLimited {
         /// Time left of the penalty, ms.
-        wait_ms: u32,
+        wait_ms: u64,
     },
 }
 
 /// The lock's state (starts locked).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Access {
-    unlocked_until_ms: Option<u32>,
+    unlocked_until_ms: Option<u64>,
     wrong_keys: u32,
-    blocked_until_ms: Option<u32>,
+    blocked_until_ms: Option<u64>,
 }
 
-/// `now_ms` is at or after `deadline_ms` on the wrapping millisecond clock (within 24 days).
-fn reached(now_ms: u32, deadline_ms: u32) -> bool {
-    now_ms.wrapping_sub(deadline_ms) < (1 << 31)
+/// `now_ms` is at or after `deadline_ms` (monotonic 64-bit milliseconds).
+fn reached(now_ms: u64, deadline_ms: u64) -> bool {
+    now_ms >= deadline_ms
 }
 
 impl Access {
@@ -75,7 +83,7 @@ impl Access {
     }
 
     /// Whether protected commands are allowed now.
-    pub fn is_unlocked(&mut self, now_ms: u32) -> bool {
+    pub fn is_unlocked(&mut self, now_ms: u64) -> bool {
         match self.unlocked_until_ms {
             Some(until) if !reached(now_ms, until) => true,
             Some(_) => {
@@ -87,9 +95,9 @@ impl Access {
     }
 
     /// A protected command succeeded: the unlock lasts another full timeout.
-    pub fn touch(&mut self, config: &AccessConfig, now_ms: u32) {
+    pub fn touch(&mut self, config: &AccessConfig, now_ms: u64) {
         if self.is_unlocked(now_ms) {
-            self.unlocked_until_ms = Some(now_ms.wrapping_add(config.unlock_timeout_ms));
+            self.unlocked_until_ms = Some(now_ms.saturating_add(config.unlock_timeout_ms as u64));
         }
     }
 
@@ -103,37 +111,53 @@ impl Access {
         self.wrong_keys
     }
 
-    /// An unlock attempt with `given` against the device's `key`.
-    pub fn unlock(
-        &mut self,
-        config: &AccessConfig,
-        now_ms: u32,
-        key: u32,
-        given: u32,
-    ) -> UnlockOutcome {
-        if let Some(until) = self.blocked_until_ms {
-            if !reached(now_ms, until) {
-                return UnlockOutcome::RateLimited {
-                    wait_ms: until.wrapping_sub(now_ms),
-                };
-            }
-            self.blocked_until_ms = None;
-        }
-        if given == key {
-            self.wrong_keys = 0;
-            self.unlocked_until_ms = Some(now_ms.wrapping_add(config.unlock_timeout_ms));
-            return UnlockOutcome::Unlocked;
-        }
-        self.lock();
-        self.wrong_keys = self.wrong_keys.saturating_add(1);
+    /// The state after a reset that kept `wrong_keys` (backup RAM, `service::ports::Secrets`):
+    /// locked, the count as it was, and, past the free attempts, the penalty of that count
+    /// started afresh at `now_ms` (the time left before the reset is unknown; a full penalty
+    /// is the safe side). So a reset never shortens a penalty, and repeated resets extend it.
+    pub fn restored(config: &AccessConfig, wrong_keys: u32, now_ms: u64) -> Self {
+        let mut access = Self::new();
+        access.wrong_keys = wrong_keys;
+        access.start_penalty(config, now_ms);
+        access
+    }
+
+    /// Starts the penalty the wrong-key count calls for (none within the free attempts).
+    fn start_penalty(&mut self, config: &AccessConfig, now_ms: u64) {
         if self.wrong_keys > config.free_attempts as u32 {
             let doublings = (self.wrong_keys - config.free_attempts as u32 - 1).min(31);
             let penalty = config
                 .base_penalty_ms
                 .saturating_mul(1u32 << doublings)
                 .min(config.max_penalty_ms);
-            self.blocked_until_ms = Some(now_ms.wrapping_add(penalty));
+            self.blocked_until_ms = Some(now_ms.saturating_add(penalty as u64));
         }
+    }
+
+    /// An unlock attempt with `given` against the device's `key`.
+    pub fn unlock(
+        &mut self,
+        config: &AccessConfig,
+        now_ms: u64,
+        key: &Key,
+        given: &Key,
+    ) -> UnlockOutcome {
+        if let Some(until) = self.blocked_until_ms {
+            if !reached(now_ms, until) {
+                return UnlockOutcome::RateLimited {
+                    wait_ms: until - now_ms,
+                };
+            }
+            self.blocked_until_ms = None;
+        }
+        if key.matches(given) {
+            self.wrong_keys = 0;
+            self.unlocked_until_ms = Some(now_ms.saturating_add(config.unlock_timeout_ms as u64));
+            return UnlockOutcome::Unlocked;
+        }
+        self.lock();
+        self.wrong_keys = self.wrong_keys.saturating_add(1);
+        self.start_penalty(config, now_ms);
         UnlockOutcome::WrongKey
     }
 }
@@ -142,22 +166,26 @@ impl Access {
 mod tests {
     use super::*;
 
-    const KEY: u32 = 0xC0FF_EE42;
+    const KEY: Key = Key::from_bytes([0x5A; 16]);
+
+    fn wrong(n: u8) -> Key {
+        Key::from_bytes([n; 16])
+    }
     const C: AccessConfig = AccessConfig::DEFAULT;
 
     #[test]
     fn starts_locked_unlocks_and_times_out() {
         let mut a = Access::new();
         assert!(!a.is_unlocked(0));
-        assert_eq!(a.unlock(&C, 1000, KEY, KEY), UnlockOutcome::Unlocked);
-        assert!(a.is_unlocked(1000 + C.unlock_timeout_ms - 1));
-        assert!(!a.is_unlocked(1000 + C.unlock_timeout_ms));
+        assert_eq!(a.unlock(&C, 1000, &KEY, &KEY), UnlockOutcome::Unlocked);
+        assert!(a.is_unlocked(1000 + C.unlock_timeout_ms as u64 - 1));
+        assert!(!a.is_unlocked(1000 + C.unlock_timeout_ms as u64));
     }
 
     #[test]
     fn activity_extends_and_lock_ends_it() {
         let mut a = Access::new();
-        a.unlock(&C, 0, KEY, KEY);
+        a.unlock(&C, 0, &KEY, &KEY);
         a.touch(&C, 200_000);
         assert!(a.is_unlocked(450_000));
         a.lock();
@@ -170,20 +198,20 @@ mod tests {
     fn wrong_keys_are_rate_limited() {
         let mut a = Access::new();
         for t in 0..3 {
-            assert_eq!(a.unlock(&C, t, KEY, 1), UnlockOutcome::WrongKey);
+            assert_eq!(a.unlock(&C, t, &KEY, &wrong(1)), UnlockOutcome::WrongKey);
         }
-        assert_eq!(a.unlock(&C, 10, KEY, 2), UnlockOutcome::WrongKey); // 4th: 1 s penalty
+        assert_eq!(a.unlock(&C, 10, &KEY, &wrong(2)), UnlockOutcome::WrongKey); // 4th: 1 s penalty
         assert_eq!(
-            a.unlock(&C, 500, KEY, KEY),
+            a.unlock(&C, 500, &KEY, &KEY),
             UnlockOutcome::RateLimited { wait_ms: 510 }
         );
         assert!(!a.is_unlocked(500));
-        assert_eq!(a.unlock(&C, 1010, KEY, 3), UnlockOutcome::WrongKey); // 5th: 2 s
+        assert_eq!(a.unlock(&C, 1010, &KEY, &wrong(3)), UnlockOutcome::WrongKey); // 5th: 2 s
         assert_eq!(
-            a.unlock(&C, 3000, KEY, KEY),
+            a.unlock(&C, 3000, &KEY, &KEY),
             UnlockOutcome::RateLimited { wait_ms: 10 }
         );
-        assert_eq!(a.unlock(&C, 3010, KEY, KEY), UnlockOutcome::Unlocked);
+        assert_eq!(a.unlock(&C, 3010, &KEY, &KEY), UnlockOutcome::Unlocked);
         assert_eq!(a.wrong_keys(), 0);
     }
 
@@ -191,16 +219,53 @@ mod tests {
     #[test]
     fn penalty_cap_and_clock_wrap() {
         let mut a = Access::new();
-        let mut t = u32::MAX - 5_000;
+        let mut t = u32::MAX as u64 - 5_000;
         for _ in 0..40 {
-            if let UnlockOutcome::RateLimited { wait_ms } = a.unlock(&C, t, KEY, 0) {
-                assert!(wait_ms <= C.max_penalty_ms);
-                t = t.wrapping_add(wait_ms);
+            if let UnlockOutcome::RateLimited { wait_ms } = a.unlock(&C, t, &KEY, &wrong(0)) {
+                assert!(wait_ms <= C.max_penalty_ms as u64);
+                t += wait_ms;
             }
         }
         assert_eq!(
-            a.unlock(&C, t.wrapping_add(C.max_penalty_ms), KEY, KEY),
+            a.unlock(&C, t + C.max_penalty_ms as u64, &KEY, &KEY),
             UnlockOutcome::Unlocked
         );
+    }
+
+    /// A stale unlock stays stale and a penalty ends, however long the board runs: 24.9 days
+    /// (2^31 ms) after an unlock nobody used, and across the 32-bit millisecond wrap (49.7 days).
+    #[test]
+    fn long_uptimes_neither_revive_an_unlock_nor_stretch_a_penalty() {
+        let day_ms: u64 = 86_400_000;
+        let mut a = Access::new();
+        assert_eq!(a.unlock(&C, 1000, &KEY, &KEY), UnlockOutcome::Unlocked);
+        for t in [25 * day_ms, 50 * day_ms, (1 << 32) + 1000, (1 << 33) + 500] {
+            assert!(
+                !Access { ..a }.is_unlocked(t),
+                "stale unlock valid at {t} ms"
+            );
+        }
+        // Unlocked just before the 32-bit wrap: lasts its 5 minutes across it, then ends.
+        let t0 = (1u64 << 32) - 1000;
+        assert_eq!(a.unlock(&C, t0, &KEY, &KEY), UnlockOutcome::Unlocked);
+        assert!(a.is_unlocked(t0 + 200_000));
+        assert!(!a.is_unlocked(t0 + 400_000));
+        // A penalty started before the wrap ends after at most max_penalty_ms.
+        let mut b = Access::new();
+        for _ in 0..40 {
+            let _ = b.unlock(&C, t0, &KEY, &wrong(9));
+        }
+        let later = t0 + C.max_penalty_ms as u64 + 1;
+        assert_eq!(b.unlock(&C, later, &KEY, &KEY), UnlockOutcome::Unlocked);
+        // And one started 24.9 days into the uptime is not 24.8 days long.
+        let mut c = Access::new();
+        let t1 = (1u64 << 31) - 10;
+        for _ in 0..40 {
+            let _ = c.unlock(&C, t1, &KEY, &wrong(9));
+        }
+        match c.unlock(&C, t1 + 20, &KEY, &KEY) {
+            UnlockOutcome::RateLimited { wait_ms } => assert!(wait_ms <= C.max_penalty_ms as u64),
+            other => panic!("{other:?}"),
+        }
     }
 }

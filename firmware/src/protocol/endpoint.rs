@@ -24,18 +24,27 @@ pub fn answer<D: DeviceLink>(
     device: &mut D,
 ) -> String<MAX_RESPONSE> {
     let text = match event {
-        LineEvent::TooLong => return Response::err(ErrorCode::LineTooLong).finish(false),
-        LineEvent::Garbage => return Response::err(ErrorCode::InvalidCharacters).finish(false),
+        LineEvent::TooLong => return refused(executor, ErrorCode::LineTooLong, false),
+        LineEvent::Garbage => return refused(executor, ErrorCode::InvalidCharacters, false),
         LineEvent::Line(text) => text,
     };
     let (body, with_crc) = match strip_checksum(text) {
         Ok(split) => split,
-        Err(code) => return Response::err(code).finish(false),
+        Err(code) => return refused(executor, code, false),
     };
     match parse(body) {
-        Ok(command) => executor.execute(identity, device, command).finish(with_crc),
-        Err(code) => Response::err(code).finish(with_crc),
+        Ok(command) => executor
+            .execute_line(identity, device, command, with_crc)
+            .finish(with_crc),
+        Err(code) => refused(executor, code, with_crc),
     }
+}
+
+/// A line refused before it became a command: it still ends a pending confirmation (only the
+/// line right after the echo may confirm).
+fn refused(executor: &mut Executor, code: ErrorCode, with_crc: bool) -> String<MAX_RESPONSE> {
+    executor.drop_pending();
+    Response::err(code).finish(with_crc)
 }
 
 /// Sends an answer: as it is in text mode; wrapped in 0x00 delimiters when it answers a line

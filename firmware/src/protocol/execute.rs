@@ -9,11 +9,18 @@
 //! the groups and dispatches each command to its group's function:
 //!
 //! - reads (`id`, `status`, `get`, `cal status`, `cal result`, `help`) never need an unlock;
+//! - `key provision` needs none either: it is accepted only while the board has no key
+//!   ([`super::key`]), and there is nothing to unlock with before;
 //! - everything that changes coefficients, compensation, the dither drive or flash (`set`,
 //!   `comp`, `track`, `cal accept`, `store`, `reload`, `defaults`, `dither on|off|amp|noise`)
 //!   needs one, and extends it when it succeeds;
+//! - so do the calibration commands that take the board's time or discard work: `cal start`,
+//!   `cal abort`, and `cal result` while it would close pooled runs; so a locked client can
+//!   neither start an hour-long run nor end someone else's;
 //! - while a calibration run collects cycles, those commands answer `ERR 10` (busy): the run's
 //!   data would no longer match the coefficients;
+//! - while online tracking runs, `set`, `comp`, `defaults`, `cal accept` and `reload` answer
+//!   `ERR 17`: the loop owns the coefficients and would overwrite theirs within a second;
 //! - `cal start` answers `ERR 11` while the dither drive is not locked (its cycles would all be
 //!   flagged invalid);
 //! - a refused command changes nothing, with one deliberate exception: `cal result` on a
@@ -26,6 +33,7 @@ use super::commands::info::{self, StatusFlags};
 use super::commands::provenance::Provenance;
 use super::commands::stream::StreamState;
 use super::commands::{dither, settings, storage, Answer};
+use super::confirm::{needs_confirmation, Canonical};
 use super::parse::{Command, DitherCommand};
 use super::respond::Response;
 use super::stream::StreamRecord;
@@ -47,6 +55,8 @@ pub struct Executor {
     calibration: CalibrationState,
     provenance: Provenance,
     stream: StreamState,
+    /// A state-changing command typed without a CRC, echoed, waiting for `yes`.
+    pending: Option<Command>,
 }
 
 /// What a dither cycle asks of the serial task.
@@ -71,7 +81,33 @@ impl Executor {
             calibration: CalibrationState::new(limits),
             provenance: Provenance::new(report, fit, boot_count),
             stream: StreamState::default(),
+            pending: None,
         }
+    }
+
+    /// After a reset: the wrong-key count the platform kept, its penalty restarted at `now_ms`.
+    pub fn restore_wrong_keys(&mut self, wrong_keys: u32, now_ms: u64) {
+        self.access.restore_wrong_keys(wrong_keys, now_ms);
+    }
+
+    /// A new client on the link (a new TCP connection to a served board): locked, streaming
+    /// off, so nothing of the previous client's session carries over. The calibration, the
+    /// coefficients and the wrong-key count are the board's, not the session's: they stay.
+    pub fn new_session(&mut self) {
+        self.access.lock();
+        self.pending = None;
+        let _ = self.stream.command(None);
+    }
+
+    /// `n` closed cycles were lost before they reached the executor (a full record queue): the
+    /// stream leaves a sequence gap for the frames they were due.
+    pub fn on_cycles_lost(&mut self, n: u32) {
+        self.stream.skip(n);
+    }
+
+    /// Wrong keys since the last correct one.
+    pub fn wrong_keys(&self) -> u32 {
+        self.access.wrong_keys()
     }
 
     /// Whether online tracking runs.
@@ -114,6 +150,37 @@ impl Executor {
         Some(record)
     }
 
+    /// Executes one command from a line: a state-changing one without a CRC is not executed
+    /// but echoed for confirmation (`ERR 18 ... cmd=<as parsed>`), and `yes` then executes it
+    /// ([`super::confirm`]); any other line drops a pending one.
+    pub fn execute_line<D: DeviceLink>(
+        &mut self,
+        id: &Identity,
+        device: &mut D,
+        command: Command,
+        with_crc: bool,
+    ) -> Response {
+        let pending = self.pending.take();
+        if command == Command::Confirm {
+            return match pending {
+                Some(pending) => self.execute(id, device, pending),
+                None => Response::err(ErrorCode::WrongState),
+            };
+        }
+        if !with_crc && needs_confirmation(&command) {
+            self.pending = Some(command);
+            let mut r = Response::err(ErrorCode::Confirm);
+            r.field(format_args!("cmd={}", Canonical(&command)));
+            return r;
+        }
+        self.execute(id, device, command)
+    }
+
+    /// A line that was no command (bad CRC, parse error, garbage): a pending confirmation ends.
+    pub fn drop_pending(&mut self) {
+        self.pending = None;
+    }
+
     /// Executes one command.
     pub fn execute<D: DeviceLink>(
         &mut self,
@@ -122,19 +189,33 @@ impl Executor {
         command: Command,
     ) -> Response {
         let now_ms = device.now_ms();
-        if protected(&command) {
-            if !self.access.is_unlocked(now_ms) {
-                return Response::err(ErrorCode::Locked);
-            }
-            if self.calibration.running() {
-                return Response::err(ErrorCode::Busy);
-            }
+        let needs_unlock = protected(&command) || self.takes_time_or_work(&command);
+        if needs_unlock && !self.access.is_unlocked(now_ms) {
+            return Response::err(ErrorCode::Locked);
+        }
+        if protected(&command) && self.calibration.running() {
+            return Response::err(ErrorCode::Busy);
+        }
+        if self.calibration.tracking() && overridden_by_tracking(&command) {
+            return Response::err(ErrorCode::Tracking);
         }
         let answer = self.dispatch(id, device, now_ms, command);
-        if protected(&command) && answer.is_ok() {
+        if needs_unlock && answer.is_ok() {
             self.access.touch(now_ms);
         }
         answer.unwrap_or_else(Response::err)
+    }
+
+    /// Calibration commands that take the board's time or discard work: `cal start` (a run of
+    /// up to an hour, and it discards a finished fit), `cal abort` (drops the runs), and `cal
+    /// result` while it would close the pooled runs (solving ends pooling; reading a solved
+    /// result is a read).
+    fn takes_time_or_work(&self, command: &Command) -> bool {
+        match command {
+            Command::CalStart { .. } | Command::CalAbort => true,
+            Command::CalResult => self.calibration.run_done(),
+            _ => false,
+        }
     }
 
     /// One command to its group.
@@ -142,7 +223,7 @@ impl Executor {
         &mut self,
         id: &Identity,
         device: &mut D,
-        now_ms: u32,
+        now_ms: u64,
         command: Command,
     ) -> Answer {
         let p = &mut self.provenance;
@@ -154,6 +235,7 @@ impl Executor {
                     tracking: self.calibration.tracking(),
                     source: p.source,
                     unlocked: self.access.is_unlocked(now_ms),
+                    key_provisioned: self.access.provisioned(id),
                 };
                 Ok(info::status(id, device, flags))
             }
@@ -181,11 +263,28 @@ impl Executor {
             Command::Reload => Ok(storage::reload(device, p)),
             Command::Stream(divider) => Ok(self.stream.command(divider)),
             Command::StreamOutput => Ok(self.stream.command_output()),
-            Command::Unlock(given) => self.access.unlock(id, now_ms, given),
+            Command::Unlock(given) => self.access.unlock(id, now_ms, &given),
+            Command::KeyProvision(key) => self.access.provision(id, device, key),
             Command::Lock => Ok(self.access.lock()),
             Command::Dither(command) => dither::command(device, id, command),
+            // Confirmation is a line-level matter (`execute_line`); alone it confirms nothing.
+            Command::Confirm => Err(ErrorCode::WrongState),
         }
     }
+}
+
+/// Commands whose coefficients or compensation switch the tracking loop would overwrite at its
+/// next update (it stages its own estimate, compensation on, about once a second): refused
+/// while tracking runs, so that no `OK` is silently undone.
+fn overridden_by_tracking(command: &Command) -> bool {
+    matches!(
+        command,
+        Command::Set(..)
+            | Command::Compensation(_)
+            | Command::Defaults
+            | Command::CalAccept
+            | Command::Reload
+    )
 }
 
 /// Commands that change coefficients, compensation, the dither drive or flash.
@@ -209,6 +308,17 @@ mod tests {
     use crate::protocol::parse::parse;
     use crate::storage::{DefaultsReason, LoadOutcome};
 
+    fn unlock_line() -> std::string::String {
+        let hex: std::string::String = ID
+            .key
+            .unwrap()
+            .to_bytes()
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        format!("unlock {hex}")
+    }
+
     fn run(e: &mut Executor, d: &mut MemDevice, line: &str) -> std::string::String {
         let command = parse(line).unwrap();
         e.execute(&ID, d, command)
@@ -228,11 +338,13 @@ mod tests {
         let mut e = Executor::new(&loaded, None, 1, AcceptanceLimits::DEFAULT);
         let mut d = MemDevice::default();
         d.drive.controller.disable();
+        assert!(run(&mut e, &mut d, &unlock_line()).starts_with("OK"));
         assert!(run(&mut e, &mut d, "cal start 100").starts_with("ERR 11 "));
         assert!(run(&mut e, &mut d, "cal status").starts_with("OK cal=idle"));
         d.drive.controller.enable();
         assert!(run(&mut e, &mut d, "cal start 100").starts_with("OK cal=running"));
         run(&mut e, &mut d, "cal abort");
+        run(&mut e, &mut d, "lock");
         for line in [
             "dither on",
             "dither off",
@@ -242,8 +354,136 @@ mod tests {
             assert!(run(&mut e, &mut d, line).starts_with("ERR 9 "), "{line}");
         }
         assert!(run(&mut e, &mut d, "dither status").starts_with("OK state="));
-        assert!(run(&mut e, &mut d, &format!("unlock {:x}", ID.key)).starts_with("OK"));
+        assert!(run(&mut e, &mut d, &unlock_line()).starts_with("OK"));
         assert!(run(&mut e, &mut d, "dither amp 400").starts_with("OK dither=on amp_arcsec=400"));
+    }
+
+    /// A locked client can neither start a run (hours of the board's time), nor abort one, nor
+    /// close pooled runs with `cal result`; reading a solved result stays free, and the run
+    /// goes on untouched by the refusals.
+    #[test]
+    fn calibration_commands_that_take_time_or_discard_work_need_the_unlock() {
+        use crate::protocol::commands::calibration::tests::cycle;
+        let loaded = report(LoadOutcome::Defaults {
+            reason: DefaultsReason::Erased,
+        });
+        let mut e = Executor::new(&loaded, None, 1, AcceptanceLimits::DEFAULT);
+        let mut d = MemDevice::default();
+        assert!(run(&mut e, &mut d, "cal start 3000").starts_with("ERR 9 "));
+        assert_eq!(run(&mut e, &mut d, "cal status"), "OK cal=idle");
+        assert!(run(&mut e, &mut d, &unlock_line()).starts_with("OK"));
+        assert!(run(&mut e, &mut d, "cal start 3000").starts_with("OK cal=running"));
+        run(&mut e, &mut d, "lock");
+        assert!(run(&mut e, &mut d, "cal abort").starts_with("ERR 9 "));
+        assert!(run(&mut e, &mut d, "cal status").starts_with("OK cal=running"));
+        for i in 0..3000 {
+            e.on_cycle(
+                &cycle(i, core::f64::consts::TAU * 13.888 / 1.8655),
+                1.0 / 389.0,
+            );
+        }
+        assert_eq!(
+            run(&mut e, &mut d, "cal status"),
+            "OK cal=run_done cycles=3000"
+        );
+        assert!(run(&mut e, &mut d, "cal result").starts_with("ERR 9 "));
+        assert!(run(&mut e, &mut d, "cal start 3000").starts_with("ERR 9 "));
+        assert_eq!(
+            run(&mut e, &mut d, "cal status"),
+            "OK cal=run_done cycles=3000"
+        );
+        assert!(run(&mut e, &mut d, &unlock_line()).starts_with("OK"));
+        let solved = run(&mut e, &mut d, "cal result");
+        assert!(solved.starts_with("OK a="), "{solved}");
+        run(&mut e, &mut d, "lock");
+        assert_eq!(
+            run(&mut e, &mut d, "cal result"),
+            solved,
+            "a solved fit is a read"
+        );
+    }
+
+    /// With tracking on, the commands whose effect the loop would undo at its next update are
+    /// refused with the reason (ERR 17) and change nothing; after `track off` they work again.
+    #[test]
+    fn tracking_refuses_what_it_would_undo() {
+        use crate::protocol::commands::calibration::tests::cycle;
+        let loaded = report(LoadOutcome::Defaults {
+            reason: DefaultsReason::Erased,
+        });
+        let mut e = Executor::new(&loaded, None, 1, AcceptanceLimits::DEFAULT);
+        let mut d = MemDevice::default();
+        run(&mut e, &mut d, &unlock_line());
+        assert!(run(&mut e, &mut d, "track on").starts_with("OK track=on"));
+        let before = d.clone();
+        for line in ["set a 5", "comp off", "defaults", "cal accept", "reload"] {
+            let answer = run(&mut e, &mut d, line);
+            assert!(answer.starts_with("ERR 17 tracking on"), "{line}: {answer}");
+        }
+        assert_eq!(d, before, "refusals change nothing");
+        // What an OK would have meant: the loop stages its own coefficients, compensation on,
+        // over a hand-set value within a few hundred cycles.
+        let rate = core::f64::consts::TAU * 13.888 / 1.8655;
+        let staged = (0..2000).find_map(|i| e.on_cycle(&cycle(i, rate), 1.0 / 389.0).stage);
+        assert!(
+            staged.is_some_and(|s| s.enabled),
+            "the loop overwrites the settings"
+        );
+        assert!(run(&mut e, &mut d, "track off").starts_with("OK track=off"));
+        assert_eq!(run(&mut e, &mut d, "set a 5"), "OK a=5");
+    }
+
+    /// Without a CRC a state-changing command is echoed as parsed and waits for `yes`; with
+    /// a CRC it runs at once; any other line in between drops it; reads run at once.
+    #[test]
+    fn state_changes_without_crc_wait_for_a_confirmation_of_the_echo() {
+        let loaded = report(LoadOutcome::Defaults {
+            reason: DefaultsReason::Erased,
+        });
+        let mut e = Executor::new(&loaded, None, 1, AcceptanceLimits::DEFAULT);
+        let mut d = MemDevice::default();
+        let line = |e: &mut Executor, d: &mut MemDevice, text: &str, crc: bool| {
+            let command = parse(text).unwrap();
+            e.execute_line(&ID, d, command, crc)
+                .finish(false)
+                .as_str()
+                .trim_end()
+                .to_owned()
+        };
+        assert!(line(&mut e, &mut d, &unlock_line(), false).starts_with("OK unlocked"));
+        // `set a 12.5` with its "1" dropped on the line: shown before anything happens.
+        let before = d.clone();
+        assert_eq!(
+            line(&mut e, &mut d, "set a 2.5", false),
+            "ERR 18 confirm (send yes) cmd=set a 2.5"
+        );
+        assert_eq!(d, before, "nothing executed");
+        assert_eq!(line(&mut e, &mut d, "yes", false), "OK a=2.5");
+        assert_eq!(
+            line(&mut e, &mut d, "yes", false),
+            "ERR 11 not possible now"
+        );
+        assert!(line(&mut e, &mut d, "store", false).starts_with("ERR 18 "));
+        assert!(line(&mut e, &mut d, "get a", false).starts_with("OK a=2.5"));
+        assert_eq!(
+            line(&mut e, &mut d, "yes", false),
+            "ERR 11 not possible now"
+        );
+        assert!(
+            d.stored.is_empty(),
+            "the store was dropped by the read in between"
+        );
+        assert_eq!(
+            line(&mut e, &mut d, "set a 3", true),
+            "OK a=3",
+            "CRC: at once"
+        );
+        e.execute_line(&ID, &mut d, parse("set b 1").unwrap(), false);
+        e.drop_pending();
+        assert_eq!(
+            line(&mut e, &mut d, "yes", false),
+            "ERR 11 not possible now"
+        );
     }
 
     /// `stream output` hands every record over, with the tracking bit set while the tracker
@@ -267,7 +507,7 @@ mod tests {
         assert_eq!(e.on_output(&record), None);
         assert!(run(&mut e, &mut d, "stream output").starts_with("OK stream=output"));
         assert_eq!(e.on_output(&record), Some(record));
-        assert!(run(&mut e, &mut d, &format!("unlock {:x}", ID.key)).starts_with("OK"));
+        assert!(run(&mut e, &mut d, &unlock_line()).starts_with("OK"));
         assert!(run(&mut e, &mut d, "track on").starts_with("OK"));
         let sent = e.on_output(&record).unwrap();
         assert!(sent

@@ -1,6 +1,7 @@
 //! Line assembly: serial bytes in, complete command lines out, in a bounded buffer.
 //!
-//! A line ends at `\n`; a `\r` right before it is dropped. Whatever arrives, the assembler
+//! A line ends at `\n`; a `\r` right before it is dropped, and so is a `\r` right after it (the
+//! LF CR order some terminals send), so neither order leaves a stray `\r` in the next line. Whatever arrives, the assembler
 //! never grows, never panics and keeps in step with the line boundaries:
 //!
 //! - a line longer than [`MAX_LINE`] bytes is discarded up to its `\n` and reported once as
@@ -38,6 +39,8 @@ pub struct LineAssembler {
     pending_cr: bool,
     /// The buffer holds the line last returned; clear it before the next byte.
     delivered: bool,
+    /// The last byte was a `\n`: a `\r` now is the second half of an LF CR ending.
+    after_lf: bool,
 }
 
 impl LineAssembler {
@@ -49,6 +52,7 @@ impl LineAssembler {
             garbage: false,
             pending_cr: false,
             delivered: false,
+            after_lf: false,
         }
     }
 
@@ -58,7 +62,11 @@ impl LineAssembler {
             self.buffer.clear();
             self.delivered = false;
         }
+        if core::mem::take(&mut self.after_lf) && byte == b'\r' {
+            return None;
+        }
         if byte == b'\n' {
+            self.after_lf = true;
             let event = if self.overflowed {
                 Some(LineEvent::TooLong)
             } else if self.garbage {
@@ -164,5 +172,22 @@ mod tests {
             }
         }
         assert!(events <= newlines && events > 0);
+    }
+
+    /// LF CR endings (a terminal's order): the CR after each LF is dropped, so the next
+    /// command arrives intact; a CR anywhere else in a line still marks it as garbage.
+    #[test]
+    fn lf_cr_endings_do_not_break_the_next_line() {
+        let mut asm = LineAssembler::new();
+        assert_eq!(
+            feed(&mut asm, b"get a\n\rset a 1\n\rstatus\n\r"),
+            ["L:get a", "L:set a 1", "L:status"]
+        );
+        assert_eq!(feed(&mut asm, b"get\ra\n"), ["GARBAGE"]);
+        assert_eq!(
+            feed(&mut asm, b"\n\r\rid\n"),
+            ["GARBAGE"],
+            "only one CR is dropped"
+        );
     }
 }

@@ -7,6 +7,7 @@
 //! [`super::commands`] see nothing else of the device. These types are re-exported from
 //! [`super::execute`], where callers have always found them.
 
+use super::key::Key;
 use crate::dither::{CommandError, DitherStatus};
 use crate::signal::compensation::CompensationSettings;
 use crate::signal::output::strip::StripStatus;
@@ -25,8 +26,9 @@ pub struct Identity {
     pub board: &'static str,
     /// The gyro's serial number (OTP flash on the board).
     pub serial_number: u32,
-    /// The calibration unlock key (OTP flash on the board, written at production).
-    pub key: u32,
+    /// The calibration unlock key as read at boot (OTP on the board, written once by `key
+    /// provision`); `None`: unprovisioned, protected commands are refused until it is.
+    pub key: Option<Key>,
     /// Scale factor, arcsec per fringe: only for reporting deg/h.
     pub scale_factor_arcsec: f32,
     /// Capture-timer frequency, Hz: the unit of the streamed cycle durations.
@@ -60,14 +62,16 @@ pub struct DeviceStatus {
     pub strip: StripStatus,
     /// Output records made since boot (the next record's sequence number).
     pub output_records: u64,
+    /// Closed cycles lost before the service saw them (a full record queue; saturating).
+    pub cycles_dropped: u32,
 }
 
 /// What the protocol needs from the rest of the firmware.
 pub trait DeviceLink {
     /// The flash driver's error, carried in [`StoreError::Flash`].
     type FlashError: core::fmt::Debug;
-    /// A millisecond tick (wrapping).
-    fn now_ms(&self) -> u32;
+    /// Milliseconds since boot, monotonic, 64 bits (never wraps).
+    fn now_ms(&self) -> u64;
     /// A snapshot of the readout's counters and dither, for `status`.
     fn status(&self) -> DeviceStatus;
     /// The settings the readout applies now.
@@ -90,4 +94,18 @@ pub trait DeviceLink {
     fn strip_coefficients(&mut self) -> Option<StripCoefficients>;
     /// Starts the stripping from stored coefficients (`reload`), its fit learning on from them.
     fn apply_strip(&mut self, strip: StripCoefficients);
+    /// Writes the key to the board's one-time-programmable memory and locks it (`key
+    /// provision`; the executor calls it only while no key is provisioned). `Err`: the write
+    /// failed or did not read back; the board stays unprovisioned.
+    fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError>;
+}
+
+/// Why the key could not be written to OTP.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum KeyWriteError {
+    /// The OTP words are not blank (another key, or a failed earlier attempt): the board can
+    /// never be provisioned; it stays locked.
+    NotBlank,
+    /// The flash controller reported an error, or the words did not read back.
+    Failed,
 }

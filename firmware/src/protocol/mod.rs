@@ -12,8 +12,11 @@
 pub mod access;
 pub mod cobs;
 pub mod commands;
+pub mod confirm;
+pub mod decimal;
 pub mod endpoint;
 pub mod execute;
+pub mod key;
 pub mod line;
 pub mod link;
 pub mod output_frame;
@@ -61,11 +64,19 @@ pub enum ErrorCode {
     RateLimited = 14,
     /// `unlock` with a key that is not the device's; the device locks.
     WrongKey = 15,
+    /// `unlock` on a board whose key was never provisioned (`key provision`, production).
+    NoKey = 16,
+    /// Online tracking owns the coefficients: a hand change would be undone within a second
+    /// (`track off` first).
+    Tracking = 17,
+    /// A state-changing command without a CRC: not executed; echoed as parsed, `yes` executes
+    /// it (`confirm`).
+    Confirm = 18,
 }
 
 impl ErrorCode {
     /// Every code, in numeric order (for hosts that parse answers).
-    pub const ALL: [ErrorCode; 15] = [
+    pub const ALL: [ErrorCode; 18] = [
         Self::UnknownCommand,
         Self::Syntax,
         Self::BadNumber,
@@ -81,6 +92,9 @@ impl ErrorCode {
         Self::FlashError,
         Self::RateLimited,
         Self::WrongKey,
+        Self::NoKey,
+        Self::Tracking,
+        Self::Confirm,
     ];
 
     /// The number after `ERR`.
@@ -106,6 +120,9 @@ impl ErrorCode {
             Self::FlashError => "flash error",
             Self::RateLimited => "too many attempts, wait",
             Self::WrongKey => "wrong key",
+            Self::NoKey => "no key provisioned",
+            Self::Tracking => "tracking on (track off first)",
+            Self::Confirm => "confirm (send yes)",
         }
     }
 }

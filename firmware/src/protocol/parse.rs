@@ -7,6 +7,7 @@
 //! parsed. Numbers are decimal (`f32` via `core`'s parser, which also accepts exponents); NaN
 //! and infinities are refused, and so is anything outside the documented range.
 
+use super::key::Key;
 use super::ErrorCode;
 
 /// Which coefficient.
@@ -74,12 +75,17 @@ pub enum Command {
     Stream(Option<u16>),
     /// `stream output`: the fixed-rate output records, one frame per output period.
     StreamOutput,
-    /// `unlock <key>`: allow commands that change coefficients or flash.
-    Unlock(u32),
+    /// `unlock <key>`: allow commands that change coefficients or flash (32 hex digits).
+    Unlock(Key),
+    /// `key provision <key>`: write the board's key to OTP, once (production; see [`super::key`]).
+    KeyProvision(Key),
     /// `lock`: lock at once.
     Lock,
     /// `dither on|off|amp <arcsec>|noise <percent>|status`: the dither drive.
     Dither(DitherCommand),
+    /// `yes`: executes the state-changing command typed without a CRC just before, after the
+    /// board echoed it as parsed ([`super::confirm`]).
+    Confirm,
 }
 
 /// Largest run length `cal start` accepts: one hour at 1 kHz dither.
@@ -119,9 +125,14 @@ pub fn strip_checksum(line: &str) -> Result<(&str, bool), ErrorCode> {
     Ok((body, true))
 }
 
+/// A key argument: 32 hex digits ([`Key::parse_hex`]).
+fn key(word: Option<&str>) -> Result<Key, ErrorCode> {
+    Key::parse_hex(word.ok_or(ErrorCode::Syntax)?).ok_or(ErrorCode::BadNumber)
+}
+
 fn number(word: Option<&str>) -> Result<f32, ErrorCode> {
     let word = word.ok_or(ErrorCode::Syntax)?;
-    let v: f32 = word.parse().map_err(|_| ErrorCode::BadNumber)?;
+    let v = super::decimal::parse_f32(word).ok_or(ErrorCode::BadNumber)?;
     if !v.is_finite() {
         return Err(ErrorCode::NotFinite);
     }
@@ -246,12 +257,18 @@ pub fn parse(text: &str) -> Result<Command, ErrorCode> {
             _ => return Err(ErrorCode::Syntax),
         }
     } else if is("unlock") {
-        let word = words.next().ok_or(ErrorCode::Syntax)?;
-        let key = u32::from_str_radix(word.trim_start_matches("0x"), 16)
-            .map_err(|_| ErrorCode::BadNumber)?;
-        Command::Unlock(key)
+        Command::Unlock(key(words.next())?)
+    } else if is("key") {
+        match words.next() {
+            Some(w) if w.eq_ignore_ascii_case("provision") => {
+                Command::KeyProvision(key(words.next())?)
+            }
+            _ => return Err(ErrorCode::Syntax),
+        }
     } else if is("lock") {
         Command::Lock
+    } else if is("yes") {
+        Command::Confirm
     } else {
         return Err(ErrorCode::UnknownCommand);
     };
@@ -318,7 +335,19 @@ mod tests {
         assert_eq!(parse("stream off"), Ok(Command::Stream(None)));
         assert_eq!(parse("stream output"), Ok(Command::StreamOutput));
         assert_eq!(parse("stream output 3"), Err(ErrorCode::Syntax));
-        assert_eq!(parse("unlock 0xC0FFEE"), Ok(Command::Unlock(0xC0FFEE)));
+        let key = Key::parse_hex("000102030405060708090a0b0c0d0e0f").unwrap();
+        assert_eq!(
+            parse("unlock 000102030405060708090a0b0c0d0e0f"),
+            Ok(Command::Unlock(key))
+        );
+        assert_eq!(
+            parse("key provision 0x000102030405060708090A0B0C0D0E0F"),
+            Ok(Command::KeyProvision(key))
+        );
+        // A 32-bit key (the old development key) is no key.
+        assert_eq!(parse("unlock c0ffee42"), Err(ErrorCode::BadNumber));
+        assert_eq!(parse("key provision"), Err(ErrorCode::Syntax));
+        assert_eq!(parse("key"), Err(ErrorCode::Syntax));
         assert_eq!(parse("  status\t"), Ok(Command::Status));
         assert_eq!(
             parse("dither amp 420.5"),

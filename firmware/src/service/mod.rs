@@ -11,7 +11,7 @@
 //!   into the readout), and a stream frame (queued whole or dropped and counted).
 //!
 //! Everything that differs between the board and the simulator is behind the small traits of
-//! [`ports`] (clock, serial transmitter, readout access, dither access) and `embedded_storage`'s
+//! [`ports`] (clock, serial transmitter, readout access, dither access, the key's OTP) and `embedded_storage`'s
 //! `NorFlash`
 //! (the calibration flash, owned by the service). The board's main loop (`board::app`) and
 //! hal-sim's `SimDevice` each instantiate this one `Service`; neither has protocol glue of its
@@ -30,7 +30,9 @@ use crate::dither::{CommandError, DitherStatus};
 use crate::profile::BoardProfile;
 use crate::protocol::endpoint;
 use crate::protocol::execute::{DeviceLink, DeviceStatus, Executor, Identity};
+use crate::protocol::key::Key;
 use crate::protocol::line::{LineAssembler, LineEvent, MAX_LINE};
+use crate::protocol::link::KeyWriteError;
 use crate::protocol::output_frame::{encode_output_frame, MAX_OUTPUT_FRAME};
 use crate::protocol::stream::{encode_frame, MAX_FRAME};
 use crate::readout::ReadoutConfig;
@@ -42,7 +44,14 @@ use crate::storage::{
     CalibrationRecord, CalibrationStore, DitherSetpoints, Geometry, GeometryError, LoadReport,
     StoreError, StripCoefficients,
 };
-use ports::{Clock, DitherAccess, ReadoutAccess, SerialTx};
+use ports::{Clock, DitherAccess, ReadoutAccess, Secrets, SerialTx};
+
+/// Lines a main-loop pass executes at most ([`Service::pass`]).
+pub const LINES_PER_PASS: usize = 1;
+/// Cycle records a main-loop pass takes at most: the board's whole record queue.
+pub const RECORDS_PER_PASS: usize = 32;
+/// Output records a main-loop pass takes at most: the board's whole output record queue.
+pub const OUTPUTS_PER_PASS: usize = 64;
 
 /// What differs between services (immutable).
 #[derive(Clone, Copy, Debug)]
@@ -108,6 +117,8 @@ pub struct Service<F: NorFlash> {
     averager: RateAverager,
     status: DeviceStatus,
     frames_dropped: u32,
+    /// The wrong-key count last handed to [`Secrets::save_wrong_keys`].
+    saved_wrong_keys: u32,
 }
 
 impl<F: NorFlash> Service<F> {
@@ -120,7 +131,7 @@ impl<F: NorFlash> Service<F> {
         boot_count: Option<u32>,
     ) -> Result<Booted<F>, GeometryError> {
         let store = CalibrationStore::new(&flash, config.geometry)?;
-        let (record, report) = store.load(&mut flash);
+        let (record, report) = store.load_for_serial(&mut flash, config.identity.serial_number);
         let boots = boot_count.unwrap_or(record.boot_count.wrapping_add(1));
         let service = Self {
             executor: Executor::new(&report, record.fit, boots, AcceptanceLimits::DEFAULT),
@@ -128,6 +139,7 @@ impl<F: NorFlash> Service<F> {
             averager: RateAverager::new(),
             status: DeviceStatus::default(),
             frames_dropped: 0,
+            saved_wrong_keys: 0,
             config,
             flash,
             store,
@@ -141,22 +153,76 @@ impl<F: NorFlash> Service<F> {
         })
     }
 
-    /// One received byte; a completed line is executed and answered through `ports`.
-    pub fn on_byte<P: Clock + SerialTx + ReadoutAccess + DitherAccess>(
+    /// Right after boot: the wrong-key count the platform kept across the reset (0 when its
+    /// memory was lost); past the free attempts, the penalty restarts at `now_ms`.
+    pub fn restore_wrong_keys(&mut self, wrong_keys: u32, now_ms: u64) {
+        self.executor.restore_wrong_keys(wrong_keys, now_ms);
+        self.saved_wrong_keys = wrong_keys;
+    }
+
+    /// A new client on the link (the simulated board served over TCP: a new connection):
+    /// locked, no stream, an empty line buffer ([`Executor::new_session`]).
+    pub fn new_session(&mut self) {
+        self.executor.new_session();
+        self.line = LineAssembler::new();
+    }
+
+    /// One main-loop pass with bounded work: bytes from `read_byte` until at most
+    /// [`LINES_PER_PASS`] lines were executed, then at most [`OUTPUTS_PER_PASS`] output records
+    /// from `next_output` and [`RECORDS_PER_PASS`] cycle records from `next_record`. Returns whether anything was done (more may be waiting: the caller
+    /// runs another pass before it sleeps). The bound keeps a pass short whatever the host
+    /// sends, so the board's main loop refreshes its watchdog between any two commands (a
+    /// flood of `reload`, each a scan of both flash sectors, cannot starve it).
+    pub fn pass<P: Clock + SerialTx + ReadoutAccess + DitherAccess + Secrets>(
+        &mut self,
+        ports: &mut P,
+        mut read_byte: impl FnMut(&mut P) -> Option<u8>,
+        mut next_record: impl FnMut() -> Option<CycleRecord>,
+        mut next_output: impl FnMut() -> Option<OutputRecord>,
+    ) -> bool {
+        let mut busy = false;
+        let mut lines = 0;
+        while lines < LINES_PER_PASS {
+            let Some(byte) = read_byte(ports) else {
+                break;
+            };
+            busy = true;
+            lines += usize::from(self.on_byte(byte, ports));
+        }
+        for _ in 0..OUTPUTS_PER_PASS {
+            let Some(record) = next_output() else {
+                break;
+            };
+            self.on_output(&record, ports);
+            busy = true;
+        }
+        for _ in 0..RECORDS_PER_PASS {
+            let Some(record) = next_record() else {
+                break;
+            };
+            self.on_cycle(&record, ports);
+            busy = true;
+        }
+        busy
+    }
+
+    /// One received byte; a completed line is executed and answered through `ports`. Returns
+    /// whether the byte completed a line (a command executed, or a line refused).
+    pub fn on_byte<P: Clock + SerialTx + ReadoutAccess + DitherAccess + Secrets>(
         &mut self,
         byte: u8,
         ports: &mut P,
-    ) {
+    ) -> bool {
         // Framing follows the mode the host was in when it sent the line.
         let streaming = self.executor.streaming();
         let mut line = String::<MAX_LINE>::new();
         let event = match self.line.push(byte) {
-            None => return,
+            None => return false,
             Some(LineEvent::Line(text)) => {
                 // The assembler is borrowed by `text`: copy (at most MAX_LINE bytes).
                 let _ = line.push_str(text);
                 if self.config.intercept.is_some_and(|hook| hook(&line)) {
-                    return;
+                    return true;
                 }
                 LineEvent::Line(&line)
             }
@@ -168,6 +234,7 @@ impl<F: NorFlash> Service<F> {
             flash: &mut self.flash,
             readout: &self.config.readout,
             store: &self.store,
+            serial_number: self.config.identity.serial_number,
             status: self.status,
             ports,
         };
@@ -177,7 +244,22 @@ impl<F: NorFlash> Service<F> {
             &self.config.identity,
             &mut device,
         );
+        // Kept before the answer goes out: a reset right after a wrong key still counts it.
+        let wrong_keys = self.executor.wrong_keys();
+        if wrong_keys != self.saved_wrong_keys {
+            ports.save_wrong_keys(wrong_keys);
+            self.saved_wrong_keys = wrong_keys;
+        }
         endpoint::send_answer(streaming, &answer, |bytes| ports.send(bytes));
+        true
+    }
+
+    /// `n` closed cycles were lost on the way to the service (the board's record queue was
+    /// full): counted (`status`: `dropped=`), and the stream leaves a sequence gap for the
+    /// frames they were due, so no loss is silent.
+    pub fn on_cycles_lost(&mut self, n: u32) {
+        self.status.cycles_dropped = self.status.cycles_dropped.saturating_add(n);
+        self.executor.on_cycles_lost(n);
     }
 
     /// One dither cycle the readout closed.
@@ -268,14 +350,18 @@ struct ServiceDevice<'a, F, P> {
     flash: &'a mut F,
     readout: &'a ReadoutConfig,
     store: &'a CalibrationStore,
+    /// This board's gyro: records of another are not loaded.
+    serial_number: u32,
     status: DeviceStatus,
     ports: &'a mut P,
 }
 
-impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess> DeviceLink for ServiceDevice<'_, F, P> {
+impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess + Secrets> DeviceLink
+    for ServiceDevice<'_, F, P>
+{
     type FlashError = F::Error;
 
-    fn now_ms(&self) -> u32 {
+    fn now_ms(&self) -> u64 {
         self.ports.now_ms()
     }
 
@@ -301,7 +387,7 @@ impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess> DeviceLink for Servic
     }
 
     fn load(&mut self) -> (CalibrationRecord, LoadReport) {
-        self.store.load(self.flash)
+        self.store.load_for_serial(self.flash, self.serial_number)
     }
 
     fn dither_status(&mut self) -> DitherStatus {
@@ -330,6 +416,10 @@ impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess> DeviceLink for Servic
         let config = self.readout;
         self.ports
             .with_readout(|r| r.restart_strip_from(config, strip.k(), strip.k_previous()));
+    }
+
+    fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError> {
+        self.ports.program_key(key)
     }
 }
 

@@ -1,4 +1,4 @@
-//! What the command service needs from the platform it runs on: four small traits, and the
+//! What the command service needs from the platform it runs on: five small traits, and the
 //! readout pause as a guard.
 //!
 //! The board implements them on its peripherals (`board::ports`: SysTick, the USART queues, the
@@ -14,13 +14,16 @@
 //! store without stopping the readout or forget to restart it (an early return included).
 
 use crate::dither::{DitherConfig, DitherController};
+use crate::protocol::key::Key;
+use crate::protocol::link::KeyWriteError;
 use crate::readout::Readout;
 use crate::storage::ReadoutPaused;
 
-/// A millisecond tick.
+/// A millisecond clock.
 pub trait Clock {
-    /// Milliseconds since start (wrapping, as the protocol's timeouts expect).
-    fn now_ms(&self) -> u32;
+    /// Milliseconds since start: monotonic, 64 bits, never wraps (the protocol's unlock and
+    /// penalty deadlines compare plainly).
+    fn now_ms(&self) -> u64;
 }
 
 /// The serial transmitter.
@@ -54,6 +57,18 @@ pub trait ReadoutAccess {
 pub trait DitherAccess {
     /// Runs `f` on the controller and its configuration, excluding the drive tick meanwhile.
     fn with_dither<R>(&mut self, f: impl FnOnce(&mut DitherController, &DitherConfig) -> R) -> R;
+}
+
+/// The board's security memory: the one-time-programmable key (`key provision`) and the
+/// wrong-key count that must survive a reset.
+pub trait Secrets {
+    /// Writes `key` to OTP and locks the block; `Err` leaves the board unprovisioned.
+    fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError>;
+    /// Keeps the wrong-key count across resets (backup RAM on the board: no wear). Called only
+    /// when the count changed, so at most once per `unlock` attempt, and attempts are
+    /// throttled by the penalty. The platform reads it back at boot for
+    /// `Service::restore_wrong_keys`.
+    fn save_wrong_keys(&mut self, count: u32);
 }
 
 /// The readout stopped for as long as this guard lives (see the module docs).

@@ -2,10 +2,12 @@
 //! rely on (one answer per line, settings staged into the readout, the store inside the pause,
 //! dropped frames counted, status folding).
 
-use super::ports::{Clock, DitherAccess, ReadoutAccess, SerialTx};
+use super::ports::{Clock, DitherAccess, ReadoutAccess, Secrets, SerialTx};
 use super::*;
 use crate::dither::{DitherConfig, DitherController};
 use crate::protocol::commands::testing::MemDrive;
+use crate::protocol::key::Key;
+use crate::protocol::link::KeyWriteError;
 use crate::readout::Readout;
 use crate::signal::lockin::LockinTerms;
 use crate::signal::lockin::{CycleFlags, CycleOutput};
@@ -14,17 +16,20 @@ use std::string::String as StdString;
 use std::vec::Vec;
 
 type Flash = RamFlash<2, 8192>;
-const KEY: u32 = 0x1234_abcd;
+const KEY: &str = "1234abcd1234abcd1234abcd1234abcd";
 
 struct TestPorts {
     readout: Readout,
-    now_ms: u32,
+    now_ms: u64,
     out: Vec<u8>,
     frame_room: bool,
     missed_below: u32,
     /// 's' stop, 'r' restart, 'w' a byte of flash traffic seen while stopped.
     log: StdString,
     drive: MemDrive,
+    /// The board's backup RAM: the wrong-key count, and how often it was written.
+    backup_wrong_keys: u32,
+    backup_writes: u32,
 }
 
 impl TestPorts {
@@ -37,6 +42,8 @@ impl TestPorts {
             missed_below: 0,
             log: StdString::new(),
             drive: MemDrive::default(),
+            backup_wrong_keys: 0,
+            backup_writes: 0,
         }
     }
 }
@@ -47,8 +54,18 @@ impl DitherAccess for TestPorts {
     }
 }
 
+impl Secrets for TestPorts {
+    fn program_key(&mut self, _key: &Key) -> Result<(), KeyWriteError> {
+        Err(KeyWriteError::NotBlank)
+    }
+    fn save_wrong_keys(&mut self, count: u32) {
+        self.backup_wrong_keys = count;
+        self.backup_writes += 1;
+    }
+}
+
 impl Clock for TestPorts {
-    fn now_ms(&self) -> u32 {
+    fn now_ms(&self) -> u64 {
         self.now_ms
     }
 }
@@ -87,7 +104,7 @@ fn config() -> ServiceConfig {
         build: "test",
         board: "test",
         serial_number: 7,
-        key: KEY,
+        key: Key::parse_hex(KEY),
         scale_factor_arcsec: 1.8655,
         capture_timer_hz: 84_000_000,
     };
@@ -107,12 +124,28 @@ fn boot(flash: Flash) -> (Service<Flash>, TestPorts) {
     (booted.service, ports)
 }
 
+/// One line as the host tool sends it (with its CRC, so state changes run at once); the
+/// answer with its CRC suffix checked and removed.
 fn ask(service: &mut Service<Flash>, ports: &mut TestPorts, line: &str) -> StdString {
     ports.out.clear();
-    for &b in line.as_bytes().iter().chain(b"\n") {
+    let crc = crate::protocol::parse::crc16(line.as_bytes());
+    for &b in format!("{line}*{crc:04X}\n").as_bytes() {
         service.on_byte(b, ports);
     }
-    StdString::from_utf8(ports.out.clone()).unwrap()
+    let answer = StdString::from_utf8(ports.out.clone()).unwrap();
+    let Some((body, suffix)) = answer
+        .rsplit_once('*')
+        .filter(|_| !answer.starts_with('\0'))
+    else {
+        return answer; // a framed stream answer or no answer
+    };
+    let suffix = suffix.trim_end();
+    assert_eq!(
+        suffix,
+        format!("{:04X}", crate::protocol::parse::crc16(body.as_bytes())),
+        "{answer:?}"
+    );
+    format!("{body}\r\n")
 }
 
 fn record(flags: CycleFlags) -> CycleRecord {
@@ -160,7 +193,7 @@ fn set_stages_into_the_readout_and_store_runs_inside_one_pause() {
             .a_rad_per_s(),
         0.0
     );
-    assert!(ask(&mut s, &mut p, &format!("unlock {KEY:08x}")).starts_with("OK unlocked"));
+    assert!(ask(&mut s, &mut p, &format!("unlock {KEY}")).starts_with("OK unlocked"));
     assert!(ask(&mut s, &mut p, "set a 1.5").starts_with("OK a=1.5"));
     let staged = p.readout.staged_or_active_compensation();
     assert_eq!(staged.coefficients.a_rad_per_s(), 1.5);
@@ -225,7 +258,8 @@ fn a_failed_store_is_reported_and_still_restarts_the_readout() {
     let mut s = booted.service;
     let mut p = TestPorts::new(Readout::new(&s.config().readout, booted.settings));
     p.out.clear();
-    for &b in format!("unlock {KEY:08x}\nstore\n").as_bytes() {
+    let store_crc = crate::protocol::parse::crc16(b"store");
+    for &b in format!("unlock {KEY}\nstore*{store_crc:04X}\n").as_bytes() {
         s.on_byte(b, &mut p);
     }
     let answers = StdString::from_utf8(p.out.clone()).unwrap();
@@ -282,6 +316,123 @@ fn the_intercept_hook_sees_lines_first() {
     let booted = Service::boot(c, Flash::new(), None).unwrap();
     let mut s = booted.service;
     let mut p = TestPorts::new(Readout::new(&c.readout, booted.settings));
-    assert_eq!(ask(&mut s, &mut p, "quit"), "");
+    for &b in b"quit\n" {
+        s.on_byte(b, &mut p);
+    }
+    assert!(p.out.is_empty(), "consumed, no answer");
     assert!(ask(&mut s, &mut p, "id").starts_with("OK "));
+}
+
+/// The wrong-key count survives a reset: 5 wrong keys (a 2 s penalty running), a reset, and
+/// the right key is still refused until the penalty, restarted at boot, has passed. The count
+/// is written only when it changes.
+#[test]
+fn a_reset_does_not_clear_the_wrong_key_penalty() {
+    let (mut s, mut p) = boot(Flash::new());
+    for i in 0..5 {
+        let answer = ask(&mut s, &mut p, &format!("unlock {}", "12".repeat(16)));
+        assert!(answer.starts_with("ERR 15 "), "{i}: {answer}");
+        p.now_ms += 3_000;
+    }
+    assert_eq!((p.backup_wrong_keys, p.backup_writes), (5, 5));
+    assert!(ask(&mut s, &mut p, "status").contains("locked=yes"));
+    assert_eq!(p.backup_writes, 5, "reads write nothing");
+    // Reset: a new service on the same flash, the clock from 0, the backup RAM kept.
+    let backup = p.backup_wrong_keys;
+    let (mut s, mut p) = boot(s.into_flash());
+    s.restore_wrong_keys(backup, 0);
+    p.now_ms = 1_000;
+    let answer = ask(&mut s, &mut p, &format!("unlock {KEY}"));
+    assert!(answer.starts_with("ERR 14 "), "{answer}");
+    p.now_ms = 2_000; // the 5th wrong key's penalty: 2 s, restarted at boot
+    assert!(ask(&mut s, &mut p, &format!("unlock {KEY}")).starts_with("OK unlocked"));
+    assert_eq!(
+        (p.backup_wrong_keys, p.backup_writes),
+        (0, 1),
+        "the right key resets it"
+    );
+}
+
+/// Cycles the board's record queue dropped are counted in `status` and show in the stream as
+/// a sequence gap of exactly the frames they were due.
+#[test]
+fn cycles_lost_before_the_service_show_as_a_gap_and_a_count() {
+    let (mut s, mut p) = boot(Flash::new());
+    ask(&mut s, &mut p, "stream on 1");
+    let mut sequences = Vec::new();
+    for i in 0..10 {
+        if i == 5 {
+            s.on_cycles_lost(3);
+        }
+        p.out.clear();
+        s.on_cycle(&record(CycleFlags::empty()), &mut p);
+        let frame = p.out.split(|&b| b == 0).find(|c| !c.is_empty()).unwrap();
+        sequences.push(
+            crate::protocol::stream::decode_frame(frame)
+                .unwrap()
+                .sequence,
+        );
+    }
+    let gaps: Vec<u32> = sequences.windows(2).map(|w| w[1] - w[0] - 1).collect();
+    assert_eq!(gaps, [0, 0, 0, 0, 3, 0, 0, 0, 0]);
+    ask(&mut s, &mut p, "stream off");
+    let status = ask(&mut s, &mut p, "status");
+    assert!(status.contains(" dropped=3 "), "{status}");
+}
+
+/// A record stored for one gyro does not load on a board of another serial number: the
+/// defaults are in force, `status` says why, and `reload` refuses it the same way; the board
+/// it was stored for still loads it.
+#[test]
+fn the_calibration_of_another_gyro_does_not_load() {
+    let (mut s, mut p) = boot(Flash::new());
+    ask(&mut s, &mut p, &format!("unlock {KEY}"));
+    assert_eq!(ask(&mut s, &mut p, "set a 12.5").trim_end(), "OK a=12.5");
+    assert!(ask(&mut s, &mut p, "store").starts_with("OK stored seq=1"));
+    let flash = s.into_flash();
+    let mut other = config();
+    other.identity.serial_number = 8;
+    let booted = Service::boot(other, flash, None).unwrap();
+    assert_eq!(booted.settings, CalibrationRecord::DEFAULTS.settings);
+    let (mut s, mut p) = (
+        booted.service,
+        TestPorts::new(Readout::new(&other.readout, booted.settings)),
+    );
+    let status = ask(&mut s, &mut p, "status");
+    assert!(
+        status.contains(" coeffs=defaults:other_gyro:7 "),
+        "{status}"
+    );
+    ask(&mut s, &mut p, &format!("unlock {KEY}"));
+    assert!(ask(&mut s, &mut p, "reload").starts_with("OK coeffs=defaults:other_gyro:7"));
+    assert_eq!(ask(&mut s, &mut p, "get a").trim_end(), "OK a=0");
+    let (s, _) = boot(s.into_flash());
+    assert_eq!(s.config().identity.serial_number, 7);
+    let (mut s, mut p) = (
+        s,
+        TestPorts::new(Readout::new(&config().readout, Default::default())),
+    );
+    assert!(ask(&mut s, &mut p, "status").contains(" coeffs=flash:1 "));
+}
+
+/// A flood of `reload` (each a scan of both flash sectors): one pass executes one line and
+/// returns, so the main loop refreshes its watchdog between any two commands; the rest waits
+/// for the next passes, each answered in order.
+#[test]
+fn a_pass_executes_at_most_one_line() {
+    let (mut s, mut p) = boot(Flash::new());
+    ask(&mut s, &mut p, &format!("unlock {KEY}"));
+    p.out.clear();
+    let mut flood: std::collections::VecDeque<u8> = "reload\n".repeat(200).bytes().collect();
+    let mut passes = 0;
+    while s.pass(&mut p, |_| flood.pop_front(), || None, || None) {
+        passes += 1;
+        let answers = StdString::from_utf8(p.out.clone()).unwrap();
+        assert_eq!(
+            answers.matches("\r\n").count(),
+            passes.min(200),
+            "pass {passes}"
+        );
+    }
+    assert_eq!(passes, 200);
 }

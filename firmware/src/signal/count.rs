@@ -144,6 +144,8 @@ pub struct FringeCounter {
     count: i64,
     glitches: u32,
     consecutive_glitches: u8,
+    /// The next step may be as large as the register allows (after a pause of the readout).
+    jump_expected: bool,
 }
 
 impl FringeCounter {
@@ -154,7 +156,16 @@ impl FringeCounter {
             count: 0,
             glitches: 0,
             consecutive_glitches: 0,
+            jump_expected: false,
         }
+    }
+
+    /// The reads stopped for a while (a flash store's stall) while the register counted on:
+    /// the next step is accepted up to the register's unambiguous range (32-bit: 2^31 x4
+    /// counts, 14 min at the peak edge rate) instead of the one-read bound, so the count runs
+    /// on through the pause and no angle is lost.
+    pub fn expect_jump(&mut self) {
+        self.jump_expected = true;
     }
 
     /// The extended x4 count (quarter fringes). Until a glitch, `count mod 2^width` equals the
@@ -179,7 +190,12 @@ impl FringeCounter {
             return CountUpdate::Initialised;
         };
         let step = width.signed_step(previous, raw);
-        if step.unsigned_abs() <= config.effective_max_step() {
+        let bound = if core::mem::take(&mut self.jump_expected) {
+            width.max_unambiguous_step()
+        } else {
+            config.effective_max_step()
+        };
+        if step.unsigned_abs() <= bound {
             self.reference_raw = Some(raw);
             self.count = self.count.wrapping_add(step as i64);
             self.consecutive_glitches = 0;
@@ -329,5 +345,21 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// After a pause one large step is taken in full (the register counted on meanwhile), and
+    /// only one: the bound applies again to the next read.
+    #[test]
+    fn a_pause_accepts_one_large_step() {
+        let cfg = config(CounterWidth::Bits32, 6_000);
+        let mut c = FringeCounter::new();
+        c.update(&cfg, 1_000);
+        assert_eq!(c.update(&cfg, 101_000), CountUpdate::Glitch(100_000));
+        let mut c = FringeCounter::new();
+        c.update(&cfg, 1_000);
+        c.expect_jump();
+        assert_eq!(c.update(&cfg, 101_000), CountUpdate::Step(100_000));
+        assert_eq!(c.count(), 101_000);
+        assert_eq!(c.update(&cfg, 201_000), CountUpdate::Glitch(100_000));
     }
 }

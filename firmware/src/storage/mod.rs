@@ -29,7 +29,10 @@
 //!   programmed again (the flash model enforces write-once).
 //! - A store erases a sector only when both are full, and never K: it erases the other one,
 //!   whose loadable records are all older than R. A cut during that erase leaves R in K; the next
-//!   store erases the same sector again.
+//!   store erases the same sector again, even when the cut came so late that the sector already
+//!   reads all 0xFF (weakly erased cells read as erased): an empty sector beside a used one is
+//!   always erased before its first record (`store::CalibrationStore`, `append_position`).
+//!   This also erases the factory-blank second sector once, when the log first moves into it.
 //! - The new record's body is programmed and read back before its commit marker, the last word
 //!   programmed. Until the marker is complete the new record is not valid (a torn marker word
 //!   holds only a subset of its bit clears, never the marker value; a torn body fails the CRC),

@@ -111,6 +111,12 @@ pub enum DefaultsReason {
     },
     /// The flash could not be read.
     ReadFailed,
+    /// The newest record belongs to another gyro: its serial number (the record's existing
+    /// `serial_number` field) is not this board's. Its coefficients are not loaded.
+    OtherGyro {
+        /// The serial number in the record.
+        stored_serial: u32,
+    },
 }
 
 /// What `load` found: the flag the host reads.
@@ -266,6 +272,29 @@ impl CalibrationStore {
         (record, scan.report(outcome))
     }
 
+    /// [`Self::load`], for the board whose gyro has `serial_number`: a newest record written
+    /// for another serial number gives the defaults ([`DefaultsReason::OtherGyro`]), so the
+    /// coefficients of another gyro never load silently (a board moved to another gyro, or a
+    /// flash image copied between boards). The record stays in flash, untouched.
+    pub fn load_for_serial<F: ReadNorFlash>(
+        &self,
+        flash: &mut F,
+        serial_number: u32,
+    ) -> (CalibrationRecord, LoadReport) {
+        let (record, mut report) = self.load(flash);
+        match report.outcome {
+            LoadOutcome::Loaded { .. } if record.serial_number != serial_number => {
+                report.outcome = LoadOutcome::Defaults {
+                    reason: DefaultsReason::OtherGyro {
+                        stored_serial: record.serial_number,
+                    },
+                };
+                (CalibrationRecord::DEFAULTS, report)
+            }
+            _ => (record, report),
+        }
+    }
+
     /// Appends `record` and returns its sequence number, after reading it back.
     ///
     /// Stalls the CPU: programming takes 20 words x up to 100 us, and when the written sector
@@ -314,12 +343,22 @@ impl CalibrationStore {
     }
 
     /// Room without erasing: first in the sector written last, else in the other one.
+    ///
+    /// An empty sector beside a used one is never appended to: in this log a sector becomes
+    /// empty only by an erase that no record followed, i.e. one cut by a power loss, possibly
+    /// at its very end, where the cells read 0xFF but are only weakly erased (a record
+    /// programmed there may not keep). Reading cannot tell, so such a sector is erased again
+    /// (`store_while_paused` erases what this refuses). The price: one extra erase when the log
+    /// first moves into the factory-blank second sector. On a blank flash (both sectors empty)
+    /// the first sector is used as it is.
     fn append_position(&self, scan: &Scan) -> Option<(usize, u32)> {
         let first = scan.head().unwrap_or(0);
+        let other_used = |sector: usize| scan.0[1 - sector].used_bytes > 0;
         [first, 1 - first].into_iter().find_map(|sector| {
             let used = scan.0[sector].used_bytes;
             let fits = used as usize + RECORD_BYTES <= self.geometry.sector_bytes as usize;
-            fits.then_some((sector, used))
+            let suspect = used == 0 && other_used(sector);
+            (fits && !suspect).then_some((sector, used))
         })
     }
 

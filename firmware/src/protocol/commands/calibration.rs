@@ -44,6 +44,12 @@ impl CalibrationState {
         matches!(self.session.state(), SessionState::Running { .. })
     }
 
+    /// Whether a completed run waits to be pooled with another or solved (`cal result` would
+    /// close it).
+    pub fn run_done(&self) -> bool {
+        matches!(self.session.state(), SessionState::RunDone)
+    }
+
     /// Whether online tracking runs.
     pub fn tracking(&self) -> bool {
         self.tracking.is_some()
@@ -167,7 +173,7 @@ mean_rate_deg_h={:.4} cycles={} runs={}",
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::protocol::commands::provenance::Source;
     use crate::protocol::commands::testing::{report, text, MemDevice, ID};
@@ -179,7 +185,7 @@ mod tests {
 
     /// A synthetic cycle at `rate` rad/s whose error is exactly a P1 + b P2 (a = 344, b = 579
     /// rad/s), as in the session's own tests.
-    fn cycle(i: u32, rate: f64) -> CycleRecord {
+    pub(crate) fn cycle(i: u32, rate: f64) -> CycleRecord {
         let (u, v) = (
             (i as f64 * 0.618).fract() * TAU,
             (i as f64 * 0.414).fract() * TAU,

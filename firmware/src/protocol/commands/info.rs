@@ -14,7 +14,7 @@ use crate::signal::compensation::Coefficients;
 const HELP: &str =
     "commands: id status get{a|b|coeffs} set{a|b}<rad/s> comp{on|off} track{on|off} \
 cal{start<n>[<warmup>]|status|abort|result|accept} store reload defaults stream{on[<n>]|output|off} \
-dither{on|off|amp<arcsec>|noise<percent>|status} unlock<key> lock help";
+dither{on|off|amp<arcsec>|noise<percent>|status} unlock<key> lock key{provision<key>} help";
 
 /// What `status` reports of the executor's own state.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -25,6 +25,8 @@ pub struct StatusFlags {
     pub source: Source,
     /// Protected commands are allowed now (`locked=no`).
     pub unlocked: bool,
+    /// The board has a key (`key=provisioned`; else `key=unprovisioned`).
+    pub key_provisioned: bool,
 }
 
 /// `help`.
@@ -53,8 +55,9 @@ pub fn status<D: DeviceLink>(id: &Identity, device: &mut D, flags: StatusFlags) 
     let drive = super::dither::state_word(device.dither_status().state);
     ok_with(format_args!(
         "signal={} drive={} dither_hz={:.3} dither_amp_arcsec={:.2} rate_deg_h={:.4} turnarounds={} \
-cycles={} counter_glitches={} phase_glitches={} signal_lost={} missed={} comp={} track={} coeffs={} \
-locked={} strip_k={:.7} strip_k_prev={:.7} strip_k_std_rel={:.1e} strip={} output_records={}",
+cycles={} counter_glitches={} phase_glitches={} signal_lost={} missed={} dropped={} comp={} track={} \
+coeffs={} locked={} key={} strip_k={:.7} strip_k_prev={:.7} strip_k_std_rel={:.1e} strip={} \
+output_records={}",
         if s.signal_ok { "ok" } else { "lost" },
         drive,
         s.dither_hz,
@@ -66,10 +69,16 @@ locked={} strip_k={:.7} strip_k_prev={:.7} strip_k_std_rel={:.1e} strip={} outpu
         s.phase_glitches,
         s.signal_lost,
         s.missed_turnarounds,
+        s.cycles_dropped,
         if settings.enabled { "on" } else { "off" },
         if flags.tracking { "on" } else { "off" },
         SourceText(flags.source),
         if flags.unlocked { "no" } else { "yes" },
+        if flags.key_provisioned {
+            "provisioned"
+        } else {
+            "unprovisioned"
+        },
         s.strip.k,
         s.strip.k_previous,
         s.strip.k_std_rel,
@@ -148,6 +157,7 @@ mod tests {
                 signal_lost: 3,
                 missed_turnarounds: 4,
                 rate_deg_per_h: 15.0,
+                cycles_dropped: 6,
                 strip: crate::signal::output::strip::StripStatus {
                     k: 0.2144199,
                     k_previous: -0.0001234,
@@ -163,13 +173,14 @@ mod tests {
             tracking: true,
             source: Source::Flash { sequence: 3 },
             unlocked: false,
+            key_provisioned: false,
         };
         assert_eq!(
             text(status(&ID, &mut device, flags)).trim_end(),
             "OK signal=ok drive=locked dither_hz=389.000 dither_amp_arcsec=200.00 rate_deg_h=15.0000 \
-turnarounds=10 cycles=5 counter_glitches=1 phase_glitches=2 signal_lost=3 missed=4 comp=off \
-track=on coeffs=flash:3 locked=yes strip_k=0.2144199 strip_k_prev=-0.0001234 \
-strip_k_std_rel=2.1e-5 strip=converged output_records=12345"
+turnarounds=10 cycles=5 counter_glitches=1 phase_glitches=2 signal_lost=3 missed=4 dropped=6 \
+comp=off track=on coeffs=flash:3 locked=yes key=unprovisioned strip_k=0.2144199 \
+strip_k_prev=-0.0001234 strip_k_std_rel=2.1e-5 strip=converged output_records=12345"
         );
     }
 

@@ -48,7 +48,8 @@ fn ok_with(args: core::fmt::Arguments<'_>) -> Response {
 pub(crate) mod testing {
     use crate::dither::{CommandError, DitherConfig, DitherController, DitherStatus};
     use crate::profile::BoardProfile;
-    use crate::protocol::link::{DeviceLink, DeviceStatus, Identity};
+    use crate::protocol::key::Key;
+    use crate::protocol::link::{DeviceLink, DeviceStatus, Identity, KeyWriteError};
     use crate::protocol::respond::Response;
     use crate::signal::compensation::CompensationSettings;
     use crate::storage::{
@@ -60,7 +61,10 @@ pub(crate) mod testing {
         build: "test",
         board: "sim",
         serial_number: 4242,
-        key: 0xC0FFEE,
+        key: Some(Key::from_bytes([
+            0x0f, 0x1e, 0x2d, 0x3c, 0x4b, 0x5a, 0x69, 0x78, 0x87, 0x96, 0xa5, 0xb4, 0xc3, 0xd2,
+            0xe1, 0xf0,
+        ])),
         scale_factor_arcsec: 2.0,
         capture_timer_hz: 84_000_000,
     };
@@ -93,7 +97,7 @@ pub(crate) mod testing {
     /// Settings in force, staged settings, stored records; `fail_store` makes `store` fail.
     #[derive(Clone, Debug, Default, PartialEq)]
     pub struct MemDevice {
-        pub now_ms: u32,
+        pub now_ms: u64,
         pub status: DeviceStatus,
         pub settings: CompensationSettings,
         pub staged: u32,
@@ -101,11 +105,13 @@ pub(crate) mod testing {
         pub fail_store: bool,
         pub drive: MemDrive,
         pub strip: Option<crate::storage::StripCoefficients>,
+        /// The key `program_key` wrote (OTP); `fail_store` makes the write fail too.
+        pub otp_key: Option<Key>,
     }
 
     impl DeviceLink for MemDevice {
         type FlashError = ();
-        fn now_ms(&self) -> u32 {
+        fn now_ms(&self) -> u64 {
             self.now_ms
         }
         fn status(&self) -> DeviceStatus {
@@ -161,6 +167,16 @@ pub(crate) mod testing {
         }
         fn apply_strip(&mut self, strip: crate::storage::StripCoefficients) {
             self.strip = Some(strip);
+        }
+        fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError> {
+            match (self.fail_store, self.otp_key) {
+                (true, _) => Err(KeyWriteError::Failed),
+                (false, Some(_)) => Err(KeyWriteError::NotBlank),
+                (false, None) => {
+                    self.otp_key = Some(*key);
+                    Ok(())
+                }
+            }
         }
     }
 

@@ -75,6 +75,9 @@ impl core::fmt::Display for SourceText {
                 write!(f, "defaults:reset:{sequence}")
             }
             Source::Defaults(DefaultsReason::ReadFailed) => write!(f, "defaults:read_failed"),
+            Source::Defaults(DefaultsReason::OtherGyro { stored_serial }) => {
+                write!(f, "defaults:other_gyro:{stored_serial}")
+            }
             Source::Unsaved => write!(f, "unsaved"),
         }
     }
@@ -101,6 +104,10 @@ mod tests {
             (
                 Source::Defaults(DefaultsReason::ReadFailed),
                 "defaults:read_failed",
+            ),
+            (
+                Source::Defaults(DefaultsReason::OtherGyro { stored_serial: 17 }),
+                "defaults:other_gyro:17",
             ),
             (Source::Unsaved, "unsaved"),
         ];

@@ -54,6 +54,26 @@ impl StreamState {
         }
     }
 
+    /// `n` dither cycles were closed but lost before they reached the service (a full record
+    /// queue): the frames they were due are counted as sent, so the host sees the loss as a
+    /// sequence gap of exactly that many frames.
+    pub fn skip(&mut self, n: u32) {
+        let Some(divider) = self.divider else {
+            return;
+        };
+        // Frames due among the n cycles: the first when the countdown runs out, then every
+        // `divider` cycles.
+        let countdown = self.countdown as u32;
+        if n < countdown {
+            self.countdown = (countdown - n) as u16;
+            return;
+        }
+        let after_first = n - countdown;
+        let due = 1 + after_first / divider as u32;
+        self.sequence = self.sequence.wrapping_add(due);
+        self.countdown = (divider as u32 - after_first % divider as u32) as u16;
+    }
+
     /// One dither cycle: the frame to send, when one is due.
     pub fn on_cycle(&mut self, record: &CycleRecord) -> Option<StreamRecord> {
         let divider = self.divider?;
@@ -139,5 +159,31 @@ mod tests {
         assert!(s.on_cycle(&record()).is_some());
         s.command(None);
         assert!(!s.on());
+    }
+
+    /// Lost cycles consume the sequence numbers of the frames they were due: with divider 1
+    /// every lost cycle is one missing number, with divider 3 one per three, and the
+    /// countdown goes on where it was (the same frames as if the cycles had arrived).
+    #[test]
+    fn lost_cycles_leave_a_gap_of_the_frames_they_were_due() {
+        for divider in [1u16, 3] {
+            let (mut lossy, mut full) = (StreamState::default(), StreamState::default());
+            lossy.command(Some(divider));
+            full.command(Some(divider));
+            let mut sent = Vec::new();
+            for i in 0..40u32 {
+                let f = full.on_cycle(&record()).map(|f| f.sequence);
+                if (10..17).contains(&i) {
+                    if i == 16 {
+                        lossy.skip(7);
+                    }
+                    continue;
+                }
+                let l = lossy.on_cycle(&record()).map(|f| f.sequence);
+                assert_eq!(l, f, "divider {divider}, cycle {i}");
+                sent.extend(l);
+            }
+            assert!(sent.windows(2).any(|w| w[1] - w[0] > 1), "a gap shows");
+        }
     }
 }

@@ -15,8 +15,13 @@
 //! amplitude of a high-Q dither resonator allows.
 //!
 //! A reading out of sequence (two turnarounds of one kind in a row, or a half period far from
-//! the dither's) means a turnaround was missed or a spurious one seen: the cycle in progress is
-//! dropped, assembly restarts, and the next cycle carries [`CycleFlags::TURNAROUND_MISSED`].
+//! the dither's) means a turnaround was missed or a spurious one seen; a paused readout (a flash
+//! store's stall, [`CycleAssembler::gap`]) means the same for every turnaround of the pause.
+//! Assembly restarts, but no angle is lost: the next cycle starts where the last closed one
+//! ended (its phase and timestamp), so its increment and duration span the gap, and it carries
+//! [`CycleFlags::TURNAROUND_MISSED`]. Its P1/P2 hold only the dither cycle after the gap (the
+//! lock-in error during the gap was not observed). This needs a count that runs on through the
+//! gap (`crate::signal::count`: the encoder counts in hardware).
 //!
 //! The assembler does not compensate: a closed [`CycleRecord`] leaves with its output increment
 //! equal to the raw one and a zero correction, and the compensation stage
@@ -181,12 +186,26 @@ pub struct CycleAssembler {
     pending_flags: CycleFlags,
     dither_amplitude_rad: f32,
     dither_hz: f32,
+    /// Phase and timestamp at the last closed cycle's end.
+    last_end: Option<(TotalPhase, u32)>,
+    /// Set by a restart: where the next opened cycle starts (the last closed end).
+    bridge: Option<(TotalPhase, u32)>,
 }
 
 impl CycleAssembler {
     /// No turnaround seen yet.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// The readout was paused (turnarounds missed, the count ran on): restarts the assembly
+    /// like a reading out of sequence; the next cycle spans the gap from the last closed end.
+    pub fn gap(&mut self) {
+        self.before_previous = None;
+        self.previous = None;
+        self.open = None;
+        self.pending_flags = CycleFlags::TURNAROUND_MISSED;
+        self.bridge = self.last_end;
     }
 
     /// Measured dither amplitude, beat-phase rad (0 until two half-cycles have been seen).
@@ -242,9 +261,14 @@ impl CycleAssembler {
                     .open
                     .take()
                     .and_then(|open| self.close(open, share, flags, &reading));
+                // After a gap the cycle starts at the last closed end: no angle is dropped.
+                let (start_phase, start_ticks) = self
+                    .bridge
+                    .take()
+                    .unwrap_or((reading.phase, reading.timestamp_ticks));
                 self.open = Some(OpenCycle {
-                    start_phase: reading.phase,
-                    start_ticks: reading.timestamp_ticks,
+                    start_phase,
+                    start_ticks,
                     terms: share.scaled(0.5),
                     have_minus: false,
                     flags: flags.union(self.pending_flags),
@@ -268,6 +292,7 @@ impl CycleAssembler {
         let terms = open.terms + share.scaled(0.5);
         let flags = open.flags.union(flags);
         let raw_increment_q32 = reading.phase - open.start_phase;
+        self.last_end = Some((reading.phase, reading.timestamp_ticks));
         Some(CycleRecord {
             output: CycleOutput {
                 // Uncompensated: the compensation stage subtracts its correction.
@@ -306,6 +331,7 @@ impl CycleAssembler {
         });
         self.open = None;
         self.pending_flags = CycleFlags::TURNAROUND_MISSED;
+        self.bridge = self.last_end;
     }
 
     /// k of the traversal at `reading`, from the two half-cycles before it.
@@ -432,22 +458,63 @@ mod tests {
         assert!(cycles[0].output.flags.contains(CycleFlags::DITHER_INVALID));
     }
 
-    /// A missing "-" turnaround: the cycle in progress is dropped and the next one flagged.
+    /// A missing "-" turnaround: assembly restarts and the next cycle, flagged, spans the gap
+    /// from the last closed end, so no time and no angle are lost (zero rate: every increment
+    /// is the dither-free 0; the durations add up to whole periods, 1e-4 period).
     #[test]
-    fn a_missed_turnaround_is_flagged_not_misread() {
+    fn a_missed_turnaround_is_flagged_and_bridged() {
         let amp = 1500.0;
         let mut rs = readings(amp, 0.0, 30, |_, _| 0.0);
         rs.remove(11); // a "-" turnaround
         let cycles = assemble(&rs);
-        assert!(cycles
+        let flagged: Vec<_> = cycles
             .iter()
-            .any(|c| c.output.flags.contains(CycleFlags::TURNAROUND_MISSED)));
+            .filter(|c| c.output.flags.contains(CycleFlags::TURNAROUND_MISSED))
+            .collect();
+        assert_eq!(flagged.len(), 1);
+        let mut periods = 0.0;
         for c in &cycles {
-            // No cycle spans the gap: every increment is the (zero-rate) dither-free value.
             assert!(c.raw_increment_rad().abs() < 1e-6, "{c:?}");
-            let d = c.output.duration_ticks as f64 / TIMER_HZ as f64;
-            assert!((d * DITHER_HZ - 1.0).abs() < 1e-4);
+            let d = c.output.duration_ticks as f64 / TIMER_HZ as f64 * DITHER_HZ;
+            assert!((d - d.round()).abs() < 1e-4 && d.round() >= 1.0, "{d}");
+            periods += d;
         }
+        let bridged = flagged[0].output.duration_ticks as f64 / TIMER_HZ as f64 * DITHER_HZ;
+        assert!(
+            bridged.round() >= 2.0,
+            "the flagged cycle spans the gap: {bridged}"
+        );
+        assert!((periods - (cycles.len() as f64 + bridged - 1.0)).abs() < 1e-3);
+    }
+
+    /// A pause (`gap`): the count ran on; the first cycle after it carries the whole angle
+    /// since the last closed cycle (rate 10 rad/s, 1e-6 rad).
+    #[test]
+    fn a_pause_is_bridged_by_the_next_cycle() {
+        let rs = readings(1500.0, 10.0, 40, |_, _| 0.0);
+        let config = CycleConfig::for_dither(TIMER_HZ, DITHER_HZ as f32, 0.2);
+        let mut a = CycleAssembler::new();
+        let mut cycles = Vec::new();
+        for (i, r) in rs.iter().enumerate() {
+            if (11..17).contains(&i) {
+                continue; // the readout is paused: six turnarounds unseen
+            }
+            if i == 17 {
+                a.gap();
+            }
+            cycles.extend(a.on_turnaround(&config, *r));
+        }
+        let first_end = cycles[0].end_phase_q32;
+        let last_end = cycles.last().unwrap().end_phase_q32;
+        let summed: i64 = cycles[1..].iter().map(|c| c.raw_increment_q32).sum();
+        assert_eq!(summed, last_end - first_end, "no angle lost over the pause");
+        assert_eq!(
+            cycles
+                .iter()
+                .filter(|c| c.output.flags.contains(CycleFlags::TURNAROUND_MISSED))
+                .count(),
+            1
+        );
     }
 
     /// A reading without levels flags its cycle SIGNAL_LOST: not compensable.
