@@ -7,7 +7,7 @@
 //! | 3 | fringe | [`fringe`] | the ADC stream; the latched codes and count | normalised levels (cos, sin psi_H), the fractional fringe, the total phase |
 //! | 4 | lock-in terms | [`lockin`] | a [`lockin::TurnaroundReading`] per turnaround | P1/P2; a [`lockin::CycleRecord`] per dither cycle, with its flags |
 //! | 5 | compensation | [`compensation`] | the record, a and b | the record with a P1 + b P2 subtracted |
-//! | 6 | output | [`output`] | compensated records | the averaged rate; the rate shift fed back to stage 2 |
+//! | 6 | output | [`output`] | the compensated phase and the pick-off at each output latch; compensated records | the stripped fixed-rate output records; the averaged rate; the rate shift fed back to stage 2 |
 //!
 //! Units come from [`crate::units`] (Q32 fringes, the [`crate::units::Phase`] of a fractional
 //! fringe), generic maths (the CORDIC `atan2`, the fit's solver) from [`crate::math`].
