@@ -1,4 +1,4 @@
-//! The readout: the whole signal chain behind the two interrupts that feed it.
+//! The readout: the whole signal chain behind the interrupts that feed it.
 //!
 //! - The photodiode ADC stream (regular conversions at arbitrary instants, DMA blocks on the
 //!   board) goes to [`Readout::on_lissajous_sample`]: the Heydemann fit learns the offsets, gains
@@ -10,7 +10,11 @@
 //!   (stage 5, `signal::compensation`). A completed dither cycle comes back as a
 //!   [`CycleRecord`]. The stages know nothing of each other's state: this is the one place
 //!   that wires them (stage 2, the turnaround schedule, runs in the pick-off interrupt;
-//!   stage 6, the output, in the cycle task).
+//!   stage 6's averaged rate in the cycle task).
+//! - The output latch (a sync edge, or the internal output rate) latches an [`OutputSample`]
+//!   and calls [`Readout::on_output_latch`]: stages 1 and 3 as for a turnaround, less the
+//!   lock-in corrections of the cycles closed so far, then stage 6's dither stripping and the
+//!   fixed-rate [`OutputRecord`].
 //!
 //! Coefficients (immutable, `Copy`) live in [`ReadoutConfig`]; the state in [`Readout`]. New
 //! compensation settings are staged with [`Readout::stage_compensation`] and take effect whole
