@@ -1,7 +1,7 @@
 //! `dither on|off`, `dither amp <arcsec>`, `dither noise <percent>`, `dither status`: the
 //! dither drive's setpoints and status.
 //!
-//! A setpoint command changes one field of the drive's [`DitherSetpoints`] and hands them to
+//! A setpoint command changes one field of the drive's [`DitherSetpoints`](crate::storage::DitherSetpoints) and hands them to
 //! the device whole ([`DeviceLink::apply_dither`]), which range-checks every field before it
 //! changes anything: a refused value (`ERR 5` out of range, `ERR 4` not finite) leaves the
 //! drive as it was. The setpoints are unsaved until `store`, which writes them into the
