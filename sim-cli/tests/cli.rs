@@ -1,6 +1,7 @@
 //! The `rlg-sim` binary as a user runs it: a calibration the board would refuse exits 1 naming
 //! the board's reason, and a bad output path is refused before the run.
 
+use std::io::{BufRead, BufReader};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
@@ -77,15 +78,11 @@ fn a_bad_output_path_fails_before_the_run() {
     }
 }
 
-/// Ctrl-C after the calibration: the input rates under way finish, the rest are skipped; the
-/// table and the CSV hold the rates done (the same rows), and the exit status is 130.
-#[test]
-fn sigint_keeps_the_points_done() {
-    use std::io::{BufRead, BufReader};
-    let csv = std::env::temp_dir().join(format!("rlg-sim-int-{}.csv", std::process::id()));
+/// Starts `rlg-sim` with `args` and waits until it has printed its calibration (the long
+/// work under way): the child and its stderr.
+fn spawn_calibrated(args: &[&str]) -> (std::process::Child, BufReader<std::process::ChildStderr>) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_rlg-sim"))
-        .args(["sweep", "--quiet", "--calibration-seconds", "5", "--csv"])
-        .arg(&csv)
+        .args(args)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -97,6 +94,23 @@ fn sigint_keeps_the_points_done() {
         line.clear();
         assert!(stderr.read_line(&mut line).unwrap() > 0, "calibration line");
     }
+    (child, stderr)
+}
+
+/// Ctrl-C after the calibration: the input rates under way finish, the rest are skipped; the
+/// table and the CSV hold the rates done (the same rows), and the exit status is 130.
+#[test]
+fn sigint_keeps_the_points_done() {
+    let csv = std::env::temp_dir().join(format!("rlg-sim-int-{}.csv", std::process::id()));
+    let csv_arg = csv.to_str().unwrap();
+    let (child, mut stderr) = spawn_calibrated(&[
+        "sweep",
+        "--quiet",
+        "--calibration-seconds",
+        "5",
+        "--csv",
+        csv_arg,
+    ]);
     std::thread::sleep(Duration::from_millis(500));
     // SAFETY: a signal to our own child process.
     assert_eq!(
@@ -126,30 +140,18 @@ fn sigint_keeps_the_points_done() {
 /// last row complete.
 #[test]
 fn record_sigint_keeps_every_row() {
-    use std::io::{BufRead, BufReader};
     let csv = std::env::temp_dir().join(format!("rlg-sim-rec-{}.csv", std::process::id()));
-    let mut child = Command::new(env!("CARGO_BIN_EXE_rlg-sim"))
-        .args([
-            "record",
-            "--quiet",
-            "--calibration-seconds",
-            "3",
-            "--seconds",
-            "600",
-        ])
-        .arg("--csv")
-        .arg(&csv)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut stderr = BufReader::new(child.stderr.take().unwrap());
-    let mut line = String::new();
-    while !line.contains("Omega_L") {
-        line.clear();
-        assert!(stderr.read_line(&mut line).unwrap() > 0, "calibration line");
-    }
+    let csv_arg = csv.to_str().unwrap();
+    let (child, mut stderr) = spawn_calibrated(&[
+        "record",
+        "--quiet",
+        "--calibration-seconds",
+        "3",
+        "--seconds",
+        "600",
+        "--csv",
+        csv_arg,
+    ]);
     std::thread::sleep(Duration::from_millis(1500));
     // Rows are on disk before the run ends (flushed at least once a second).
     let early = std::fs::read_to_string(&csv).unwrap().lines().count();
