@@ -33,6 +33,7 @@
 use crate::dither::drive::{DriveError, DriveExhausted, DriveSegment, DriveSink};
 use crate::dither::driven::HISTORY_S;
 use crate::dither::linear::ResonatorState;
+use crate::dither::sine::{draw_tones, modulation_at, Tone};
 use crate::input::InputProfile;
 use crate::param_error::ParamError;
 use crate::params::{Derived, GyroParams};
@@ -93,6 +94,10 @@ pub struct Gyro {
     run_turns: Vec<Turnaround>,
     last_turn: Option<Turnaround>,
     traversals: VecDeque<Traversal>,
+    /// A driven dither's drive-gain wander (`GyroParams::amplitude_jitter` applied to the
+    /// drive: the amplifier's and the piezo's gain drift that the amplitude loop must hold the
+    /// amplitude against); empty without it.
+    drive_gain_wander: Vec<Tone>,
 }
 
 impl Gyro {
@@ -111,6 +116,14 @@ impl Gyro {
             rate_per_s: params.lock_in_drift_per_s,
             until_s: params.lock_in_drift_until_s,
         });
+        let mut drive_gain_wander = Vec::new();
+        if params.resonator().is_some() {
+            draw_tones(
+                &params.amplitude_jitter,
+                params.seed ^ 0x3c6e_f372_fe94_f82b,
+                &mut drive_gain_wander,
+            );
+        }
         Ok(Self {
             params,
             derived,
@@ -118,6 +131,7 @@ impl Gyro {
             run_turns: Vec::new(),
             last_turn: None,
             traversals: VecDeque::new(),
+            drive_gain_wander,
         })
     }
 
@@ -203,7 +217,10 @@ impl Gyro {
     /// Appends a drive segment to the driven dither: it starts at or after
     /// [`Self::drive_known_until_s`] (the previous segment holds until its start, which
     /// becomes the new horizon). [`DriveError::NotDriven`] for the prescribed sine.
-    pub fn push_drive(&mut self, segment: DriveSegment) -> Result<(), DriveError> {
+    pub fn push_drive(&mut self, mut segment: DriveSegment) -> Result<(), DriveError> {
+        // The drive's gain wanders (amplitude jitter on a driven dither): a segment's amplitude
+        // is the gain at its start (0.1-2 Hz against segments of a half cycle or less).
+        segment.amplitude_v *= 1.0 + modulation_at(&self.drive_gain_wander, segment.start_s);
         let keep_from_s = self.integ.t_now() - HISTORY_S;
         let fp = self.integ.free_phase_mut();
         let driven = fp.dither_mut().driven_mut().ok_or(DriveError::NotDriven)?;

@@ -138,7 +138,10 @@ pub struct GyroParams {
     pub eps_rad: f64,
     /// Angle random walk, deg/sqrt(h) (0 = no noise).
     pub arw_deg_per_rt_h: f64,
-    /// Slow amplitude jitter of the dither resonator (the prescribed sine only).
+    /// Slow amplitude jitter: of the prescribed sine's amplitude, or for the driven resonator
+    /// of its drive's gain (the amplifier's and the piezo's drift, which the firmware's
+    /// amplitude loop must hold the amplitude against: what remains is what a real loop
+    /// leaves).
     pub amplitude_jitter: AmplitudeModulation,
     /// Random-noise dither (a large deliberate amplitude modulation); adds to the jitter (the
     /// prescribed sine only).

@@ -147,8 +147,9 @@ pub struct GyroArgs {
     /// Angle random walk, deg/sqrt(h) (0..=1; 0 = no noise).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub arw_deg_rt_h: f64,
-    /// Relative rms of smooth dither amplitude jitter (0..=0.1; 0 = steady dither; applies to
-    /// the prescribed sine of --dither-drive ideal: the closed-loop drive's wander is its own).
+    /// Relative rms of smooth dither amplitude jitter, 0.1-2 Hz (0..=0.1; 0 = steady dither):
+    /// of the prescribed sine's amplitude, or with --dither-drive closed-loop of the drive's
+    /// gain, which the firmware's amplitude loop then holds the amplitude against.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub amplitude_jitter: f64,
     /// Random seed (same seed, same output).

@@ -39,7 +39,7 @@ use std::cell::RefCell;
 
 /// One modulation tone: `a sin(nu t + phase)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Tone {
+pub(crate) struct Tone {
     a: f64,
     nu_rad_per_s: f64,
     phase_rad: f64,
@@ -71,7 +71,16 @@ struct ModWindow {
     c: [f64; MOD_DEGREE + 1],
 }
 
-fn draw_tones(m: &AmplitudeModulation, seed: u64, out: &mut Vec<Tone>) {
+/// `sum a sin(nu t + phase)` of `tones` at `t_s`: the relative modulation `m(t)`.
+pub(crate) fn modulation_at(tones: &[Tone], t_s: f64) -> f64 {
+    tones
+        .iter()
+        .map(|t| t.a * (t.nu_rad_per_s * t_s + t.phase_rad).sin())
+        .sum()
+}
+
+/// The tones of `m` (none when it is off), seeded.
+pub(crate) fn draw_tones(m: &AmplitudeModulation, seed: u64, out: &mut Vec<Tone>) {
     if m.relative_rms <= 0.0 {
         return;
     }
