@@ -65,6 +65,8 @@ pub const GOLDEN: &[Golden] = &[
     Golden { name: "signal::cycle", words: 11892, digest: 0x4ceb3c890877f74a, f32_bits: &[] },
     // readout (whole chain) (bit-identical)
     Golden { name: "readout (whole chain)", words: 3603, digest: 0xac390132f7d9aba2, f32_bits: &[] },
+    // readout output stage (bit-identical)
+    Golden { name: "readout output stage", words: 43376, digest: 0x9abd755b2aed6bc1, f32_bits: &[] },
     // calibration::fit (bit-identical)
     Golden { name: "calibration::fit", words: 951, digest: 0x7c27fe47192c1138, f32_bits: &[] },
     // calibration::tracking (bit-identical)

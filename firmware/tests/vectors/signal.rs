@@ -265,3 +265,103 @@ pub fn readout_chain(out: &mut Outputs) {
     out.f32(amplitude_rad);
     out.f32(dither_hz);
 }
+
+/// The output stage (`Readout::on_output_latch`: stripping with K's two-tap fit, the record,
+/// its wire frame): output latches at 1 kHz on a 389 Hz dither whose pick-off reads 4 % high
+/// and lags, with a slow input rate, interleaved with the turnarounds that close cycles (so the
+/// compensation's corrections enter too). Every record's fields, its frame's bytes and the
+/// fitted taps: the f32 fit and the i128 angle must agree bit for bit on both sides.
+pub fn output_stage(out: &mut Outputs) {
+    use compensation::{Coefficients, CompensationSettings};
+    use firmware::protocol::output_frame::{encode_output_frame, MAX_OUTPUT_FRAME};
+    use firmware::readout::Readout;
+    use firmware::sample::{OutputSample, TurnaroundSample};
+    let mut rng = Rng::new(0x5eed_0020);
+    let config = firmware::profile::BoardProfile::F405.readout_config(389.0);
+    let settings = CompensationSettings {
+        coefficients: Coefficients::from_rad_per_s(387.0, 383.0).unwrap_or_default(),
+        enabled: true,
+    };
+    let mut readout = Readout::new(&config, settings);
+    let figure = Figure {
+        offsets: (2010.0, 2090.0),
+        radii: (1600.0, 1450.0),
+        alpha: 0.08,
+    };
+    for _ in 0..4096 {
+        let psi = rng.f32_in(0.0, core::f32::consts::TAU);
+        let (a, b) = figure.codes_at(&mut rng, psi);
+        readout.on_lissajous_sample(&config, a, b);
+    }
+    // psi_H (Q32 turns) = rate t + 240 fringes sin(w t); the pick-off 1.04 x the nominal
+    // 1125 codes per 450 arcsec, 3 us late. Latches every 84 000 ticks (1 kHz), turnarounds at
+    // the dither's extremes.
+    let w = core::f32::consts::TAU * 389.0;
+    let psi_at = |t: f32| -> i64 {
+        let fringes = 0.3 * t + 240.0 * libm::sinf(w * t);
+        (fringes as f64 * 4_294_967_296.0) as i64
+    };
+    let mut frame = [0u8; MAX_OUTPUT_FRAME];
+    let half_period = 1.0 / (2.0 * 389.0);
+    let (mut next_sync, mut next_turn, mut plus) = (0.001f32, 0.25 * 4.0 * half_period, false);
+    for _ in 0..1500 {
+        let (t, is_sync) = if next_sync < next_turn {
+            (next_sync, true)
+        } else {
+            (next_turn, false)
+        };
+        let psi_q32 = psi_at(t);
+        let angle = (psi_q32 as u32) as f32 * (core::f32::consts::TAU / 4_294_967_296.0);
+        let (adc_a_code, adc_b_code) = figure.codes_at(&mut rng, angle);
+        let encoder_count = (psi_q32 >> 30) as u32;
+        let timestamp_ticks = (t as f64 * 84e6) as u32;
+        if is_sync {
+            let pickoff = 2048.0 + 1.04 * 1125.0 * libm::sinf(w * (t - 3e-6));
+            let sample = OutputSample {
+                encoder_count,
+                adc_a_code,
+                adc_b_code,
+                pickoff_code: (pickoff + rng.f32_in(-1.0, 1.0)) as u16,
+                timestamp_ticks,
+                drive_locked: true,
+            };
+            let r = readout.on_output_latch(&config, sample);
+            out.u64(r.sequence);
+            out.u64(r.time_ticks);
+            out.u32(r.period_ticks);
+            out.i32(r.delta_angle_q16);
+            out.i64(r.angle_q16);
+            out.f32(r.rate_deg_per_h);
+            out.u32(r.status.0 as u32);
+            let n = encode_output_frame(&r, &mut frame);
+            for &byte in &frame[..n] {
+                out.u32(byte as u32);
+            }
+            next_sync += 0.001;
+        } else {
+            let sample = TurnaroundSample {
+                kind: if plus {
+                    TurnaroundKind::Plus
+                } else {
+                    TurnaroundKind::Minus
+                },
+                encoder_count,
+                adc_a_code,
+                adc_b_code,
+                timestamp_ticks,
+                drive_locked: true,
+            };
+            if let Some(c) = readout.on_turnaround(&config, sample) {
+                out.i64(c.output.correction_q32);
+            }
+            plus = !plus;
+            next_turn += half_period;
+        }
+    }
+    let s = readout.strip_status(&config);
+    out.f32(s.k);
+    out.f32(s.k_previous);
+    out.f32(s.k_std_rel);
+    out.u32(s.updates);
+    out.u32(s.converged as u32);
+}
