@@ -70,9 +70,10 @@ const TIM_CC1: u32 = 1 << 1;
 const DAC_CR: u32 = 1 | (1 << 2) | (0b101 << 3);
 // ADC_CR2: ADON 0, JEXTSEL[19:16] = 1001 (TIM4 TRGO), JEXTEN[21:20] = 01 (rising); the regular
 // group is the output latch's pick-off: EXTSEL[27:24] = 0110 (TIM2 TRGO, the latch's compare
-// pulse, as ADC1/ADC2's injected pair), EXTEN[29:28] = 01 (rising), EOCS 10 (EOC per
-// conversion)
-const ADC_CR2: u32 = 1 | (0b1001 << 16) | (0b01 << 20) | (0b0110 << 24) | (0b01 << 28) | (1 << 10);
+// pulse, as ADC1/ADC2's injected pair), EXTEN[29:28] = 01 (rising). EOCS and DMA stay 0: no
+// overrun detection, which would stop the regular group until cleared; the latch reads DR at
+// every latch anyway.
+const ADC_CR2: u32 = 1 | (0b1001 << 16) | (0b01 << 20) | (0b0110 << 24) | (0b01 << 28);
 // ADC_SMPR1: SMP12[8:6] = 001 (15 cycles)
 const ADC_SMPR1: u32 = 0b001 << 6;
 // ADC_SR: JEOC 2
