@@ -13,8 +13,8 @@
 //!
 //! The compare is shared with the turnarounds: [`crate::signal::output::latch_plan`] decides
 //! which is armed (a turnaround is never moved; an output latch waits until just after a
-//! turnaround it would crowd). The record's time is the latch's (2 to 5 us after the sync
-//! edge), so the angle and the time it was taken belong together.
+//! turnaround it would crowd). The record's time is the latch's (2 us after the sync edge, at
+//! most about 13 us), so the angle and the time it was taken belong together.
 //!
 //! # The pick-off's conversion
 //!

@@ -146,6 +146,10 @@ pub fn measure_drive_tick_phase(tim2: &pac::tim2::RegisterBlock, tim4: &pac::tim
     });
 }
 
+/// Fewest ticks ahead a turnaround's compare may be re-armed at (after an output latch fired
+/// before it): the write must land before the counter gets there (0.2 us).
+const TURNAROUND_REARM_MIN_TICKS: i32 = 16;
+
 /// Half the keep-out window around a drive tick's conversion, ticks: one conversion (27 ADC
 /// clocks at 21 MHz, 108 ticks) plus the trigger latency and margin.
 const DRIVE_KEEP_OUT_HALF_TICKS: u32 = 125;
@@ -164,6 +168,14 @@ fn fresh_plan() -> LatchPlan {
 /// parks the compare.
 fn write_armed(tim: &pac::tim2::RegisterBlock, plan: &mut LatchPlan, arm: Arm, now: u32) {
     let mut arm = arm;
+    if let Some((LatchKind::Turnaround(_), at)) = arm {
+        // Armed in time when scheduled, but an output latch fired just before it and its
+        // handler ran late: a compare already passed would fire 51 s later. Skipped, counted.
+        if (at.wrapping_sub(now) as i32) < TURNAROUND_REARM_MIN_TICKS {
+            LATE.fetch_add(1, Ordering::Relaxed);
+            arm = plan.cancel_turnaround();
+        }
+    }
     if let Some((LatchKind::Output, at)) = arm {
         if (at.wrapping_sub(now) as i32) < MIN_LEAD_TICKS as i32 {
             arm = plan.defer_output(now.wrapping_add(MIN_LEAD_TICKS.max(OUTPUT_LEAD_TICKS)));

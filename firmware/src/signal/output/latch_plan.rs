@@ -14,12 +14,13 @@
 //!
 //! - An output latch fires [`OUTPUT_LEAD_TICKS`] after the later of its edge and the moment the
 //!   handler arms it (2 us at 84 MHz), or [`GUARD_TICKS`] after a turnaround armed within
-//!   [`GUARD_TICKS`] of it: the record's time is the latch's, so the navigation computer sees
-//!   when the angle was taken (2 to 5 us after its sync edge).
+//!   [`GUARD_TICKS`] of it (and out of the drive tick's conversion window, [`KeepOut`]): the
+//!   record's time is the latch's, so the navigation computer sees when the angle was taken
+//!   (2 us after its sync edge, at most about 13 us when it meets a turnaround and a window).
 //! - A turnaround is never moved: an output latch due within [`GUARD_TICKS`] before it waits
 //!   until after it (the turnaround's own ~1 us accuracy is what the lock-in terms need).
 //! - One output latch may be pending; a second sync edge before the first latch fired (a sync
-//!   faster than ~5 us) is counted as an overrun and dropped: the record then spans two sync
+//!   faster than ~15 us) is counted as an overrun and dropped: the record then spans two sync
 //!   periods, which its `period_ticks` shows.
 //!
 //! Ticks wrap (32-bit, 51 s at 84 MHz); every comparison is of wrapping differences within
@@ -30,9 +31,10 @@ use crate::sample::TurnaroundKind;
 /// Lead from a sync edge (or from the handler, if it runs later) to the output latch, ticks
 /// (2 us at 84 MHz: the handler's return and the compare's set-up).
 pub const OUTPUT_LEAD_TICKS: u32 = 168;
-/// Closest two latches may be, ticks: the injected conversions (15 ADC clocks of sampling plus
-/// 12 of conversion at 21 MHz, 1.3 us) and the latch handler's copy, 3 us.
-pub const GUARD_TICKS: u32 = 252;
+/// Closest two latches may be, ticks (5 us): the injected conversions (15 ADC clocks of
+/// sampling plus 12 of conversion at 21 MHz, 1.3 us), the latch handler's entry and copy, and
+/// still the board's minimum lead (2 us) to arm the next compare when the first has fired.
+pub const GUARD_TICKS: u32 = 420;
 
 /// What a compare latch is for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -272,10 +274,11 @@ mod tests {
             Some((LatchKind::Output, 3000 + OUTPUT_LEAD_TICKS))
         );
         p.on_fired();
-        // Moved after a turnaround at 4000 -> 4252, which lies in [4100, 4350): -> 4350.
-        p.on_turnaround(Plus, 4000);
-        p.on_sync(4000 - OUTPUT_LEAD_TICKS, 4000 - OUTPUT_LEAD_TICKS);
-        assert_eq!(p.on_fired().1, Some((LatchKind::Output, 4350)));
+        // Moved after a turnaround at 5900 -> 5900 + 420 = 6320, which lies in the window
+        // [6200, 6450): -> 6450.
+        p.on_turnaround(Plus, 5900);
+        p.on_sync(5900 - OUTPUT_LEAD_TICKS, 5900 - OUTPUT_LEAD_TICKS);
+        assert_eq!(p.on_fired().1, Some((LatchKind::Output, 6450)));
         for at in (0..20_000u32).step_by(7) {
             let c = k.clear_of(at);
             assert!(
