@@ -7,8 +7,8 @@
 mod args;
 
 use args::{
-    BoardArgs, CalibrationArgs, Cli, Command, DitherArgs, GyroArgs, RecordArgs, SpeedArgs,
-    SweepArgs,
+    AllanArgs, BoardArgs, CalibrationArgs, Cli, Command, DitherArgs, GyroArgs, RecordArgs,
+    SpeedArgs, SweepArgs,
 };
 use clap::Parser;
 use firmware::signal::compensation::CompensationSettings;
@@ -35,6 +35,7 @@ fn main() -> ExitCode {
         Command::Speed(args) => speed(&args),
         Command::Dither(args) => dither(&args),
         Command::Record(args) => record(&args),
+        Command::Allan(args) => allan(&args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
@@ -469,6 +470,34 @@ fn dither(args: &DitherArgs) -> Result<(), Failure> {
         std::fs::write(path, dither_run::figure(&rows, &options).to_svg())
             .map_err(|e| Failure::Run(format!("{}: {e}", path.display())))?;
         eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// `rlg-sim allan`: read the record, compute, print the table; the CSV and SVG if asked.
+fn allan(args: &AllanArgs) -> Result<(), Failure> {
+    use rlg_sim::allan::{analyse, input, output};
+    args.validate().map_err(Failure::Usage)?;
+    check_output(args.csv.as_ref())?;
+    check_output(args.svg.as_ref())?;
+    let name = args.input.display();
+    let file = std::fs::File::open(&args.input)
+        .map_err(|e| Failure::Usage(format!("--input {name}: {e}")))?;
+    let record = input::read_csv(std::io::BufReader::with_capacity(1 << 20, file))
+        .map_err(|e| Failure::Run(format!("{name}: {e}")))?;
+    let analysis =
+        analyse(&record, args.confidence).map_err(|e| Failure::Run(format!("{name}: {e}")))?;
+    println!("# {name}: {}", output::record_summary(&record));
+    print!("{}", output::table(&analysis));
+    let write = |path: &std::path::PathBuf, text: String| {
+        std::fs::write(path, text).map_err(|e| Failure::Run(format!("{}: {e}", path.display())))
+    };
+    if let Some(path) = &args.csv {
+        write(path, output::csv(&analysis))?;
+    }
+    if let Some(path) = &args.svg {
+        let title = format!("Allan deviation: {name}");
+        write(path, output::figure(&analysis, &title).to_svg())?;
     }
     Ok(())
 }
