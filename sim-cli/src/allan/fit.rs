@@ -16,11 +16,18 @@
 //! as not resolved, never as a negative variance. The EDF of each point depends on the noise
 //! type, taken as the dominant term of the previous iteration.
 //!
-//! Confidence intervals: the coefficient's variance from the weighted normal equations gives
-//! its equivalent degrees of freedom `2 c^2 / var(c)`, and the chi-squared interval of a
-//! variance with that many. Octave points of an overlapping ADEV are mildly correlated, which
-//! this treats as independent; the acceptance test checks that the intervals hold on synthetic
-//! records with known terms.
+//! Confidence intervals: the coefficient's variance from the weighted normal equations (times
+//! the Birge ratio when the scatter exceeds the weights) gives its equivalent degrees of
+//! freedom `2 c^2 / var(c)`, and the chi-squared interval of a variance with that many. The
+//! normal equations take the octave points as independent; they are not (neighbouring octaves
+//! of an overlapping ADEV share their data), so the variance is multiplied by
+//! `CORRELATION_INFLATION`, a factor measured on synthetic records (see there): the trade-off
+//! is an empirical constant instead of Greenhall's full covariance of the octave estimates,
+//! which would be a project of its own.
+//!
+//! A term whose coefficient is below twice its standard deviation is flagged not significant
+//! (compatible with zero: the interval of a variance never reaches zero, so its lower end is
+//! then no evidence of the term).
 
 use super::chi2::variance_interval;
 use super::estimator::{AllanVariance, NoiseType};
@@ -63,6 +70,10 @@ pub struct Term {
     pub low: f64,
     /// Upper end of the confidence interval.
     pub high: f64,
+    /// The coefficient exceeds twice its standard deviation. When not, the term is
+    /// compatible with zero: the data bound it from above but do not show it (the chi-squared
+    /// interval of a variance never reaches zero, so its lower end says nothing then).
+    pub significant: bool,
 }
 
 /// The four terms, and the model they make.
@@ -223,6 +234,7 @@ fn term(c: f64, var: f64, confidence: f64, value: impl Fn(f64) -> f64) -> Option
             value: value(c),
             low: value(low),
             high: value(high),
+            significant: c > 2.0 * var.sqrt(),
         }
     })
 }
@@ -306,6 +318,14 @@ mod tests {
         let arw = fit.arw_deg_rt_h.unwrap();
         assert!((arw.value / truth - 1.0).abs() < 0.05, "{arw:?}");
         within("ARW", fit.arw_deg_rt_h, truth);
+        // No term the record does not have: absent, or not significant.
+        for (name, t) in [
+            ("Q", fit.quantisation_arcsec),
+            ("B", fit.bias_instability_deg_h),
+            ("K", fit.rrw_deg_h_rt_h),
+        ] {
+            assert!(t.is_none_or(|t| !t.significant), "{name}: {t:?}");
+        }
     }
 
     /// Issue 14's acceptance: white rate noise, a flicker floor and a rate random walk (and
@@ -329,6 +349,16 @@ mod tests {
             terms.bias_instability_deg_h,
         );
         within("K", fit.rrw_deg_h_rt_h, terms.rrw_deg_h_rt_h);
+        let all = [
+            fit.quantisation_arcsec,
+            fit.arw_deg_rt_h,
+            fit.bias_instability_deg_h,
+            fit.rrw_deg_h_rt_h,
+        ];
+        assert!(
+            all.iter().all(|t| t.is_some_and(|t| t.significant)),
+            "{all:?}"
+        );
     }
 
     /// The coverage of the 95 % intervals over 40 seeds (prints the count per term; asserts

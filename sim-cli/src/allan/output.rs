@@ -26,6 +26,14 @@ fn noise_name(noise: NoiseType) -> &'static str {
 
 /// The term's value and interval, or `not resolved`.
 fn term_text(term: Option<Term>, unit: &str) -> String {
+    let text = term_interval(term, unit);
+    match term {
+        Some(t) if !t.significant => format!("{text}  (not significant: below 2 sigma)"),
+        _ => text,
+    }
+}
+
+fn term_interval(term: Option<Term>, unit: &str) -> String {
     match term {
         // Fewer than about one degree of freedom: the upper end is meaningless.
         Some(t) if t.high > 1e3 * t.value => {
@@ -202,7 +210,15 @@ pub fn figure(analysis: &Analysis, title: &str) -> Figure {
     for (k, term, name, unit, color) in terms {
         if let Some(t) = term {
             series.push(line(
-                format!("{name} = {:.3e} {unit}", t.value),
+                format!(
+                    "{name} = {:.3e} {unit}{}",
+                    t.value,
+                    if t.significant {
+                        ""
+                    } else {
+                        " (not significant)"
+                    }
+                ),
                 color,
                 taus.iter()
                     .map(|&tau| (tau, fit.term_avar(k, tau).sqrt()))
