@@ -7,6 +7,8 @@ it, computes allantools.oadev on the same numbers (the angles as printed in the 
 sample period) and requires the same octave taus and every deviation equal to 1e-9 relative.
 
 usage: allantools_check.py PATH/TO/rlg-sim [WORKDIR]
+       allantools_check.py --write-record PATH SAMPLES   (only the record, e.g. 15000000 for
+                                                          the README's 10 h timing)
 """
 import csv
 import os
@@ -22,29 +24,37 @@ PERIOD_S = 0.0025
 SAMPLES = 1 << 20
 
 
-def record(path):
+def record(path, samples=SAMPLES):
     rng = np.random.default_rng(14)
-    white = 60 * 0.003 / np.sqrt(PERIOD_S) * rng.standard_normal(SAMPLES)  # ARW 0.003 deg/rt(h)
-    walk = np.cumsum(0.05 / 60 * np.sqrt(PERIOD_S) * rng.standard_normal(SAMPLES))  # RRW
-    e = 0.3 * rng.standard_normal(SAMPLES + 1)  # quantisation, arcsec
+    white = 60 * 0.003 / np.sqrt(PERIOD_S) * rng.standard_normal(samples)  # ARW 0.003 deg/rt(h)
+    walk = np.cumsum(0.05 / 60 * np.sqrt(PERIOD_S) * rng.standard_normal(samples))  # RRW
+    e = 0.3 * rng.standard_normal(samples + 1)  # quantisation, arcsec
     rate = 10.0 + white + walk + np.diff(e) / PERIOD_S  # deg/h = arcsec/s
     with open(path, "w") as f:
         f.write("t_s,delta_angle_arcsec,true_delta_angle_arcsec,valid\n")
-        for k, r in enumerate(rate):
-            d = r * PERIOD_S
-            f.write(f"{k * PERIOD_S:.6f},{d:.9f},{d:.9f},1\n")
-    # The numbers both implementations see: the file's angles over the period.
+        for start in range(0, samples, 1 << 20):
+            chunk = rate[start:start + (1 << 20)] * PERIOD_S
+            f.write("".join(f"{(start + k) * PERIOD_S:.6f},{d:.9f},{d:.9f},1\n"
+                            for k, d in enumerate(chunk)))
+
+
+def rates(path):
+    """The numbers both implementations see: the file's angles over the period."""
     with open(path) as f:
         rows = csv.DictReader(f)
         return np.array([float(row["delta_angle_arcsec"]) for row in rows]) / PERIOD_S
 
 
 def main():
+    if sys.argv[1] == "--write-record":
+        record(sys.argv[2], int(sys.argv[3]))
+        return
     binary = sys.argv[1]
     work = sys.argv[2] if len(sys.argv) > 2 else tempfile.mkdtemp(prefix="allan-check-")
     os.makedirs(work, exist_ok=True)
     data, out = os.path.join(work, "record.csv"), os.path.join(work, "adev.csv")
-    rate = record(data)
+    record(data)
+    rate = rates(data)
     subprocess.run([binary, "allan", "--input", data, "--csv", out], check=True,
                    stdout=subprocess.DEVNULL)
     with open(out) as f:

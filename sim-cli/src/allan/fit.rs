@@ -316,6 +316,7 @@ mod tests {
         };
         let fit = analyse(terms, 0.01, 1 << 20, 11);
         let arw = fit.arw_deg_rt_h.unwrap();
+        println!("white rate noise, N = {truth}: {arw:?}");
         assert!((arw.value / truth - 1.0).abs() < 0.05, "{arw:?}");
         within("ARW", fit.arw_deg_rt_h, truth);
         // No term the record does not have: absent, or not significant.
@@ -341,6 +342,7 @@ mod tests {
         // 2^22 samples at 10 Hz (116 h): Q dominates below 4 s, N to 700 s, the floor to
         // 5000 s, K above.
         let fit = analyse(terms, 0.1, 1 << 22, 5);
+        println!("{terms:?}:\n{fit:#?}");
         within("Q", fit.quantisation_arcsec, terms.quantisation_arcsec);
         within("ARW", fit.arw_deg_rt_h, terms.arw_deg_rt_h);
         within(
