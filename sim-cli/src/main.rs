@@ -478,8 +478,21 @@ fn dither(args: &DitherArgs) -> Result<(), Failure> {
 fn allan(args: &AllanArgs) -> Result<(), Failure> {
     use rlg_sim::allan::{analyse, input, output};
     args.validate().map_err(Failure::Usage)?;
-    check_output(args.csv.as_ref())?;
-    check_output(args.svg.as_ref())?;
+    // The output paths' folders must exist; nothing is created or truncated before the input
+    // has been read and analysed (a bad record changes nothing).
+    for path in [&args.csv, &args.svg].into_iter().flatten() {
+        let folder = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => std::path::Path::new("."),
+        };
+        if !folder.is_dir() {
+            return Err(Failure::Usage(format!(
+                "cannot write {}: no folder {}",
+                path.display(),
+                folder.display()
+            )));
+        }
+    }
     let name = args.input.display();
     let file = std::fs::File::open(&args.input)
         .map_err(|e| Failure::Usage(format!("--input {name}: {e}")))?;

@@ -97,18 +97,17 @@ fn allan_reads_a_record_with_a_lost_row_and_writes_table_csv_and_svg() {
     }
 }
 
-/// A record whose spacing changes is refused with the line (exit 1); a missing input and an
-/// out-of-range or negative confidence are usage errors naming the flag (exit 2), at once.
+/// A record whose spacing changes is refused with the line (exit 1) and changes nothing (an
+/// existing output file keeps its content); a missing input and an out-of-range or negative
+/// confidence are usage errors naming the flag (exit 2), at once.
 #[test]
 fn allan_refuses_bad_records_and_flags() {
-    let input = scratch("uneven.csv");
-    std::fs::write(
-        &input,
-        "t_s,delta_angle_arcsec\n0,1\n0.01,1\n0.02,1\n0.035,1\n",
-    )
-    .unwrap();
+    let (input, kept) = (scratch("uneven.csv"), scratch("kept.csv"));
+    let uneven = "t_s,delta_angle_arcsec\n0,1\n0.01,1\n0.02,1\n0.035,1\n";
+    std::fs::write(&input, uneven).unwrap();
+    std::fs::write(&kept, "earlier result\n").unwrap();
     let path = input.to_str().unwrap();
-    let (out, _) = rlg_sim(&["allan", "--input", path]);
+    let (out, _) = rlg_sim(&["allan", "--input", path, "--csv", kept.to_str().unwrap()]);
     let stderr = text(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(
@@ -116,6 +115,7 @@ fn allan_refuses_bad_records_and_flags() {
         "{stderr}"
     );
     assert!(out.stdout.is_empty());
+    assert_eq!(std::fs::read_to_string(&kept).unwrap(), "earlier result\n");
     for (args, says) in [
         (
             vec!["--input", "/nonexistent/x.csv"],
@@ -143,4 +143,5 @@ fn allan_refuses_bad_records_and_flags() {
         assert!(took < Duration::from_secs(1), "{took:?}");
     }
     let _ = std::fs::remove_file(input);
+    let _ = std::fs::remove_file(kept);
 }
