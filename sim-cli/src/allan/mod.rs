@@ -11,8 +11,8 @@
 //! - [`output`]: the table, the CSV and the log-log figure;
 //! - [`synthetic`]: records with known terms, for the tests.
 //!
-//! [`analyse`] ties them: each tau's interval is the chi-squared interval of its EDF for the
-//! noise type the fitted model says dominates there.
+//! [`analyse`] ties them: each tau's interval is the chi-squared interval of its EDF under the
+//! fitted model (each term's share with its noise type's EDF).
 
 pub mod chi2;
 pub mod estimator;
@@ -41,7 +41,7 @@ pub struct AllanRow {
     pub ci_high_deg_h: f64,
     /// Equivalent degrees of freedom.
     pub edf: f64,
-    /// The noise type the EDF assumed (the fitted model's dominant term).
+    /// The fitted model's dominant term (the EDF mixes the terms by their shares).
     pub noise: NoiseType,
     /// Second differences averaged.
     pub terms: u64,
@@ -71,7 +71,7 @@ pub fn analyse(record: &RateRecord, confidence: f64) -> Result<Analysis, String>
         .iter()
         .map(|p| {
             let noise = fit.dominant(p.tau_s);
-            let edf = variance.edf(p.m, noise);
+            let edf = fit.edf(&variance, p.m, p.tau_s);
             let (lo, hi) = chi2::variance_interval(p.avar, edf, confidence);
             AllanRow {
                 tau_s: p.tau_s,
