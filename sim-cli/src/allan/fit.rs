@@ -44,11 +44,11 @@ const NOISE: [NoiseType; 4] = [
 /// independent, times this: neighbouring octaves of an overlapping ADEV share their data.
 /// Set from synthetic records with the acceptance test's four terms, 40 seeds each, 95 %
 /// intervals (Q, N, B, K holding the truth): with 1 (independent points) 34, 34, 31, 32 of 40;
-/// with the mixed-noise EDF of [`NoiseFit::edf`], 4 gave 40, 40, 38, 35 (seeds 3000-3039), 6 gave 40, 40, 40,
-/// 37 (seeds 1000-1039, where it was chosen) and 40, 40, 39, 40 (seeds 5000-5039, fresh):
-/// the intervals are about 2.4 times as wide as independent points would make them.
-/// Re-measured by `cargo test -p rlg-sim --lib --release -- --ignored interval_coverage
-/// --nocapture` (seeds 5000-5039).
+/// with the mixed-noise EDF of [`NoiseFit::edf`], 4 gave 40, 40, 38, 35 (seeds 3000-3039),
+/// 6 gave 40, 40, 40, 37 (seeds 1000-1039, where it was chosen) and 40, 40, 39, 40 (seeds
+/// 5000-5039, fresh): the intervals are about 2.4 times as wide as independent points would
+/// make them. Re-measured by `cargo test -p rlg-sim --lib --release -- --ignored
+/// interval_coverage --nocapture` (seeds 5000-5039).
 const CORRELATION_INFLATION: f64 = 6.0;
 
 /// `sqrt(2 ln 2 / pi)`: the flicker floor in units of the bias instability.
