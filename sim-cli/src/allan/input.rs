@@ -6,10 +6,11 @@
 //! period, `delta_angle_arcsec / period_s` (arcsec/s = deg/h).
 //!
 //! The period is the median spacing of the first 1000 rows; every spacing must then be a whole
-//! multiple of it within 1 % of a period (+ 2 us for the files' 6 decimals), else the file is
-//! refused naming the line: the Allan deviation assumes uniform sampling. A spacing of k
-//! periods (k > 1: rows nobody wrote) leaves k - 1 missing samples. The final period is the
-//! span over the samples, so print rounding averages out.
+//! multiple of it within 1 % (+ 2 us for the files' 6 decimals), else the file is refused
+//! naming the line: the Allan deviation assumes uniform sampling. A spacing of k
+//! periods (k > 1: rows nobody wrote) is k - 1 missing samples, counted and marked by one NaN
+//! (memory stays linear in the rows, whatever the jump). The final period is the span over
+//! the sample periods, so print rounding averages out.
 //!
 //! Gaps: a row with `valid` 0 or an empty angle (`rlg-cal record`'s lost records), and every
 //! missing sample, is stored as NaN. Nothing is interpolated and no angle is spliced across a
@@ -17,12 +18,13 @@
 
 use std::io::BufRead;
 
-/// The rate series: one entry per sample period, NaN where there is no valid sample.
+/// The rate series: one entry per sample period, NaN where there is no valid sample (a run of
+/// missing samples, rows nobody wrote, is one NaN: a gap marker, whatever its length).
 #[derive(Clone, Debug, PartialEq)]
 pub struct RateRecord {
     /// The sample period, s.
     pub period_s: f64,
-    /// Rate per sample, deg/h (NaN: invalid, lost or missing).
+    /// Rate per sample, deg/h (NaN: invalid or lost; one NaN for a run of missing samples).
     pub rates_deg_h: Vec<f64>,
     /// Data rows read.
     pub rows: u64,
@@ -137,6 +139,8 @@ struct Series {
     last_t: f64,
     record: RateRecord,
     angles: Vec<f64>,
+    /// Sample periods from the first row to the last (missing ones included).
+    samples: u64,
 }
 
 impl Series {
@@ -144,7 +148,8 @@ impl Series {
         if self.first_t.is_some() {
             let dt = t - self.last_t;
             let k = (dt / self.period_s).round();
-            let tolerance = 0.01 * self.period_s + 2e-6;
+            // 1 % of the spacing: a long gap's length is known only as well as the period.
+            let tolerance = 0.01 * k.max(1.0) * self.period_s + 2e-6;
             if k < 1.0 || (dt - k * self.period_s).abs() > tolerance {
                 return Err(format!(
                     "line {line_no}: t_s {t} is {dt:.9} s after the previous row, not a whole \
@@ -155,13 +160,16 @@ impl Series {
             }
             let missing = k as u64 - 1;
             self.record.missing_samples += missing;
-            self.angles
-                .extend(std::iter::repeat_n(f64::NAN, missing as usize));
+            self.samples += missing;
+            if missing > 0 {
+                self.angles.push(f64::NAN);
+            }
         } else {
             self.first_t = Some(t);
         }
         self.last_t = t;
         self.record.rows += 1;
+        self.samples += 1;
         if angle.is_none() {
             self.record.invalid_rows += 1;
         }
@@ -170,10 +178,9 @@ impl Series {
     }
 
     fn finish(mut self) -> RateRecord {
-        let n = self.angles.len();
         let span = self.last_t - self.first_t.unwrap_or(self.last_t);
-        if n > 1 && span > 0.0 {
-            self.period_s = span / (n - 1) as f64;
+        if self.samples > 1 && span > 0.0 {
+            self.period_s = span / (self.samples - 1) as f64;
         }
         let period = self.period_s;
         for a in &mut self.angles {
@@ -209,6 +216,7 @@ pub fn read_csv(input: impl BufRead) -> Result<RateRecord, String> {
             missing_samples: 0,
         },
         angles: Vec::new(),
+        samples: 0,
     };
     for row in head.into_iter().map(Ok).chain(rows) {
         let (no, row) = row?;
@@ -243,6 +251,18 @@ mod tests {
             assert!(got.is_nan() == want.is_nan() && (want.is_nan() || (got - want).abs() < 1e-9));
         }
         assert_eq!(r.segments(), vec![0..1, 2..3, 4..5]);
+    }
+
+    /// A jump of a million periods (rows nobody wrote) is one gap marker: counted, not a
+    /// million NaN in memory; its length need not be an exact multiple of the period from the
+    /// rows' rounded times (1 % of the jump).
+    #[test]
+    fn a_long_gap_is_one_marker() {
+        let r = read("t_s,delta_angle_arcsec\n0,1\n1,1\n2,1\n1000002.3,1\n1000003.3,1\n").unwrap();
+        assert_eq!(r.missing_samples, 999_999);
+        assert_eq!(r.rates_deg_h.len(), 6);
+        assert_eq!(r.segments(), vec![0..3, 4..6]);
+        assert!((r.period_s - 1.0).abs() < 1e-6);
     }
 
     /// `rlg-sim record`'s columns, without `valid` in the order of the header.
