@@ -1,8 +1,10 @@
 //! `rlg-sim`: the simulated ring laser gyro with the readout firmware's signal chain in the loop.
 //!
 //! `rlg-sim sweep` reproduces the paper's experiment (Fan et al., Chin. Opt. Lett. 10, 061403,
-//! Figs. 3 and 4); `rlg-sim speed` measures the simulator. Results go to stdout, diagnostics and
-//! errors to stderr; exit status 0 on success, 1 on a failed run, 2 on bad arguments.
+//! Figs. 3 and 4); `rlg-sim speed` measures the simulator; `rlg-sim allan` computes the Allan
+//! deviation and the noise terms of a recorded rate (`rlg_sim::allan`). Results go to stdout,
+//! diagnostics and errors to stderr; exit status 0 on success, 1 on a failed run, 2 on bad
+//! arguments.
 
 mod args;
 
