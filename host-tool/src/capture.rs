@@ -162,6 +162,7 @@ impl Capture {
             }],
             width_px: 900.0,
             height_px: 500.0,
+            axes: rlg_sim::plot::Axes::Linear,
         }
         .to_svg()
     }

@@ -277,6 +277,7 @@ impl SweepReport {
             ],
             width_px: 900.0,
             height_px: 650.0,
+            axes: rlg_sim::plot::Axes::Linear,
         }
         .to_svg()
     }

@@ -35,6 +35,9 @@ pub enum Command {
     /// The board's fixed-rate output at a constant input rate: calibrates as `sweep` does,
     /// then writes one CSV row per sync period (the board's increment beside the true one).
     Record(RecordArgs),
+    /// Overlapping Allan deviation of a recorded rate (a CSV of `rlg-sim record` or `rlg-cal
+    /// record`) with confidence intervals, and the IEEE 952 noise terms fitted to it.
+    Allan(AllanArgs),
 }
 
 /// How the dither is made.
@@ -418,4 +421,36 @@ pub struct SpeedArgs {
     /// Simulated seconds to time.
     #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
     pub seconds: f64,
+}
+
+/// `rlg-sim allan`: the Allan deviation of a recorded rate.
+#[derive(Args, Debug, Clone)]
+pub struct AllanArgs {
+    /// The record: a CSV with the columns t_s and delta_angle_arcsec, and optionally valid
+    /// (rows with valid 0 or no angle are gaps), as `rlg-sim record` and `rlg-cal record`
+    /// write it.
+    #[arg(long)]
+    pub input: PathBuf,
+    /// Two-sided confidence of the intervals (0.5..=0.999).
+    #[arg(long, default_value_t = 0.95, allow_negative_numbers = true)]
+    pub confidence: f64,
+    /// Write the deviation as CSV (tau_s,adev_deg_h,ci_low_deg_h,ci_high_deg_h).
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// Write the log-log plot (deviation, intervals, fitted terms and their slopes) as SVG.
+    #[arg(long)]
+    pub svg: Option<PathBuf>,
+}
+
+impl AllanArgs {
+    /// Ranges; the message names the flag.
+    pub fn validate(&self) -> Result<(), String> {
+        let range = rlg_sim::allan::CONFIDENCE_RANGE;
+        in_range(
+            "--confidence",
+            self.confidence,
+            *range.start(),
+            *range.end(),
+        )
+    }
 }

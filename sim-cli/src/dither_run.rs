@@ -324,6 +324,7 @@ pub fn figure(rows: &[DitherRow], options: &DitherRunOptions) -> crate::plot::Fi
         x_label: "time (s)".into(),
         width_px: 900.0,
         height_px: 900.0,
+        axes: crate::plot::Axes::Linear,
         panels: vec![
             Panel {
                 title: "amplitude (simulator's truth)".into(),

@@ -5,6 +5,7 @@
 
 #![warn(missing_docs)]
 
+pub mod allan;
 pub mod dither_run;
 pub mod experiment;
 pub mod interrupt;

@@ -1,14 +1,16 @@
 //! `rlg-sim`: the simulated ring laser gyro with the readout firmware's signal chain in the loop.
 //!
 //! `rlg-sim sweep` reproduces the paper's experiment (Fan et al., Chin. Opt. Lett. 10, 061403,
-//! Figs. 3 and 4); `rlg-sim speed` measures the simulator. Results go to stdout, diagnostics and
-//! errors to stderr; exit status 0 on success, 1 on a failed run, 2 on bad arguments.
+//! Figs. 3 and 4); `rlg-sim speed` measures the simulator; `rlg-sim allan` computes the Allan
+//! deviation and the noise terms of a recorded rate (`rlg_sim::allan`). Results go to stdout,
+//! diagnostics and errors to stderr; exit status 0 on success, 1 on a failed run, 2 on bad
+//! arguments.
 
 mod args;
 
 use args::{
-    BoardArgs, CalibrationArgs, Cli, Command, DitherArgs, GyroArgs, RecordArgs, SpeedArgs,
-    SweepArgs,
+    AllanArgs, BoardArgs, CalibrationArgs, Cli, Command, DitherArgs, GyroArgs, RecordArgs,
+    SpeedArgs, SweepArgs,
 };
 use clap::Parser;
 use firmware::signal::compensation::CompensationSettings;
@@ -35,6 +37,7 @@ fn main() -> ExitCode {
         Command::Speed(args) => speed(&args),
         Command::Dither(args) => dither(&args),
         Command::Record(args) => record(&args),
+        Command::Allan(args) => allan(&args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
@@ -469,6 +472,47 @@ fn dither(args: &DitherArgs) -> Result<(), Failure> {
         std::fs::write(path, dither_run::figure(&rows, &options).to_svg())
             .map_err(|e| Failure::Run(format!("{}: {e}", path.display())))?;
         eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// `rlg-sim allan`: read the record, compute, print the table; the CSV and SVG if asked.
+fn allan(args: &AllanArgs) -> Result<(), Failure> {
+    use rlg_sim::allan::{analyse, input, output};
+    args.validate().map_err(Failure::Usage)?;
+    // The output paths' folders must exist; nothing is created or truncated before the input
+    // has been read and analysed (a bad record changes nothing).
+    for path in [&args.csv, &args.svg].into_iter().flatten() {
+        let folder = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => std::path::Path::new("."),
+        };
+        if !folder.is_dir() {
+            return Err(Failure::Usage(format!(
+                "cannot write {}: no folder {}",
+                path.display(),
+                folder.display()
+            )));
+        }
+    }
+    let name = args.input.display();
+    let file = std::fs::File::open(&args.input)
+        .map_err(|e| Failure::Usage(format!("--input {name}: {e}")))?;
+    let record = input::read_csv(std::io::BufReader::with_capacity(1 << 20, file))
+        .map_err(|e| Failure::Run(format!("{name}: {e}")))?;
+    let analysis =
+        analyse(&record, args.confidence).map_err(|e| Failure::Run(format!("{name}: {e}")))?;
+    println!("# {name}: {}", output::record_summary(&record));
+    print!("{}", output::table(&analysis));
+    let write = |path: &std::path::PathBuf, text: String| {
+        std::fs::write(path, text).map_err(|e| Failure::Run(format!("{}: {e}", path.display())))
+    };
+    if let Some(path) = &args.csv {
+        write(path, output::csv(&analysis))?;
+    }
+    if let Some(path) = &args.svg {
+        let title = format!("Allan deviation: {name}");
+        write(path, output::figure(&analysis, &title).to_svg())?;
     }
     Ok(())
 }

@@ -64,6 +64,19 @@ pub struct Figure {
     pub width_px: f64,
     /// SVG height, px (truncated to whole pixels).
     pub height_px: f64,
+    /// Linear axes, or logarithmic x and y (the Allan deviation).
+    pub axes: Axes,
+}
+
+/// The scale of the axes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Axes {
+    /// Linear x and y.
+    #[default]
+    Linear,
+    /// Decades on x and y: points are drawn at `log10` of their coordinates (those not
+    /// positive are skipped) and the ticks are labelled with the values.
+    LogLog,
 }
 
 /// Left label area (tick labels and the rotated y label), px.
@@ -86,6 +99,16 @@ fn format_tick(v: f64) -> String {
         let s = format!("{v:.6}");
         s.trim_end_matches('0').trim_end_matches('.').to_string()
     }
+}
+
+/// Tick label of a log axis at `log10` value `v`: the value to 2 significant digits.
+fn format_decade(v: f64) -> String {
+    let x = 10f64.powf(v);
+    if !(1e-3..1e5).contains(&x) {
+        return format!("{x:.1e}");
+    }
+    let digits = (1.0 - x.log10().floor()).max(0.0) as usize;
+    format!("{x:.digits$}")
 }
 
 /// `#rrggbb` to a colour; anything else is black.
@@ -121,19 +144,40 @@ type Area<'a> = DrawingArea<SVGBackend<'a>, plotters::coord::Shift>;
 impl Figure {
     /// Renders the figure as a standalone SVG document.
     pub fn to_svg(&self) -> String {
+        if self.axes == Axes::LogLog {
+            return self.logarithms().render(true);
+        }
+        self.render(false)
+    }
+
+    /// The figure with `log10` of every coordinate (not positive: NaN, skipped).
+    fn logarithms(&self) -> Figure {
+        let log = |v: f64| if v > 0.0 { v.log10() } else { f64::NAN };
+        let mut fig = self.clone();
+        fig.axes = Axes::Linear;
+        for series in fig.panels.iter_mut().flat_map(|p| p.series.iter_mut()) {
+            for p in &mut series.points {
+                *p = (log(p.0), log(p.1));
+            }
+        }
+        fig
+    }
+
+    /// The SVG; `decades`: the coordinates are `log10` of the values the ticks show.
+    fn render(&self, decades: bool) -> String {
         let mut svg = String::new();
         let size = (self.width_px as u32, self.height_px as u32);
         {
             let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
             // Errors of the string backend cannot happen (it only appends to a String).
-            let _ = self.draw(&root);
+            let _ = self.draw(&root, decades);
             let _ = root.present();
         }
         svg.push('\n');
         svg
     }
 
-    fn draw(&self, root: &Area<'_>) -> Result<(), Box<dyn std::error::Error>> {
+    fn draw(&self, root: &Area<'_>, decades: bool) -> Result<(), Box<dyn std::error::Error>> {
         root.fill(&WHITE)?;
         let body = root.titled(&self.title, ("sans-serif", 17))?;
         let xs = self
@@ -154,7 +198,7 @@ impl Figure {
                 rest = below;
                 area
             };
-            self.draw_panel(&area, panel, x_range, last)?;
+            self.draw_panel(&area, panel, x_range, last, decades)?;
         }
         Ok(())
     }
@@ -165,6 +209,7 @@ impl Figure {
         panel: &Panel,
         (x_lo, x_hi): (f64, f64),
         last: bool,
+        decades: bool,
     ) -> Result<(), Box<dyn std::error::Error>> {
         let (y_lo, y_hi) = range(
             panel
@@ -182,6 +227,9 @@ impl Figure {
             .build_cartesian_2d(x_lo..x_hi, y_lo..y_hi)?;
         // A tick at zero may come out as 1e-20 or so: label it 0.
         let y_tick = |v: &f64| {
+            if decades {
+                return format_decade(*v);
+            }
             format_tick(if v.abs() < 1e-9 * (y_hi - y_lo) {
                 0.0
             } else {
@@ -189,6 +237,9 @@ impl Figure {
             })
         };
         let x_tick = |v: &f64| {
+            if decades {
+                return format_decade(*v);
+            }
             format_tick(if v.abs() < 1e-9 * (x_hi - x_lo) {
                 0.0
             } else {
@@ -213,7 +264,7 @@ impl Figure {
             [(x_lo, y_lo), (x_hi, y_hi)],
             FRAME.stroke_width(1),
         ))?;
-        if y_lo < 0.0 && y_hi > 0.0 {
+        if !decades && y_lo < 0.0 && y_hi > 0.0 {
             chart.draw_series(LineSeries::new([(x_lo, 0.0), (x_hi, 0.0)], ZERO_LINE))?;
         }
         for series in &panel.series {
@@ -283,11 +334,51 @@ mod tests {
             }],
             width_px: 800.0,
             height_px: 600.0,
+            axes: Axes::Linear,
         };
         let svg = fig.to_svg();
         assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
         assert!(svg.contains("a &lt; b &amp; c"));
         assert_eq!(svg.matches("<circle").count(), 2, "NaN points are skipped");
         assert_eq!(svg.matches('<').count(), svg.matches('>').count());
+    }
+
+    /// Log-log: points at their decades, non-positive ones skipped, ticks labelled with values.
+    #[test]
+    fn log_log_skips_non_positive_points_and_labels_values() {
+        let fig = Figure {
+            title: "adev".into(),
+            x_label: "tau (s)".into(),
+            panels: vec![Panel {
+                title: String::new(),
+                y_label: "deg/h".into(),
+                series: vec![Series {
+                    label: "adev".into(),
+                    points: vec![
+                        (0.01, 1.0),
+                        (1.0, 0.1),
+                        (100.0, 0.01),
+                        (0.0, 1.0),
+                        (1.0, -1.0),
+                    ],
+                    color: "#1f77b4",
+                    style: Style::Markers,
+                }],
+                weight: 1.0,
+            }],
+            width_px: 800.0,
+            height_px: 600.0,
+            axes: Axes::LogLog,
+        };
+        let svg = fig.to_svg();
+        assert_eq!(svg.matches("<circle").count(), 3);
+        let labels: Vec<&str> = svg
+            .split("</text>")
+            .filter_map(|t| t.rsplit('>').next())
+            .map(str::trim)
+            .collect();
+        for want in ["0.010", "0.032", "1.0", "3.2", "100"] {
+            assert!(labels.contains(&want), "{want} not in {labels:?}");
+        }
     }
 }

@@ -69,6 +69,7 @@ pub fn figure(rows: &[SweepRow], scale_factor_arcsec: f64, title: &str) -> Figur
         x_label: "input rate (deg/h)".into(),
         width_px: 900.0,
         height_px: 960.0,
+        axes: crate::plot::Axes::Linear,
         panels: vec![
             Panel {
                 title: "gyro output (Fig. 3 uncompensated, Fig. 4 compensated)".into(),
