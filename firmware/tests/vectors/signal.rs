@@ -193,21 +193,22 @@ pub fn cycle_assembly(out: &mut Outputs) {
     }
 }
 
-/// The whole chain (`firmware::readout`): Lissajous samples teach the normalisation, then the
-/// turnaround latches of a 389 Hz dither (encoder register, both ADC codes, capture time) with a
-/// slow input rate become compensated cycles.
-pub fn readout_chain(out: &mut Outputs) {
+/// The F405's readout with compensation on (a = 387, b = 383 rad/s) and the Lissajous fit
+/// trained on 4096 conversions of an elliptic, offset figure; the figure, for the latches.
+fn trained_readout(
+    rng: &mut Rng,
+) -> (
+    firmware::readout::ReadoutConfig,
+    firmware::readout::Readout,
+    Figure,
+) {
     use compensation::{Coefficients, CompensationSettings};
-    use firmware::readout::Readout;
-    use firmware::sample::TurnaroundSample;
-    let mut rng = Rng::new(0x5eed_0014);
     let config = firmware::profile::BoardProfile::F405.readout_config(389.0);
-    let coefficients = Coefficients::from_rad_per_s(387.0, 383.0).unwrap_or_default();
     let settings = CompensationSettings {
-        coefficients,
+        coefficients: Coefficients::from_rad_per_s(387.0, 383.0).unwrap_or_default(),
         enabled: true,
     };
-    let mut readout = Readout::new(&config, settings);
+    let mut readout = firmware::readout::Readout::new(&config, settings);
     let figure = Figure {
         offsets: (2010.0, 2090.0),
         radii: (1600.0, 1450.0),
@@ -215,9 +216,19 @@ pub fn readout_chain(out: &mut Outputs) {
     };
     for _ in 0..4096 {
         let psi = rng.f32_in(0.0, core::f32::consts::TAU);
-        let (a, b) = figure.codes_at(&mut rng, psi);
+        let (a, b) = figure.codes_at(rng, psi);
         readout.on_lissajous_sample(&config, a, b);
     }
+    (config, readout, figure)
+}
+
+/// The whole chain (`firmware::readout`): Lissajous samples teach the normalisation, then the
+/// turnaround latches of a 389 Hz dither (encoder register, both ADC codes, capture time) with a
+/// slow input rate become compensated cycles.
+pub fn readout_chain(out: &mut Outputs) {
+    use firmware::sample::TurnaroundSample;
+    let mut rng = Rng::new(0x5eed_0014);
+    let (config, mut readout, figure) = trained_readout(&mut rng);
     let register_offset = rng.u32();
     let (mut centre_q32, mut ticks) = (0i64, 0u32); // psi_H in Q32 turns
     for i in 0..1200u32 {
@@ -272,27 +283,10 @@ pub fn readout_chain(out: &mut Outputs) {
 /// compensation's corrections enter too). Every record's fields, its frame's bytes and the
 /// fitted taps: the f32 fit and the i128 angle must agree bit for bit on both sides.
 pub fn output_stage(out: &mut Outputs) {
-    use compensation::{Coefficients, CompensationSettings};
     use firmware::protocol::output_frame::{encode_output_frame, MAX_OUTPUT_FRAME};
-    use firmware::readout::Readout;
     use firmware::sample::{OutputSample, TurnaroundSample};
     let mut rng = Rng::new(0x5eed_0020);
-    let config = firmware::profile::BoardProfile::F405.readout_config(389.0);
-    let settings = CompensationSettings {
-        coefficients: Coefficients::from_rad_per_s(387.0, 383.0).unwrap_or_default(),
-        enabled: true,
-    };
-    let mut readout = Readout::new(&config, settings);
-    let figure = Figure {
-        offsets: (2010.0, 2090.0),
-        radii: (1600.0, 1450.0),
-        alpha: 0.08,
-    };
-    for _ in 0..4096 {
-        let psi = rng.f32_in(0.0, core::f32::consts::TAU);
-        let (a, b) = figure.codes_at(&mut rng, psi);
-        readout.on_lissajous_sample(&config, a, b);
-    }
+    let (config, mut readout, figure) = trained_readout(&mut rng);
     // psi_H (Q32 turns) = rate t + 240 fringes sin(w t); the pick-off 1.04 x the nominal
     // 1125 codes per 450 arcsec, 3 us late. Latches every 84 000 ticks (1 kHz), turnarounds at
     // the dither's extremes.
