@@ -15,7 +15,8 @@
 //! ```
 //!
 //! and the exponentially weighted least-squares fit of `d_psi` on `[1, d_p]` (an intercept for
-//! the input rate) gives the `K` that leaves the output uncorrelated with the pick-off.
+//! the input rate; with the second tap below, on `[1, d_p, d_p_previous]`) gives the `K` that
+//! leaves the output uncorrelated with the pick-off.
 //! Increments at output latches (100 Hz - 2 kHz, incommensurate with the dither) sample every
 //! phase of the dither, so `d_p` spans +-2 amplitudes and the fit is well conditioned; the
 //! pick-off's noise in the regressor biases `K` by its variance over the dither's, about 1e-6.
@@ -40,6 +41,13 @@
 //! adds little of the pick-off's noise. The two taps assume a steady sync period: a missed
 //! sync leaves one record off by `K'` times the dither's step.
 //!
+//! # The innovation gate
+//!
+//! A stripped increment is compared with the recent ones ([`StripConfig::innovation_limit_fringes`]):
+//! a pick-off that stops reporting the dither (a broken wire reads its offset) leaves the dither
+//! itself in the increment, hundreds of fringes, and the latch is flagged before the dither
+//! supervisor has even noticed; the record is then invalid (`record.rs`).
+
 use crate::units::Q32_PER_FRINGE;
 
 /// Settings of the stripper (immutable).
