@@ -12,6 +12,8 @@
 #![cfg_attr(not(test), no_std)]
 #![warn(missing_docs)]
 
+mod flags;
+
 pub mod calibration;
 pub mod dither;
 pub mod math;

@@ -39,6 +39,8 @@ use crate::units::{TotalPhase, Q32_PER_FRINGE};
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CycleFlags(pub u8);
 
+crate::flags::flag_set_ops!(CycleFlags);
+
 impl CycleFlags {
     /// Photodiode amplitude too small to normalise (fractional fringe unavailable).
     pub const SIGNAL_LOST: Self = Self(1 << 0);
@@ -53,22 +55,6 @@ impl CycleFlags {
     /// output is invalid. Its P1/P2 are still measured (compensable as far as they go).
     pub const DRIVE_UNLOCKED: Self = Self(1 << 4);
 
-    /// No flag.
-    pub const fn empty() -> Self {
-        Self(0)
-    }
-    /// The flags of both.
-    pub const fn union(self, other: Self) -> Self {
-        Self(self.0 | other.0)
-    }
-    /// Every flag of `other` is set.
-    pub const fn contains(self, other: Self) -> bool {
-        self.0 & other.0 == other.0
-    }
-    /// No flag is set.
-    pub const fn is_empty(self) -> bool {
-        self.0 == 0
-    }
     /// The cycle's P1/P2 can be trusted for compensation: the levels were seen at every
     /// turnaround and k was measured (neither [`Self::SIGNAL_LOST`] nor
     /// [`Self::DITHER_INVALID`]). A counter glitch or a missed turnaround leaves P1/P2 valid.

@@ -43,6 +43,8 @@ pub struct OutputConfig {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct OutputStatus(pub u16);
 
+crate::flags::flag_set_ops!(OutputStatus);
+
 impl OutputStatus {
     /// The increment is good: none of the fault bits, a locked drive, a previous latch.
     pub const VALID: Self = Self(1 << 0);
@@ -68,27 +70,6 @@ impl OutputStatus {
     pub const FAULTS: Self = Self(
         Self::COUNTER_GLITCH.0 | Self::SIGNAL_LOST.0 | Self::PICKOFF_FAULT.0 | Self::RESTART.0,
     );
-
-    /// No bit set.
-    pub const fn empty() -> Self {
-        Self(0)
-    }
-    /// Both sets of bits.
-    pub const fn union(self, other: Self) -> Self {
-        Self(self.0 | other.0)
-    }
-    /// True when every bit of `other` is set.
-    pub const fn contains(self, other: Self) -> bool {
-        self.0 & other.0 == other.0
-    }
-    /// True when any bit of `other` is set.
-    pub const fn intersects(self, other: Self) -> bool {
-        self.0 & other.0 != 0
-    }
-    /// With the bits of `other` cleared.
-    pub const fn without(self, other: Self) -> Self {
-        Self(self.0 & !other.0)
-    }
 }
 
 /// One output period.
