@@ -97,13 +97,28 @@ fn spawn_calibrated(args: &[&str]) -> (std::process::Child, BufReader<std::proce
     (child, stderr)
 }
 
+/// SIGINT to `child`, then its output and the rest of its stderr once it has ended.
+fn interrupt(
+    child: std::process::Child,
+    mut stderr: BufReader<std::process::ChildStderr>,
+) -> (Output, String) {
+    // SAFETY: a signal to our own child process.
+    assert_eq!(
+        unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) },
+        0
+    );
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
+    (child.wait_with_output().unwrap(), rest)
+}
+
 /// Ctrl-C after the calibration: the input rates under way finish, the rest are skipped; the
 /// table and the CSV hold the rates done (the same rows), and the exit status is 130.
 #[test]
 fn sigint_keeps_the_points_done() {
     let csv = std::env::temp_dir().join(format!("rlg-sim-int-{}.csv", std::process::id()));
     let csv_arg = csv.to_str().unwrap();
-    let (child, mut stderr) = spawn_calibrated(&[
+    let (child, stderr) = spawn_calibrated(&[
         "sweep",
         "--quiet",
         "--calibration-seconds",
@@ -112,14 +127,7 @@ fn sigint_keeps_the_points_done() {
         csv_arg,
     ]);
     std::thread::sleep(Duration::from_millis(500));
-    // SAFETY: a signal to our own child process.
-    assert_eq!(
-        unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) },
-        0
-    );
-    let mut rest = String::new();
-    std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
-    let out = child.wait_with_output().unwrap();
+    let (out, rest) = interrupt(child, stderr);
     assert_eq!(out.status.code(), Some(130), "{rest}");
     assert!(rest.contains("input rates done"), "{rest}");
     let rows = std::fs::read_to_string(&csv).unwrap().lines().count() - 1;
@@ -142,7 +150,7 @@ fn sigint_keeps_the_points_done() {
 fn record_sigint_keeps_every_row() {
     let csv = std::env::temp_dir().join(format!("rlg-sim-rec-{}.csv", std::process::id()));
     let csv_arg = csv.to_str().unwrap();
-    let (child, mut stderr) = spawn_calibrated(&[
+    let (child, stderr) = spawn_calibrated(&[
         "record",
         "--quiet",
         "--calibration-seconds",
@@ -156,14 +164,7 @@ fn record_sigint_keeps_every_row() {
     // Rows are on disk before the run ends (flushed at least once a second).
     let early = std::fs::read_to_string(&csv).unwrap().lines().count();
     assert!(early > 1, "{early} lines after 1.5 s");
-    // SAFETY: a signal to our own child process.
-    assert_eq!(
-        unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) },
-        0
-    );
-    let mut rest = String::new();
-    std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
-    let out = child.wait_with_output().unwrap();
+    let (out, rest) = interrupt(child, stderr);
     assert_eq!(out.status.code(), Some(130), "{rest}");
     let written = std::fs::read_to_string(&csv).unwrap();
     let mut lines = written.lines();
