@@ -85,9 +85,9 @@ pub enum DitherModel {
 /// Settings of the integrator (see [`crate::phase`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SolverParams {
-    /// Largest beat-phase advance per step in near regions, rad (Gauss-Legendre, order 6;
-    /// 0.5 gives ~4e-8 rad per traversal at the docs/physics.md set). The step is
-    /// `h = dtheta / (|omega| + Omega_L + sqrt(|omega'| 0.25 rad))`.
+    /// Largest beat-phase advance per step in near regions, rad (Gauss-Legendre, order 10;
+    /// 2 gives 1.3e-8 rad per traversal at the docs/physics.md set, 4 gives 2e-4). The step
+    /// is `h = dtheta / (|omega| + Omega_L + sqrt(|omega'| 1 rad))`.
     pub step_phase_rad: f64,
     /// Lock-in-free rate above which the far-field expansion replaces stepping, rad/s. A floor:
     /// the gyro uses at least 500 Omega_L (the far series runs in Omega_L / omega), see
@@ -114,7 +114,7 @@ impl SolverParams {
 impl Default for SolverParams {
     fn default() -> Self {
         Self {
-            step_phase_rad: 0.5,
+            step_phase_rad: 2.0,
             far_threshold_rad_per_s: 5.0e5,
             far_max_adiabatic: 0.04,
             max_piece_s: 1.0e-3,
@@ -315,8 +315,8 @@ impl GyroParams {
         }
         let s = &self.solver;
         check(
-            s.step_phase_rad > 0.0 && s.step_phase_rad <= 1.0,
-            "solver.step_phase_rad must be in (0, 1]",
+            s.step_phase_rad > 0.0 && s.step_phase_rad <= 4.0,
+            "solver.step_phase_rad must be in (0, 4]",
         )?;
         check(
             s.far_max_adiabatic > 0.0 && s.far_max_adiabatic <= 0.05,

@@ -66,7 +66,13 @@ pub struct Oscillation {
 impl Oscillation {
     /// `W(psi)`.
     pub fn eval(&self, psi: f64) -> f64 {
-        let (s1, c1) = psi.sin_cos();
+        // The fast pair is exact enough below 1e5 rad (its reduction's range); beyond, libm.
+        let (c1, s1) = if psi.abs() < 1e5 {
+            super::trig::fast_cos_sin(psi)
+        } else {
+            let (s, c) = psi.sin_cos();
+            (c, s)
+        };
         // cos/sin of k psi by the angle-addition recurrence.
         let (mut ck, mut sk) = (c1, s1);
         let mut acc = 0.0;
@@ -160,7 +166,7 @@ pub fn oscillation_orders(
         for k in 1..ntop {
             rest = rest.max(sc[k][0].abs()).max(ss[k][0].abs());
         }
-        if rest < 1e-15 * omega_taylor[0].abs() {
+        if rest < 1e-14 * omega_taylor[0].abs() {
             break;
         }
     }
@@ -185,13 +191,18 @@ pub fn drift_rate(omega: f64, d1: f64, d2: f64, omega_l: f64) -> f64 {
 pub fn solve_phi(chi: f64, theta: f64, w: &Oscillation) -> f64 {
     let mut phi = chi;
     for _ in 0..6 {
-        phi = chi + w.eval(theta + phi);
+        let next = chi + w.eval(theta + phi);
+        let done = next == phi;
+        phi = next;
+        if done {
+            break;
+        }
     }
     phi
 }
 
 /// Nodes per Chebyshev piece of the drift integral.
-pub const CHEB_NODES: usize = 24;
+pub const CHEB_NODES: usize = 20;
 
 /// `cos(pi j (k + 1/2) / n)`: row 1 holds the nodes.
 fn cheb_table() -> &'static [[f64; CHEB_NODES]; CHEB_NODES] {

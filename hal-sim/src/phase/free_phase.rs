@@ -81,7 +81,14 @@ impl FreePhase {
     pub fn piece_at(&self, t_s: f64) -> PieceId {
         PieceId {
             input: self.input.piece_index(t_s),
-            noise: self.noise.segment_at(t_s, &self.dither),
+            // Without noise the segments share one formula: one id, so the planner joins the
+            // far segments on both sides of a piece boundary (one far expansion per half
+            // cycle instead of two at every other dither peak).
+            noise: if self.noise.is_on() {
+                self.noise.segment_at(t_s, &self.dither)
+            } else {
+                0
+            },
             drive: self.dither.drive_index_at(t_s),
         }
     }

@@ -14,9 +14,8 @@
 //! - [`plan`] splits time, from `omega(t)` alone, into *near* segments (|omega| small, around
 //!   each turnaround; default |omega| < 5e5 rad/s, +-55 us) and *far* segments, and finds the
 //!   turnarounds by Newton to the last bit.
-//! - [`near`]: 3-stage Gauss-Legendre collocation (order 6) on `phi` with `theta` from a local
-//!   Taylor polynomial; the step limits the beat-phase advance to `dtheta` = 0.5 rad
-//!   (~65 steps per traversal).
+//! - [`near`]: 5-stage Gauss-Legendre collocation (order 10) on `phi` with `theta` from a
+//!   local Taylor polynomial; the step limits the beat-phase advance to `dtheta` = 2 rad.
 //! - [`far`]: no stepping; a near-identity transformation `phi = chi + W(t, psi)` removes the
 //!   fringe-rate oscillation to 8th order in `Omega_L/omega` and `omega'/omega^2`, and the
 //!   slow `chi` drifts by `-Omega_L^2/(2 omega) + ...`, integrated by a Chebyshev
@@ -26,9 +25,9 @@
 //!   has the closed forms (Eq. 5, the stationary-phase traversal error; Chow's J0 band is the
 //!   firmware's).
 //!
-//! Measured (tests `theory_convergence`, bench `phase`): per-traversal error ~4e-8 rad at the
-//! defaults against the converged reference, order >= 6 under step halving, ~50-60
-//! gyro-seconds per wall-second on one core.
+//! Measured (tests `theory_convergence`, bench `phase`): per-traversal error 1.3e-8 rad at
+//! the defaults against the converged reference, order >= 10 under step halving; the speed
+//! is in the README (`cargo bench -p hal-sim --bench phase`, `rlg-sim speed`).
 pub mod far;
 pub mod free_phase;
 pub mod integrator;

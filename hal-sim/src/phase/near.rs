@@ -1,17 +1,25 @@
-//! The near region around a turnaround: 3-stage Gauss-Legendre collocation (order 6) on
+//! The near region around a turnaround: 5-stage Gauss-Legendre collocation (order 10) on
 //! the lock-in phase `phi' = Omega_L cos(theta(t) + phi)`, with `theta` from a local
 //! Taylor polynomial.
 //!
 //! Why Gauss-Legendre: the error is almost entirely the quadrature of the fringe-rate
-//! oscillation (the coupling through `phi` is weak, `Omega_L h << 1`), and a 3-node Gauss
-//! rule is exact to degree 5, so it takes ~3x longer steps than classic RK4 at equal
-//! accuracy. Its implicit stages converge by plain fixed-point iteration (contraction
-//! `~Omega_L h / 2`), and each iteration only rotates the three stage phases by a tiny
-//! angle, so a step costs three `(cos, sin)` pairs and three polynomial evaluations.
+//! oscillation (the coupling through `phi` is weak, `Omega_L h << 1`), and an s-node Gauss
+//! rule is exact to degree 2s - 1. Why 5 stages: for an oscillation the rule's error falls
+//! like `(phase span per step)^(2s)` with a constant that shrinks fast with s, so more nodes
+//! on longer steps cost fewer `(cos, sin)` evaluations per radian of beat phase. Measured
+//! at the docs/physics.md set (`examples/speed_study.rs`): 3 stages at `dtheta` 0.5 gave
+//! 3.6e-8 rad per traversal; 5 stages at `dtheta` 2 give 1.3e-8 (the far series' floor)
+//! with half the near region's cost. Its implicit stages converge by plain fixed-point
+//! iteration (contraction `~Omega_L h / 2`, < 1e-2 here), and each iteration only rotates
+//! the stage phases by a tiny angle, so a step costs five `(cos, sin)` pairs and five
+//! polynomial evaluations. The tableau is computed once from the Legendre nodes
+//! ([`Tableau::new`]), not typed in.
 //!
 //! Step size: the beat phase may advance at most `dtheta` per step,
 //! `h = dtheta / (|omega| + Omega_L + sqrt(|omega'| TURN_PHASE_RAD))`: far from the
-//! turnaround this is `dtheta/|omega|`, at the turnaround `dtheta / sqrt(|psi_ddot| 0.25)`.
+//! turnaround this is `dtheta/|omega|`, at the turnaround `dtheta / sqrt(|psi_ddot| 1 rad)`
+//! (with a quadratic phase a step of the same `dtheta` spans more phase there, hence the
+//! curvature term: 0.25 rad, as the 3-stage rule had, gave 4e-6 rad at `dtheta` 1.5).
 //! Every step is proportional to `dtheta`, so the error falls with a clean power of it.
 //! The step sequence depends only on the segment (never on output requests), so results do
 //! not depend on how often a caller looks.
@@ -157,13 +165,13 @@ fn cos_shifted(c: f64, s: f64, e: f64) -> f64 {
 }
 
 /// Curvature scale of the step rule at a turnaround, rad (see [`step_size`]).
-pub const TURN_PHASE_RAD: f64 = 0.25;
+pub const TURN_PHASE_RAD: f64 = 1.0;
 
 /// Step size: `h = dtheta / (|omega| + Omega_L + sqrt(|omega'| TURN_PHASE_RAD))`.
 ///
 /// Far from the turnaround the beat phase advances `dtheta` per step; at the turnaround the
-/// step is `dtheta / sqrt(|psi_ddot| 0.25 rad)` (~10 us for the docs/physics.md set at the
-/// default `dtheta = 0.5`, k/2.5). Every step is proportional to `dtheta`.
+/// step is `dtheta / sqrt(|psi_ddot| 1 rad)` (~21 us for the docs/physics.md set at the
+/// default `dtheta = 2`). Every step is proportional to `dtheta`.
 #[inline(always)]
 pub fn step_size(omega: f64, slope: f64, omega_l: f64, dtheta: f64) -> f64 {
     dtheta / (omega.abs() + omega_l + (slope.abs() * TURN_PHASE_RAD).sqrt())
@@ -178,64 +186,107 @@ struct PolyPoint {
     f_last: f64,
 }
 
-const SQRT15: f64 = 3.872_983_346_207_417;
-/// Gauss-Legendre 3-stage collocation (order 6): nodes, weights, matrix.
-const GL_C: [f64; 3] = [0.5 - SQRT15 / 10.0, 0.5, 0.5 + SQRT15 / 10.0];
-const GL_B: [f64; 3] = [5.0 / 18.0, 4.0 / 9.0, 5.0 / 18.0];
-const GL_A: [[f64; 3]; 3] = [
-    [
-        5.0 / 36.0,
-        2.0 / 9.0 - SQRT15 / 15.0,
-        5.0 / 36.0 - SQRT15 / 30.0,
-    ],
-    [
-        5.0 / 36.0 + SQRT15 / 24.0,
-        2.0 / 9.0,
-        5.0 / 36.0 - SQRT15 / 24.0,
-    ],
-    [
-        5.0 / 36.0 + SQRT15 / 30.0,
-        2.0 / 9.0 + SQRT15 / 15.0,
-        5.0 / 36.0,
-    ],
-];
+/// Stages of the Gauss-Legendre collocation (order `2 STAGES`).
+pub const STAGES: usize = 5;
 
-/// One Gauss-Legendre step (3 stages, order 6) of `phi' = Omega_L cos(base + P(tau) + phi)`
-/// from `tau` to `tau + h`; returns `phi(tau + h)` and the last stage derivative.
+/// A Gauss-Legendre Butcher tableau on `[0, 1]`: nodes `c`, weights `b`, matrix `a`.
+#[derive(Clone, Copy, Debug)]
+struct Tableau<const S: usize> {
+    c: [f64; S],
+    b: [f64; S],
+    a: [[f64; S]; S],
+}
+
+/// Legendre polynomial `P_n(x)` and its derivative.
+fn legendre(n: usize, x: f64) -> (f64, f64) {
+    let (mut p0, mut p1) = (1.0, x);
+    for k in 2..=n {
+        let kf = k as f64;
+        let p2 = ((2.0 * kf - 1.0) * x * p1 - (kf - 1.0) * p0) / kf;
+        p0 = p1;
+        p1 = p2;
+    }
+    let d = n as f64 * (x * p1 - p0) / (x * x - 1.0);
+    (p1, d)
+}
+
+impl<const S: usize> Tableau<S> {
+    /// Nodes by Newton on `P_S` (from the asymptotic guess), weights `2 / ((1 - x^2) P'^2)`,
+    /// and `a_ij = integral_0^{c_i} l_j` (the Lagrange basis on the nodes) by the S-node Gauss
+    /// rule on `[0, c_i]` (exact: `l_j` has degree S - 1).
+    fn new() -> Self {
+        let mut x = [0.0; S];
+        let mut w = [0.0; S];
+        for (i, (xi, wi)) in x.iter_mut().zip(w.iter_mut()).enumerate() {
+            let mut z = -(core::f64::consts::PI * (i as f64 + 0.75) / (S as f64 + 0.5)).cos();
+            for _ in 0..100 {
+                let (p, d) = legendre(S, z);
+                let dz = p / d;
+                z -= dz;
+                if dz.abs() < 1e-17 {
+                    break;
+                }
+            }
+            let (_, d) = legendre(S, z);
+            *xi = z;
+            *wi = 2.0 / ((1.0 - z * z) * d * d);
+        }
+        let c = x.map(|v| 0.5 * (1.0 + v));
+        let b = w.map(|v| 0.5 * v);
+        let lagrange = |j: usize, t: f64| {
+            (0..S)
+                .filter(|&m| m != j)
+                .fold(1.0, |acc, m| acc * (t - c[m]) / (c[j] - c[m]))
+        };
+        let mut a = [[0.0; S]; S];
+        for (i, row) in a.iter_mut().enumerate() {
+            for (j, aij) in row.iter_mut().enumerate() {
+                *aij = c[i] * (0..S).map(|k| b[k] * lagrange(j, c[i] * c[k])).sum::<f64>();
+            }
+        }
+        Self { c, b, a }
+    }
+}
+
+fn tableau() -> &'static Tableau<STAGES> {
+    static T: std::sync::OnceLock<Tableau<STAGES>> = std::sync::OnceLock::new();
+    T.get_or_init(Tableau::new)
+}
+
+/// One Gauss-Legendre step ([`STAGES`] stages, order `2 STAGES`) of
+/// `phi' = Omega_L cos(base + P(tau) + phi)` from `tau` to `tau + h`; returns `phi(tau + h)`
+/// and the last stage derivative.
 ///
 /// The implicit stage equations are solved by fixed-point iteration, which contracts by
-/// ~`Omega_L h / 2` (< 2e-3 in a dither near region): the stage phases are computed once
-/// with a full `(cos, sin)` each (three independent evaluations, in parallel in the
-/// pipeline) and every iteration only rotates them by the small change of the stage `phi`.
-/// Iterates to rounding level (a deterministic function of the state, so results stay
-/// bit-reproducible).
+/// ~`Omega_L h / 2` (< 1e-2 in a dither near region): the stage phases are computed once
+/// with a full `(cos, sin)` each (independent evaluations, in parallel in the pipeline) and
+/// every iteration only rotates them by the small change of the stage `phi`. Iterates to
+/// rounding level (a deterministic function of the state, so results stay bit-reproducible).
 #[inline(always)]
-fn gl3_step(poly: &NearPoly, omega_l: f64, tau: f64, phi: f64, h: f64, f_pred: f64) -> (f64, f64) {
-    // Written out for the three stages (no loops: stays unrolled at any opt-level).
+fn gl_step(poly: &NearPoly, omega_l: f64, tau: f64, phi: f64, h: f64, f_pred: f64) -> (f64, f64) {
+    let t = tableau();
     let b = poly.base + phi;
-    let (d01, d02, d03) = (
-        GL_C[0] * h * f_pred,
-        GL_C[1] * h * f_pred,
-        GL_C[2] * h * f_pred,
-    );
-    let (c1, s1) = fast_cos_sin(b + d01 + poly.dtheta(tau + GL_C[0] * h));
-    let (c2, s2) = fast_cos_sin(b + d02 + poly.dtheta(tau + GL_C[1] * h));
-    let (c3, s3) = fast_cos_sin(b + d03 + poly.dtheta(tau + GL_C[2] * h));
-    let (mut f1, mut f2, mut f3) = (omega_l * c1, omega_l * c2, omega_l * c3);
+    let d0 = t.c.map(|c| c * h * f_pred);
+    let mut cs = [(0.0, 0.0); STAGES];
+    for i in 0..STAGES {
+        cs[i] = fast_cos_sin(b + d0[i] + poly.dtheta(tau + t.c[i] * h));
+    }
+    let mut f = cs.map(|(c, _)| omega_l * c);
     for _ in 0..60 {
-        let d1 = h * (GL_A[0][0] * f1 + GL_A[0][1] * f2 + GL_A[0][2] * f3);
-        let d2 = h * (GL_A[1][0] * f1 + GL_A[1][1] * f2 + GL_A[1][2] * f3);
-        let d3 = h * (GL_A[2][0] * f1 + GL_A[2][1] * f2 + GL_A[2][2] * f3);
-        let g1 = omega_l * cos_shifted(c1, s1, d1 - d01);
-        let g2 = omega_l * cos_shifted(c2, s2, d2 - d02);
-        let g3 = omega_l * cos_shifted(c3, s3, d3 - d03);
-        let change = (g1 - f1).abs().max((g2 - f2).abs()).max((g3 - f3).abs());
-        (f1, f2, f3) = (g1, g2, g3);
+        let mut g = [0.0; STAGES];
+        let mut change: f64 = 0.0;
+        for i in 0..STAGES {
+            let d: f64 = t.a[i].iter().zip(&f).map(|(a, fj)| a * fj).sum();
+            g[i] = omega_l * cos_shifted(cs[i].0, cs[i].1, h * d - d0[i]);
+            change = change.max((g[i] - f[i]).abs());
+        }
+        f = g;
         if change * h <= 1e-16 {
             break;
         }
     }
-    (phi + h * (GL_B[0] * f1 + GL_B[1] * f2 + GL_B[2] * f3), f3)
+    let sum: f64 = t.b.iter().zip(&f).map(|(b, fj)| b * fj).sum();
+    (phi + h * sum, f[STAGES - 1])
 }
 
 /// Committed RK state inside one polynomial piece.
@@ -291,7 +342,7 @@ impl NearStepper {
             if tau_new > tau_t {
                 break;
             }
-            let (phi, f_last) = gl3_step(
+            let (phi, f_last) = gl_step(
                 &self.poly,
                 omega_l,
                 self.tau,
@@ -318,7 +369,7 @@ impl NearStepper {
         if h <= 0.0 {
             return self.phi;
         }
-        gl3_step(&self.poly, omega_l, self.tau, self.phi, h, self.at.f_last).0
+        gl_step(&self.poly, omega_l, self.tau, self.phi, h, self.at.f_last).0
     }
 
     /// True once the piece end is committed.

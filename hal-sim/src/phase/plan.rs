@@ -175,7 +175,7 @@ impl Planner {
 /// Root of `q` bracketed by `[a, b]` (Illinois regula falsi), to ~1e-9 of the bracket: a
 /// boundary needs no precision, only determinism and the right side of the sign change.
 fn regula_falsi(q: impl Fn(f64) -> f64, mut a: f64, mut qa: f64, mut b: f64, mut qb: f64) -> f64 {
-    let tol = 1e-9 * (b - a);
+    let tol = 1e-6 * (b - a);
     let mut side = 0;
     for _ in 0..40 {
         let c = (a * qb - b * qa) / (qb - qa);
