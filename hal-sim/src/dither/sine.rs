@@ -237,17 +237,16 @@ impl SineDither {
         if !self.is_on() {
             return;
         }
-        // g = -cos(w t) and its derivatives; A = A0 (1 + m).
-        let mut g = [0.0; MAX_JET];
         // -cos(x) = -sin(x + pi/2): pass sin and cos of x + pi/2, i.e. cos x and -sin x.
         let (c, s) = crate::phase::trig::fast_cos_sin(reduced_phase(self.freq_hz, t_s));
-        crate::input::add_sinusoid_derivs_sc(-1.0, self.w_rad_per_s, c, -s, &mut g[..n]);
         if self.tones.is_empty() {
-            for (o, gk) in out.iter_mut().zip(g.iter()) {
-                *o = self.amp0_rad * gk;
-            }
+            // A0 times the derivatives of -cos(w t), straight into `out` (no scratch to zero).
+            crate::input::add_sinusoid_derivs_sc(-self.amp0_rad, self.w_rad_per_s, c, -s, out);
             return;
         }
+        // g = -cos(w t) and its derivatives; A = A0 (1 + m).
+        let mut g = [0.0; MAX_JET];
+        crate::input::add_sinusoid_derivs_sc(-1.0, self.w_rad_per_s, c, -s, &mut g[..n]);
         let mut a = [0.0; MAX_JET];
         self.modulation_jet(t_s, &mut a[..n]);
         a[0] += 1.0;

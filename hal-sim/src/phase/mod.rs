@@ -30,6 +30,7 @@
 //! is in the README (`cargo bench -p hal-sim --bench phase`, `rlg-sim speed`).
 pub mod far;
 pub mod free_phase;
+pub mod gauss;
 pub mod integrator;
 pub mod near;
 pub mod plan;

@@ -197,40 +197,12 @@ struct Tableau<const S: usize> {
     a: [[f64; S]; S],
 }
 
-/// Legendre polynomial `P_n(x)` and its derivative.
-fn legendre(n: usize, x: f64) -> (f64, f64) {
-    let (mut p0, mut p1) = (1.0, x);
-    for k in 2..=n {
-        let kf = k as f64;
-        let p2 = ((2.0 * kf - 1.0) * x * p1 - (kf - 1.0) * p0) / kf;
-        p0 = p1;
-        p1 = p2;
-    }
-    let d = n as f64 * (x * p1 - p0) / (x * x - 1.0);
-    (p1, d)
-}
-
 impl<const S: usize> Tableau<S> {
-    /// Nodes by Newton on `P_S` (from the asymptotic guess), weights `2 / ((1 - x^2) P'^2)`,
+    /// Nodes and weights of the S-node rule ([`super::gauss::rule`]) moved to `[0, 1]`,
     /// and `a_ij = integral_0^{c_i} l_j` (the Lagrange basis on the nodes) by the S-node Gauss
     /// rule on `[0, c_i]` (exact: `l_j` has degree S - 1).
     fn new() -> Self {
-        let mut x = [0.0; S];
-        let mut w = [0.0; S];
-        for (i, (xi, wi)) in x.iter_mut().zip(w.iter_mut()).enumerate() {
-            let mut z = -(core::f64::consts::PI * (i as f64 + 0.75) / (S as f64 + 0.5)).cos();
-            for _ in 0..100 {
-                let (p, d) = legendre(S, z);
-                let dz = p / d;
-                z -= dz;
-                if dz.abs() < 1e-17 {
-                    break;
-                }
-            }
-            let (_, d) = legendre(S, z);
-            *xi = z;
-            *wi = 2.0 / ((1.0 - z * z) * d * d);
-        }
+        let (x, w) = super::gauss::rule::<S>();
         let c = x.map(|v| 0.5 * (1.0 + v));
         let b = w.map(|v| 0.5 * v);
         let lagrange = |j: usize, t: f64| {
