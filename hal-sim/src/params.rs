@@ -87,7 +87,7 @@ pub enum DitherModel {
 pub struct SolverParams {
     /// Largest beat-phase advance per step in near regions, rad (Gauss-Legendre, order 10;
     /// 2 gives 1.3e-8 rad per traversal at the docs/physics.md set, 4 gives 2e-4). The step
-    /// is `h = dtheta / (|omega| + Omega_L + sqrt(|omega'| 1 rad))`.
+    /// is `h = dtheta / (sqrt(omega^2 + |omega'| 1 rad) + Omega_L)`.
     pub step_phase_rad: f64,
     /// Lock-in-free rate above which the far-field expansion replaces stepping, rad/s. A floor:
     /// the gyro uses at least 500 Omega_L (the far series runs in Omega_L / omega), see

@@ -13,7 +13,7 @@
 //! integrand makes the Gauss rule superconvergent in this range). The order study raises the
 //! far threshold to 1e6 rad/s so that the far-series truncation (~1e-10 there) stays below
 //! the near-region error being measured. At the default settings the per-traversal error
-//! must be <= 2.4e-7 rad (the numba RK4 baseline; measured 1.3e-8 steady, 1.8e-8 with noise,
+//! must be <= 2.4e-7 rad (the numba RK4 baseline; measured 1.3e-8 steady, 2.5e-8 with noise,
 //! jitter and a step, where the 3-stage rule at dtheta 0.5 gave ~4e-8) and so far below the
 //! issue's 1e-6.
 
