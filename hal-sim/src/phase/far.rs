@@ -100,90 +100,118 @@ const INV_K: [f64; H] = {
 /// Fourier coefficients of `W = w_1 + .. + w_ORDER` at one instant, from the Taylor
 /// coefficients `omega_taylor[j] = omega^(j) / j!` there. Also returns the means `g_n`
 /// (index n-1) of the recursion (for checks; the integrator uses [`drift_rate`]).
-pub fn oscillation_with_means(omega_taylor: &Jet, omega_l: f64) -> (Oscillation, [f64; ORDER]) {
-    oscillation_orders(omega_taylor, omega_l, ORDER)
-}
-
-/// As [`oscillation_with_means`] with only the first `orders` terms (`<= ORDER`).
 ///
-/// Written with explicit index loops over only the live harmonics and jet coefficients (at
-/// order n, harmonics up to n + 1 and the first ORDER - n Taylor coefficients): this runs at
-/// every far boundary and must stay cheap even at `opt-level = "s"`.
-pub fn oscillation_orders(
-    omega_taylor: &Jet,
-    omega_l: f64,
-    orders: usize,
-) -> (Oscillation, [f64; ORDER]) {
-    let inv = jrecip(omega_taylor);
-    let half = 0.5 * omega_l;
-    let mut sc = [[0.0; ORDER]; H];
-    let mut ss = [[0.0; ORDER]; H];
-    let mut wc = [[0.0; ORDER]; H];
-    let mut ws = [[0.0; ORDER]; H];
-    sc[1][0] = omega_l;
+/// The recursion runs order by order ([`Recursion::order`], one monomorphised copy per order
+/// so every loop bound is a constant: unrolled, no bounds checks; this runs at both ends of
+/// every far segment and at every dense query inside one, and the loop version with run-time
+/// bounds took four times the arithmetic's instructions), and stops early once the
+/// remainder is negligible (far from the near region the series collapses fast: at a dither
+/// peak `omega' = 0`).
+pub fn oscillation_with_means(omega_taylor: &Jet, omega_l: f64) -> (Oscillation, [f64; ORDER]) {
+    const _: () = assert!(ORDER == 8, "the order list below names each order");
+    let mut r = Recursion::new(omega_taylor, omega_l);
     let mut out = Oscillation::default();
     let mut means = [0.0; ORDER];
-    for (n, mean) in means.iter_mut().enumerate().take(orders) {
-        *mean = sc[0][0];
-        let top = (n + 2).min(H);
-        let len = ORDER - n;
-        // w_n = antiderivative in psi of the oscillating part of S_n, divided by omega.
-        for k in 1..top {
-            // 1/k from a table: this loop's divisions were a fifth of the function's time.
-            let inv_k = INV_K[k];
-            let (ssk, sck) = (&ss[k], &sc[k]);
-            for j in 0..len {
-                let (mut a, mut b) = (0.0, 0.0);
-                for (i, &v) in inv[..=j].iter().rev().enumerate() {
-                    a += ssk[i] * v;
-                    b += sck[i] * v;
-                }
-                wc[k][j] = -a * inv_k;
-                ws[k][j] = b * inv_k;
+    let negligible = 1e-14 * omega_taylor[0].abs();
+    macro_rules! run {
+        ($($n:literal)*) => {$(
+            means[$n] = r.sc[0][0];
+            if r.order::<$n>(&mut out) < negligible {
+                return (out, means);
             }
-            out.c[k] += wc[k][0];
-            out.s[k] += ws[k][0];
-        }
-        // S_{n+1} = -dw/dt - Omega_L cos psi dw/dpsi (harmonics up to top).
-        let ntop = (top + 1).min(H);
-        for k in 0..ntop {
-            for j in 0..len {
-                sc[k][j] = 0.0;
-                ss[k][j] = 0.0;
-            }
-        }
-        for k in 1..top {
-            let kf = k as f64;
-            for j in 0..len - 1 {
-                let d = (j + 1) as f64;
-                sc[k][j] -= d * wc[k][j + 1];
-                ss[k][j] -= d * ws[k][j + 1];
-            }
-            for j in 0..len {
-                // dw/dpsi: cos part k ws, sin part -k wc; times cos psi shifts k -> k +- 1.
-                let dc = half * kf * ws[k][j];
-                let ds = -half * kf * wc[k][j];
-                sc[k - 1][j] -= dc;
-                if k + 1 < H {
-                    sc[k + 1][j] -= dc;
-                    ss[k + 1][j] -= ds;
-                }
-                if k >= 2 {
-                    ss[k - 1][j] -= ds;
-                }
-            }
-        }
-        // Far from the near region the series collapses fast (at a dither peak omega' = 0):
-        // stop once the remainder is negligible.
-        let mut rest: f64 = 0.0;
-        for k in 1..ntop {
-            rest = rest.max(sc[k][0].abs()).max(ss[k][0].abs());
-        }
-        if rest < 1e-14 * omega_taylor[0].abs() {
-            break;
+        )*};
+    }
+    run!(0 1 2 3 4 5 6 7);
+    (out, means)
+}
+
+/// The recursion's state: `S_n` as cosine and sine coefficients `[harmonic][Taylor term]`,
+/// the last `w_n` likewise, and the Taylor series of `1/omega`.
+struct Recursion {
+    sc: [[f64; ORDER]; H],
+    ss: [[f64; ORDER]; H],
+    wc: [[f64; ORDER]; H],
+    ws: [[f64; ORDER]; H],
+    inv: Jet,
+    half: f64,
+}
+
+impl Recursion {
+    fn new(omega_taylor: &Jet, omega_l: f64) -> Self {
+        let mut sc = [[0.0; ORDER]; H];
+        sc[1][0] = omega_l;
+        Self {
+            sc,
+            ss: [[0.0; ORDER]; H],
+            wc: [[0.0; ORDER]; H],
+            ws: [[0.0; ORDER]; H],
+            inv: jrecip(omega_taylor),
+            half: 0.5 * omega_l,
         }
     }
-    (out, means)
+
+    /// Order `N` (from 0): `w_N` from `S_N` (added to `out`), then `S_{N+1}`; returns the
+    /// largest coefficient of `S_{N+1}` at the instant (rad/s), the size of what is left.
+    ///
+    /// At order N only harmonics below `N + 2` and the first `ORDER - N` Taylor terms are
+    /// live; each entry of `S_{N+1}` is gathered once from `w_N`:
+    /// `-dw/dt` keeps the harmonic, `-Omega_L cos(psi) dw/dpsi` moves it by one either way.
+    #[inline(always)]
+    fn order<const N: usize>(&mut self, out: &mut Oscillation) -> f64 {
+        let top = if N + 2 < H { N + 2 } else { H };
+        let len = ORDER - N;
+        // w_N = antiderivative in psi of the oscillating part of S_N, divided by omega.
+        for k in 1..top {
+            let inv_k = INV_K[k];
+            for j in 0..len {
+                let (mut a, mut b) = (0.0, 0.0);
+                for i in 0..=j {
+                    a += self.ss[k][i] * self.inv[j - i];
+                    b += self.sc[k][i] * self.inv[j - i];
+                }
+                self.wc[k][j] = -a * inv_k;
+                self.ws[k][j] = b * inv_k;
+            }
+            out.c[k] += self.wc[k][0];
+            out.s[k] += self.ws[k][0];
+        }
+        // S_{N+1} = -dw/dt - Omega_L cos psi dw/dpsi, harmonics 0 ..= top (the next order
+        // needs the first len - 1 Taylor terms).
+        let next = len - 1;
+        let (wc, ws, half) = (&self.wc, &self.ws, self.half);
+        let ntop = if top + 1 < H { top + 1 } else { H };
+        let mut rest: f64 = 0.0;
+        for m in 0..ntop {
+            for j in 0..next {
+                let d = (j + 1) as f64;
+                let (mut c, mut s) = (0.0, 0.0);
+                if m >= 1 && m < top {
+                    c -= d * wc[m][j + 1];
+                    s -= d * ws[m][j + 1];
+                }
+                // From harmonic m + 1 (cos psi moves it down by one).
+                if m + 1 < top {
+                    let kf = (m + 1) as f64;
+                    c -= half * kf * ws[m + 1][j];
+                    if m >= 1 {
+                        s += half * kf * wc[m + 1][j];
+                    }
+                }
+                // From harmonic m - 1 (moved up by one).
+                if m >= 2 && m - 1 < top {
+                    let kf = (m - 1) as f64;
+                    c -= half * kf * ws[m - 1][j];
+                    s += half * kf * wc[m - 1][j];
+                }
+                self.sc[m][j] = c;
+                self.ss[m][j] = s;
+                if j == 0 && m >= 1 {
+                    rest = rest.max(c.abs()).max(s.abs());
+                }
+            }
+        }
+        rest
+    }
 }
 
 /// Fourier coefficients of `W` (see [`oscillation_with_means`]).
