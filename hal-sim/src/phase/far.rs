@@ -161,8 +161,7 @@ impl Recursion {
         let top = if N + 2 < H { N + 2 } else { H };
         let len = ORDER - N;
         // w_N = antiderivative in psi of the oscillating part of S_N, divided by omega.
-        for k in 1..top {
-            let inv_k = INV_K[k];
+        for (k, &inv_k) in INV_K.iter().enumerate().take(top).skip(1) {
             for j in 0..len {
                 let (mut a, mut b) = (0.0, 0.0);
                 for i in 0..=j {
