@@ -125,7 +125,7 @@ pub fn oscillation_with_means(omega_taylor: &Jet, omega_l: f64) -> (Oscillation,
     let mut r = Recursion::new(omega_taylor, omega_l);
     let mut out = Oscillation::default();
     let mut means = [0.0; ORDER];
-    let negligible = 1e-14 * omega_taylor[0].abs();
+    let negligible = 1e-12 * omega_taylor[0].abs();
     macro_rules! run {
         ($($n:literal)*) => {$(
             means[$n] = r.sc[0][0];
@@ -260,90 +260,88 @@ pub fn solve_phi(chi: f64, theta: f64, w: &Oscillation) -> f64 {
     chi + e
 }
 
-/// Nodes per Chebyshev piece of the drift integral.
-pub const CHEB_NODES: usize = 20;
+/// Nodes of a [`GaussIntegral`].
+pub const GAUSS_NODES: usize = 10;
 
-/// `cos(pi j (k + 1/2) / n)`: row 1 holds the nodes.
-fn cheb_table() -> &'static [[f64; CHEB_NODES]; CHEB_NODES] {
-    static TABLE: std::sync::OnceLock<[[f64; CHEB_NODES]; CHEB_NODES]> = std::sync::OnceLock::new();
+/// The Gauss-Legendre rule of [`GAUSS_NODES`] nodes on `[-1, 1]` and the projection onto the
+/// Legendre polynomials: `proj[n][k] = (2n + 1)/2 w_k P_n(x_k)`.
+struct GaussTable {
+    x: [f64; GAUSS_NODES],
+    proj: [[f64; GAUSS_NODES]; GAUSS_NODES],
+}
+
+fn gauss_table() -> &'static GaussTable {
+    static TABLE: std::sync::OnceLock<GaussTable> = std::sync::OnceLock::new();
     TABLE.get_or_init(|| {
-        let mut t = [[0.0; CHEB_NODES]; CHEB_NODES];
-        for (j, row) in t.iter_mut().enumerate() {
-            for (k, v) in row.iter_mut().enumerate() {
-                *v =
-                    (core::f64::consts::PI * j as f64 * (k as f64 + 0.5) / CHEB_NODES as f64).cos();
+        let (x, w) = super::gauss::rule::<GAUSS_NODES>();
+        let mut proj = [[0.0; GAUSS_NODES]; GAUSS_NODES];
+        for (k, (&xk, &wk)) in x.iter().zip(&w).enumerate() {
+            let p = legendre_values(xk);
+            for (n, row) in proj.iter_mut().enumerate() {
+                row[k] = (2 * n + 1) as f64 * 0.5 * wk * p[n];
             }
         }
-        t
+        GaussTable { x, proj }
     })
 }
 
-/// `F(t) = integral_{t_a}^{t} f`, from a Chebyshev interpolant of `f` on `[t_a, t_b]`
-/// (exact for polynomials of degree < 24; spectral for smooth `f`).
-#[derive(Clone, Debug, PartialEq)]
-pub struct ChebIntegral {
-    t_a: f64,
-    t_b: f64,
-    /// Coefficients `C_j`, j = 1..=n, of `F(x) = sum C_j (T_j(x) - T_j(-1))`.
-    coef: [f64; CHEB_NODES + 1],
-    /// Size of the last two interpolation coefficients times the half width (error proxy).
-    pub tail: f64,
+/// `P_0(x) ..= P_GAUSS_NODES(x)` by the three-term recurrence.
+fn legendre_values(x: f64) -> [f64; GAUSS_NODES + 1] {
+    let mut p = [0.0; GAUSS_NODES + 1];
+    p[0] = 1.0;
+    p[1] = x;
+    for n in 1..GAUSS_NODES {
+        let nf = n as f64;
+        p[n + 1] = ((2.0 * nf + 1.0) * x * p[n] - nf * p[n - 1]) / (nf + 1.0);
+    }
+    p
 }
 
-impl ChebIntegral {
-    /// Interpolates `f` at Chebyshev points of `[t_a, t_b]` and integrates the series.
-    pub fn new(t_a: f64, t_b: f64, f: impl Fn(f64) -> f64) -> Self {
-        let n = CHEB_NODES;
-        let half = 0.5 * (t_b - t_a);
-        let mid = 0.5 * (t_a + t_b);
-        let table = cheb_table();
-        let mut fv = [0.0; CHEB_NODES];
-        for (k, v) in fv.iter_mut().enumerate() {
-            *v = f(mid + half * table[1][k]);
-        }
-        let mut c = [0.0; CHEB_NODES + 2];
-        for (j, cj) in c.iter_mut().take(n).enumerate() {
-            let mut s = 0.0;
-            for (k, v) in fv.iter().enumerate() {
-                s += v * table[j][k];
-            }
-            *cj = 2.0 * s / n as f64;
-        }
-        let mut coef = [0.0; CHEB_NODES + 1];
-        for (j, cj) in coef.iter_mut().enumerate().skip(1) {
-            *cj = half * (c[j - 1] - c[j + 1]) / (2.0 * j as f64);
-        }
-        let tail = half * (c[n - 1].abs() + c[n - 2].abs());
-        Self {
-            t_a,
-            t_b,
-            coef,
-            tail,
-        }
+/// `F(x) = integral_{x_a}^{x} f` from `f` at the [`GAUSS_NODES`] Gauss-Legendre nodes of
+/// `[x_a, x_b]`.
+///
+/// The whole integral ([`Self::total`]) is the Gauss rule, exact for polynomials of degree
+/// 19; values inside ([`Self::eval`]) integrate the degree-9 polynomial through the nodes,
+/// as a Legendre series (`integral_{-1}^{s} P_n = (P_{n+1}(s) - P_{n-1}(s)) / (2n + 1)`),
+/// so dense output costs no evaluation of `f` beyond the rule's. At `x_b` the two agree to
+/// rounding (`c_0` is the rule).
+#[derive(Clone, Debug, PartialEq)]
+pub struct GaussIntegral {
+    x_a: f64,
+    x_b: f64,
+    /// Legendre coefficients of the interpolant on `[-1, 1]`, times the half width.
+    coef: [f64; GAUSS_NODES],
+}
+
+impl GaussIntegral {
+    /// Samples `f` at the nodes of `[x_a, x_b]`.
+    pub fn new(x_a: f64, x_b: f64, f: impl Fn(f64) -> f64) -> Self {
+        let table = gauss_table();
+        let (half, mid) = (0.5 * (x_b - x_a), 0.5 * (x_a + x_b));
+        let fv = table.x.map(|x| f(mid + half * x));
+        let coef = table
+            .proj
+            .map(|row| half * row.iter().zip(&fv).map(|(p, v)| p * v).sum::<f64>());
+        Self { x_a, x_b, coef }
     }
 
-    /// `integral_{t_a}^{t} f`, for `t` in `[t_a, t_b]`.
-    pub fn eval(&self, t: f64) -> f64 {
-        if self.t_b == self.t_a {
+    /// `integral_{x_a}^{x_b} f`.
+    pub fn total(&self) -> f64 {
+        2.0 * self.coef[0]
+    }
+
+    /// `integral_{x_a}^{x} f`, for `x` in `[x_a, x_b]` (clamped).
+    pub fn eval(&self, x: f64) -> f64 {
+        if self.x_b == self.x_a {
             return 0.0;
         }
-        let x = ((2.0 * t - self.t_a - self.t_b) / (self.t_b - self.t_a)).clamp(-1.0, 1.0);
-        let (mut tm, mut tj) = (1.0, x);
-        let mut sign = -1.0;
-        let mut acc = 0.0;
-        for j in 1..=CHEB_NODES {
-            acc += self.coef[j] * (tj - sign);
-            let tn = 2.0 * x * tj - tm;
-            tm = tj;
-            tj = tn;
-            sign = -sign;
+        let s = ((2.0 * x - self.x_a - self.x_b) / (self.x_b - self.x_a)).clamp(-1.0, 1.0);
+        let p = legendre_values(s);
+        let mut acc = self.coef[0] * (s + 1.0);
+        for n in 1..GAUSS_NODES {
+            acc += self.coef[n] * (p[n + 1] - p[n - 1]) / (2 * n + 1) as f64;
         }
         acc
-    }
-
-    /// End of the interval.
-    pub fn t_end(&self) -> f64 {
-        self.t_b
     }
 }
 
@@ -415,17 +413,30 @@ mod tests {
     }
 
     #[test]
-    fn cheb_integral_of_smooth_function() {
-        let f = |t: f64| 1.0 / (0.3 + t);
-        let ci = ChebIntegral::new(0.0, 1.0, f);
-        for t in [0.0, 0.25, 0.7, 1.0] {
-            let exact = ((0.3 + t) / 0.3f64).ln();
-            // Singularity at Bernstein-ellipse parameter rho = 2.85: error ~ rho^-16 ~ 5e-8.
+    fn gauss_integral_is_exact_to_its_degrees() {
+        // Degree 9: the interpolant is the function, so values inside are exact too.
+        let p9 = |t: f64| (0..10).fold(0.0, |acc, k| acc * t + (k as f64 - 4.5));
+        let int9 = |t: f64| -> f64 {
+            (0..10i32)
+                .map(|k| (k as f64 - 4.5) * t.powi(10 - k) / (10 - k) as f64)
+                .sum()
+        };
+        let g = GaussIntegral::new(-0.5, 1.5, p9);
+        for t in [-0.5, 0.1, 0.7, 1.5] {
+            let exact = int9(t) - int9(-0.5);
             assert!(
-                (ci.eval(t) - exact).abs() < 2e-8,
+                (g.eval(t) - exact).abs() < 1e-13,
                 "{t}: {} vs {exact}",
-                ci.eval(t)
+                g.eval(t)
             );
         }
+        // Degree 19: only the whole integral (the Gauss rule) is exact.
+        let g = GaussIntegral::new(0.0, 1.0, |t: f64| t.powi(19));
+        assert!((g.total() - 0.05).abs() < 1e-15);
+        assert!((g.eval(1.0) - 0.05).abs() < 1e-15);
+        // A pole at -0.3 (Bernstein ellipse rho = 2.85): the rule's error ~rho^-20 ~ 1e-9.
+        let g = GaussIntegral::new(0.0, 1.0, |t: f64| 1.0 / (0.3 + t));
+        let exact = (1.3f64 / 0.3).ln();
+        assert!((g.total() - exact).abs() < 2e-9, "{}", g.total() - exact);
     }
 }
