@@ -15,15 +15,12 @@
 //! - **ARW** and **bias instability**: the IEEE 952 fit's `N` and `B`. Where the fit finds no
 //!   white rate noise (the simulated board's readout floor, white angle noise of about 0.5
 //!   arcsec per sync period, dominates the deviation up to tens of seconds), the ARW is
-//!   bounded from above instead ([`StaticFigures::arw_bound_deg_rt_h`]): the -1/2 line of an
-//!   ARW `N`, `60 N / sqrt(tau)`, cannot pass above the upper end of the deviation's interval
-//!   at any tau, so `N <= min over tau of ci_high(tau) sqrt(tau) / 60`, with the intervals
-//!   widened (Bonferroni) so that the minimum holds at `--confidence` (the longest taus bound
-//!   it best; the ADEV at 1 s over 60, the textbook reading, would be a far weaker bound under
-//!   that floor).
+//!   bounded from above instead ([`StaticFigures::arw_bound_deg_rt_h`],
+//!   [`crate::allan::fit::arw_upper_bound`]: the ARW term forced into the fit beside the
+//!   terms it found, its coefficient plus two standard deviations). The ADEV at 1 s over 60,
+//!   the textbook reading, would be a far weaker bound under that floor.
 
-use crate::allan::chi2::variance_interval;
-use crate::allan::fit::Term;
+use crate::allan::fit::{arw_upper_bound, Term};
 use crate::allan::input::RateRecord;
 use crate::allan::{analyse, Analysis};
 
@@ -169,7 +166,10 @@ pub fn static_figures(record: &RateRecord, confidence: f64) -> StaticFigures {
     let block = (block_s / record.period_s).round().max(1.0) as usize;
     let allan = analyse(record, confidence);
     let adev_1s_deg_h = allan.as_ref().ok().and_then(|a| adev_at(a, 1.0));
-    let arw_bound_deg_rt_h = allan.as_ref().ok().and_then(|a| arw_bound(a, confidence));
+    let arw_bound_deg_rt_h = allan
+        .as_ref()
+        .ok()
+        .and_then(|a| arw_upper_bound(&a.variance, &a.fit));
     StaticFigures {
         period_s: record.period_s,
         samples: record.rows,
@@ -181,22 +181,6 @@ pub fn static_figures(record: &RateRecord, confidence: f64) -> StaticFigures {
         adev_1s_deg_h,
         arw_bound_deg_rt_h,
     }
-}
-
-/// The ARW's upper bound at `confidence` for the whole set of taus: each tau's interval at
-/// the Bonferroni level `1 - (1 - confidence) / taus` (the minimum over many intervals would
-/// otherwise fall below the truth far more often than `1 - confidence`).
-fn arw_bound(analysis: &Analysis, confidence: f64) -> Option<f64> {
-    let n = analysis.rows.len() as f64;
-    let level = 1.0 - (1.0 - confidence) / n;
-    analysis
-        .rows
-        .iter()
-        .map(|r| {
-            let (_, hi) = variance_interval(r.adev_deg_h * r.adev_deg_h, r.edf, level);
-            hi.sqrt() * r.tau_s.sqrt() / 60.0
-        })
-        .min_by(f64::total_cmp)
 }
 
 /// The deviation at `tau_s`, interpolated log-log between the octaves around it.

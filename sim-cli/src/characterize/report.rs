@@ -186,7 +186,7 @@ pub fn table(results: &[ConfigurationResult]) -> String {
             "ARW upper bound",
             "deg/sqrt(h)",
             Box::new(|r| static_cell(r, |f| f.arw_bound_deg_rt_h.map_or("n/a".into(), sci))),
-            "min over tau of ci_high sqrt(tau) / 60 (Bonferroni intervals): the -1/2 line stays under every interval",
+            "the ARW term forced into the fit beside the terms found: coefficient + 2 sigma",
         ),
         (
             "bias instability B",
@@ -270,7 +270,7 @@ pub fn conclusions(results: &[ConfigurationResult]) -> Vec<String> {
     if let (Some((n_noise, noise_bound)), Some((n_on, on_bound))) = (arw(noise), arw(on)) {
         let kind = |bound: bool| {
             if bound {
-                "upper bound from the Allan intervals"
+                "upper bound: the ARW term forced into the fit, + 2 sigma"
             } else {
                 "fitted"
             }
