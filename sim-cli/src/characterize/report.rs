@@ -130,7 +130,7 @@ pub fn table(results: &[ConfigurationResult]) -> String {
             "non-linearity",
             "ppm of full scale",
             Box::new(sf(|s| num(s.nonlinearity_ppm, 3))),
-            "largest |residual| from the line, over the linear-range points",
+            "largest abs(residual) from the line, over the linear-range points",
         ),
         (
             "asymmetry",
@@ -162,13 +162,13 @@ pub fn table(results: &[ConfigurationResult]) -> String {
             "threshold",
             "deg/h",
             Box::new(threshold_text),
-            "smallest |input| from which every tested rate is within 50 % of SF x input",
+            "smallest abs(input) from which every tested rate is within 50 % of SF x input",
         ),
         (
             "dead band",
             "deg/h",
             Box::new(dead_band_text),
-            "largest |input| failing the 50 % criterion, each sign",
+            "largest abs(input) failing the 50 % criterion, each sign",
         ),
         (
             "angle random walk N",
@@ -403,7 +403,7 @@ pub fn markdown(outcome: &Outcome, ctx: &Context) -> String {
             }
             _ => String::new(),
         };
-        let _ = writeln!(s, "- `{}`: {}: {comp}{noise}.", c.slug, c.name);
+        let _ = writeln!(s, "- `{}` ({}): {comp}{noise}.", c.slug, c.name);
     }
     if let Some(cal) = &ctx.calibration {
         let _ = writeln!(
@@ -477,7 +477,12 @@ fn procedure_text(plan: &Plan) -> String {
          (std of {block} s block means, or a tenth of the record if shorter), and through \
          `rlg-sim allan`'s estimator and IEEE 952 fit the ARW and the bias instability. The \
          record is in `static_<configuration>.csv` (`rlg-sim allan --input` reads it), the \
-         deviation in `allan_<configuration>.csv`.\n\n\
+         deviation in `allan_<configuration>.csv`.\n\
+         4. **Random-noise dither** (`--compare`): the firmware drive's random amplitude noise \
+         (`dither noise <percent>`: the drive's peak amplitude times 1 + depth x r, r uniform, \
+         every half cycle; the resonator smooths it), the one a board with the closed-loop \
+         drive has; hal-sim's noise on the prescribed sine (`random_noise_dither`) is not \
+         used.\n\n\
          ## Limits\n\n\
          - The simulated gyro has only the noise it is given (`--arw-deg-rt-h`, the dither's \
          random noise, the readout's quantisation): no thermal drift, so the bias instability \
@@ -543,4 +548,105 @@ pub fn write_points(dir: &Path, outcome: &Outcome) -> std::io::Result<Vec<PathBu
     let path = dir.join("scale_factor.csv");
     std::fs::write(&path, points_csv(&outcome.results))?;
     Ok(vec![path])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::allan::synthetic::{NoiseTerms, Synthetic};
+    use crate::characterize::figures::{scale_factor, threshold, RatePoint};
+    use crate::characterize::noise::{rate_record, static_figures, StaticSample};
+    use crate::characterize::Configuration;
+    use crate::experiment::BoardSetup;
+    use firmware::signal::compensation::CompensationSettings;
+
+    /// White rate noise of `arw` plus quantisation of 0.5 arcsec at 100 Hz for 1000 s.
+    fn static_record(arw: f64, seed: u64) -> StaticFigures {
+        let period = 0.01;
+        let terms = NoiseTerms {
+            arw_deg_rt_h: arw,
+            quantisation_arcsec: 0.5,
+            ..NoiseTerms::default()
+        };
+        let samples: Vec<StaticSample> = Synthetic::new(terms, period, seed)
+            .rates(100_000)
+            .iter()
+            .enumerate()
+            .map(|(i, r)| StaticSample {
+                t_s: (i + 1) as f64 * period,
+                delta_angle_arcsec: r * period,
+                valid: true,
+            })
+            .collect();
+        static_figures(&rate_record(&samples, period), 0.95)
+    }
+
+    /// A gyro with Chow's dead band of `band` deg/h (0: linear), tested at 0.5..10 deg/h and
+    /// the linear range.
+    fn result(slug: &str, band: f64, arw: f64) -> ConfigurationResult {
+        let rates = [0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 10.0, 100.0, 10_000.0];
+        let points: Vec<RatePoint> = rates
+            .iter()
+            .flat_map(|&r| [r, -r])
+            .map(|x: f64| RatePoint {
+                input_deg_h: x,
+                output_deg_h: if x.abs() <= band {
+                    0.0
+                } else {
+                    x.signum() * (x * x - band * band).sqrt()
+                },
+                linear_range: x.abs() >= 100.0,
+            })
+            .collect();
+        let sf = scale_factor(&points, 1.8655).unwrap();
+        let static_figures = static_record(arw, 5);
+        ConfigurationResult {
+            configuration: Configuration {
+                name: slug.into(),
+                slug: slug.into(),
+                setup: BoardSetup::board(0.0, 1000.0),
+                settings: CompensationSettings::default(),
+            },
+            threshold: Some(threshold(&points, sf.line.slope, 0.0)),
+            points,
+            static_figures: Some(static_figures),
+            scale_factor: Some(sf),
+        }
+    }
+
+    /// The sentences follow the numbers: a band removed, narrowed, or not there; a random
+    /// walk added or not.
+    #[test]
+    fn the_conclusions_follow_the_numbers() {
+        let said = conclusions(&[
+            result(SLUG_OFF, 3.36, 0.0),
+            result(SLUG_ON, 0.0, 0.0),
+            result(SLUG_NOISE, 0.0, 0.003),
+        ]);
+        assert!(
+            said[0].starts_with("Compensation removes the dead band"),
+            "{said:?}"
+        );
+        assert!(said[0].contains("up to 3.000 deg/h"), "{said:?}");
+        assert!(
+            said[1].starts_with("Random-noise dither adds random walk"),
+            "{said:?}"
+        );
+        let said = conclusions(&[
+            result(SLUG_OFF, 3.36, 0.0),
+            result(SLUG_ON, 1.5, 0.003),
+            result(SLUG_NOISE, 0.0, 0.003),
+        ]);
+        assert!(said[0].starts_with("Compensation narrows the dead band from 3.000 to 1.000"));
+        assert!(said[1].starts_with("This run does not show"), "{said:?}");
+        let said = conclusions(&[
+            result(SLUG_OFF, 0.0, 0.0),
+            result(SLUG_ON, 0.0, 0.0),
+            result(SLUG_NOISE, 0.0, 0.0),
+        ]);
+        assert!(said[0].starts_with("No dead band was found"), "{said:?}");
+        assert!(said[1].starts_with("This run does not show"), "{said:?}");
+        // Without the three configurations: no conclusions.
+        assert!(conclusions(&[result(SLUG_ON, 0.0, 0.0)]).is_empty());
+    }
 }
