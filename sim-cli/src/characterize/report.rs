@@ -303,14 +303,14 @@ pub fn conclusions(results: &[ConfigurationResult]) -> Vec<String> {
         out.push("The ARW could not be compared: a static record has no Allan deviation.".into());
     }
     if let (Some(b_noise), Some(b_off)) = (band(noise), band(off)) {
+        let noisy = if b_noise == 0.0 {
+            "leaves no dead band at the tested rates".to_string()
+        } else {
+            format!("leaves a dead band of {} deg/h", num(b_noise, 3))
+        };
         out.push(format!(
-            "Random-noise dither (compensation off) leaves a dead band of {} deg/h against {} \
-             deg/h with the plain dither.",
-            if b_noise == 0.0 {
-                "none at the tested rates".to_string()
-            } else {
-                num(b_noise, 3)
-            },
+            "Random-noise dither (compensation off) {noisy}, against {} deg/h with the plain \
+             dither.",
             num(b_off, 3)
         ));
     }
