@@ -66,10 +66,14 @@ pub struct Plan {
     pub confidence: f64,
 }
 
-/// Valid `--max-rate-deg-s`: up to 300 deg/s (the default set's dither peaks at 305 deg/s);
-/// the default board's readout closes no dither cycle in some runs from about 90 deg/s
+/// Valid `--max-rate-deg-s`: up to 300 deg/s (the default set's dither peaks at 305 deg/s).
+/// The default board's readout closes no dither cycle in some runs from about 90 deg/s
 /// (324000 and 330000 deg/h failed, 320000 and 340000 passed; from 350000 deg/h every run
-/// failed), so the default maximum is 80 deg/s, not the 100.
+/// failed), so the default maximum is 80 deg/s, not the 100. The cause is the
+/// firmware's turnaround sequence check (`CycleConfig::for_dither`, half periods within
+/// +-20 % of nominal): the beat turns where the dither rate equals minus the input, so the
+/// half periods become `180 deg -+ 2 asin(rate / peak dither rate)` of the dither cycle, the
+/// short one 0.8 of nominal at 94 deg/s; latch jitter makes it intermittent just below.
 pub const MAX_RATE_DEG_S_RANGE: std::ops::RangeInclusive<f64> = 0.1..=300.0;
 /// Valid point counts per sign.
 pub const POINTS_RANGE: std::ops::RangeInclusive<usize> = 2..=50;

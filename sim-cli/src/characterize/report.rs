@@ -494,7 +494,9 @@ fn procedure_text(plan: &Plan) -> String {
          needs hours (`--static-seconds`).\n\
          - The default board's readout closes no dither cycle in some runs from about 90 \
          deg/s of input and in every run from 97 deg/s (such a run fails the command; nothing \
-         is extrapolated): the default maximum is 80 deg/s.\n",
+         is extrapolated): the default maximum is 80 deg/s. The firmware's turnaround \
+         sequence check (half periods within +-20 % of nominal) refuses the unequal half \
+         periods a large input rate makes.\n",
         sec = plan.seconds_per_point,
         tol = THRESHOLD_TOLERANCE,
         stat = plan.static_s,
