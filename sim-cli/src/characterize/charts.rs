@@ -125,3 +125,53 @@ pub fn dead_band(results: &[ConfigurationResult], title: &str) -> Figure {
         axes: Axes::Linear,
     }
 }
+
+/// The static records' Allan deviations on one log-log plot (one colour per configuration),
+/// each significant fitted ARW as its dashed -1/2 line `60 N / sqrt(tau)`; `None` when no
+/// record has a deviation.
+pub fn allan_compare(results: &[ConfigurationResult], title: &str) -> Option<Figure> {
+    let mut series = Vec::new();
+    for (i, r) in results.iter().enumerate() {
+        let Some(Ok(a)) = r.static_figures.as_ref().map(|f| &f.allan) else {
+            continue;
+        };
+        let taus: Vec<f64> = a.rows.iter().map(|row| row.tau_s).collect();
+        series.push(Series {
+            label: format!("{}: overlapping ADEV", r.configuration.name),
+            points: a
+                .rows
+                .iter()
+                .map(|row| (row.tau_s, row.adev_deg_h))
+                .collect(),
+            color: color(i),
+            style: Style::LineAndMarkers,
+        });
+        if let Some(n) = a.fit.arw_deg_rt_h.filter(|n| n.significant) {
+            series.push(Series {
+                label: format!(
+                    "{}: ARW N = {:.3e} deg/sqrt(h)",
+                    r.configuration.name, n.value
+                ),
+                points: taus
+                    .iter()
+                    .map(|&t| (t, 60.0 * n.value / t.sqrt()))
+                    .collect(),
+                color: color(i),
+                style: Style::DashedLine,
+            });
+        }
+    }
+    (!series.is_empty()).then(|| Figure {
+        title: title.into(),
+        x_label: "tau (s)".into(),
+        panels: vec![Panel {
+            title: "Allan deviation of the static records".into(),
+            y_label: "ADEV (deg/h)".into(),
+            series,
+            weight: 1.0,
+        }],
+        width_px: 900.0,
+        height_px: 650.0,
+        axes: Axes::LogLog,
+    })
+}

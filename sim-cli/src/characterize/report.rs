@@ -447,6 +447,9 @@ pub fn markdown(outcome: &Outcome, ctx: &Context) -> String {
         "## Figures\n\n![scale-factor residuals](scale_factor_residuals.svg)\n\n\
          ![output near zero](dead_band.svg)\n"
     );
+    if outcome.results.len() > 1 {
+        let _ = writeln!(s, "![Allan deviations side by side](allan_compare.svg)\n");
+    }
     for r in &outcome.results {
         let _ = writeln!(
             s,
@@ -530,6 +533,12 @@ pub fn write(dir: &Path, outcome: &Outcome, ctx: &Context) -> std::io::Result<Ve
         "dead_band.svg".into(),
         charts::dead_band(&outcome.results, &format!("Output near zero: {title}")).to_svg(),
     )?;
+    if outcome.results.len() > 1 {
+        let t = format!("Allan deviation, static records: {title}");
+        if let Some(figure) = charts::allan_compare(&outcome.results, &t) {
+            put("allan_compare.svg".into(), figure.to_svg())?;
+        }
+    }
     for r in &outcome.results {
         let slug = &r.configuration.slug;
         if let Some(Ok(a)) = r.static_figures.as_ref().map(|f| &f.allan) {
