@@ -11,7 +11,8 @@
 use crate::args::{self, CharacterizeArgs, OnOff};
 use crate::{calibrate_board, progress, Failure};
 use firmware::signal::compensation::CompensationSettings;
-use rlg_sim::characterize::report::{self, Context, SLUG_NOISE, SLUG_OFF, SLUG_ON};
+use rlg_sim::characterize::report::{self, Context};
+use rlg_sim::characterize::summary::{self, SLUG_NOISE, SLUG_OFF, SLUG_ON};
 use rlg_sim::characterize::{dead_band_theory, procedure, Configuration};
 use rlg_sim::experiment::{BoardSetup, DitherDrive};
 use std::io::Write;
@@ -181,8 +182,8 @@ pub fn characterize(args: &CharacterizeArgs) -> Result<(), Failure> {
         calibration,
     };
     let written = report::write(out, &outcome, &ctx).map_err(io)?;
-    print!("{}", report::table(&outcome.results));
-    for c in report::conclusions(&outcome.results) {
+    print!("{}", summary::table(&outcome.results));
+    for c in summary::conclusions(&outcome.results) {
         println!("\n{c}");
     }
     eprintln!(

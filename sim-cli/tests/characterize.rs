@@ -14,7 +14,7 @@
 use firmware::signal::compensation::CompensationSettings;
 use hal_sim::params::GyroParams;
 use rlg_sim::characterize::procedure::{run, Outcome};
-use rlg_sim::characterize::report::{conclusions, SLUG_NOISE, SLUG_OFF, SLUG_ON};
+use rlg_sim::characterize::summary::{conclusions, SLUG_NOISE, SLUG_OFF, SLUG_ON};
 use rlg_sim::characterize::{dead_band_theory, Configuration, Plan};
 use rlg_sim::experiment::{calibrate, settings_from_fit, BoardSetup, DitherDrive, RunLength};
 use std::sync::atomic::AtomicBool;

@@ -10,7 +10,8 @@
 //!   threshold and dead band, bias stability), sans-IO;
 //! - [`noise`]: the static record's noise terms through the Allan estimator and fit
 //!   ([`crate::allan`]);
-//! - [`report`]: `report.md`, the CSVs and the SVG figures.
+//! - [`summary`]: the figures side by side and the conclusions, sentences chosen by the numbers;
+//! - [`charts`]: the SVG figures; [`report`]: `report.md` and the CSVs, written to `--out`.
 //!
 //! The input rates: the **linear range**, `range_points` log-spaced magnitudes per sign from
 //! ten times the dead-band envelope to the maximum rate; and the **dense points**,
@@ -28,6 +29,7 @@ pub mod figures;
 pub mod noise;
 pub mod procedure;
 pub mod report;
+pub mod summary;
 
 use crate::experiment::BoardSetup;
 use firmware::calibration::validation::chow_dead_band_rad_per_s;
