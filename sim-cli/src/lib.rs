@@ -6,6 +6,7 @@
 #![warn(missing_docs)]
 
 pub mod allan;
+pub mod characterize;
 pub mod dither_run;
 pub mod experiment;
 pub mod interrupt;

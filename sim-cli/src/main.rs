@@ -2,11 +2,13 @@
 //!
 //! `rlg-sim sweep` reproduces the paper's experiment (Fan et al., Chin. Opt. Lett. 10, 061403,
 //! Figs. 3 and 4); `rlg-sim speed` measures the simulator; `rlg-sim allan` computes the Allan
-//! deviation and the noise terms of a recorded rate (`rlg_sim::allan`). Results go to stdout,
-//! diagnostics and errors to stderr; exit status 0 on success, 1 on a failed run, 2 on bad
-//! arguments.
+//! deviation and the noise terms of a recorded rate (`rlg_sim::allan`); `rlg-sim
+//! characterize` runs the IEEE Std 647 procedures and writes their report
+//! (`rlg_sim::characterize`). Results go to stdout, diagnostics and errors to stderr; exit
+//! status 0 on success, 1 on a failed run, 2 on bad arguments, 130 on Ctrl-C.
 
 mod args;
+mod characterize_cmd;
 
 use args::{
     AllanArgs, BoardArgs, CalibrationArgs, Cli, Command, DitherArgs, GyroArgs, RecordArgs,
@@ -38,6 +40,7 @@ fn main() -> ExitCode {
         Command::Dither(args) => dither(&args),
         Command::Record(args) => record(&args),
         Command::Allan(args) => allan(&args),
+        Command::Characterize(args) => characterize_cmd::characterize(&args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

@@ -239,14 +239,42 @@ fn best_subset(taus: &[f64], avar: &[f64], weights: &[f64]) -> Option<([f64; 4],
             best = Some((fit.0, fit.1, fit.2, subset.len()));
         }
     }
-    // Birge ratio: a scatter larger than the weights say (correlated octaves) widens the
-    // intervals; never narrows them.
-    best.map(|(c, mut v, cost, terms)| {
-        let free = taus.len().saturating_sub(terms).max(1) as f64;
-        let inflation = CORRELATION_INFLATION * (cost / free).max(1.0);
-        v.iter_mut().for_each(|v| *v *= inflation);
-        (c, v)
-    })
+    best.map(|(c, v, cost, terms)| (c, inflate(v, cost, taus.len(), terms)))
+}
+
+/// The coefficient variances times [`CORRELATION_INFLATION`] and the Birge ratio: a scatter
+/// larger than the weights say (correlated octaves) widens the intervals; never narrows them.
+fn inflate(mut v: [f64; 4], cost: f64, points: usize, terms: usize) -> [f64; 4] {
+    let free = points.saturating_sub(terms).max(1) as f64;
+    let inflation = CORRELATION_INFLATION * (cost / free).max(1.0);
+    v.iter_mut().for_each(|v| *v *= inflation);
+    v
+}
+
+/// An upper bound of the angle random walk, deg/sqrt(h), where `fit` may not resolve one
+/// (e.g. under a quantisation floor): the terms `fit` kept plus the ARW term, fitted with
+/// `fit`'s weights and no sign constraint, give the ARW coefficient `c` with its (inflated)
+/// standard deviation `s`; the bound is `sqrt(max(c, 0) + 2 s) / 60` (one-sided, about
+/// 97.7 %). Unlike reading the -1/2 line off the longest tau, this uses every octave: the
+/// short taus pin the floor, so the bound is as tight as the record allows.
+pub fn arw_upper_bound(av: &AllanVariance, fit: &NoiseFit) -> Option<f64> {
+    let points: Vec<_> = av.points.iter().filter(|p| p.avar > 0.0).collect();
+    let taus: Vec<f64> = points.iter().map(|p| p.tau_s).collect();
+    let avar: Vec<f64> = points.iter().map(|p| p.avar).collect();
+    let weights: Vec<f64> = points
+        .iter()
+        .map(|p| fit.edf(av, p.m, p.tau_s) / (2.0 * fit.avar(p.tau_s).powi(2)))
+        .collect();
+    let subset: Vec<usize> = (0..4)
+        .filter(|&k| k == 1 || fit.coefficients[k] > 0.0)
+        .collect();
+    if subset.len() >= taus.len() {
+        return None;
+    }
+    let (c, v, cost) = least_squares(&taus, &avar, &weights, &subset)?;
+    let v = inflate(v, cost, taus.len(), subset.len());
+    let bound = c[1].max(0.0) + 2.0 * v[1].sqrt();
+    (bound.is_finite() && bound > 0.0).then(|| bound.sqrt() / 60.0)
 }
 
 /// The term of coefficient `c` with variance `var`: `value(c)` maps a coefficient to the unit.
@@ -417,5 +445,49 @@ mod tests {
         }
         println!("95 % intervals holding the truth (Q, N, B, K): {hits:?} of {runs}");
         assert!(hits.iter().all(|&h| h >= 34), "{hits:?}");
+    }
+
+    /// Under a quantisation floor like the simulated board's (0.5 arcsec at 1 kHz, 300 s):
+    /// without ARW the bound is far below an ARW of 3e-3 deg/sqrt(h) (which the floor hides
+    /// below tau of ~20 s) and far below the 1 s reading ADEV(1 s) / 60; with that ARW added,
+    /// the bound holds it. Seeds 21-23.
+    #[test]
+    fn the_arw_bound_sees_under_a_quantisation_floor() {
+        let (q, n_true, period, samples) = (0.5, 3e-3, 1e-3, 300_000);
+        for seed in 21..24 {
+            for arw in [0.0, n_true] {
+                let rates = Synthetic::new(
+                    NoiseTerms {
+                        quantisation_arcsec: q,
+                        arw_deg_rt_h: arw,
+                        ..NoiseTerms::default()
+                    },
+                    period,
+                    seed,
+                )
+                .rates(samples);
+                let record = RateRecord {
+                    period_s: period,
+                    rates_deg_h: rates,
+                    rows: samples as u64,
+                    invalid_rows: 0,
+                    missing_samples: 0,
+                };
+                let av = allan_variance(&record).unwrap();
+                let f = fit(&av, 0.95).unwrap();
+                let bound = arw_upper_bound(&av, &f).unwrap();
+                let adev_1s = av.points.iter().find(|p| p.m == 1024).unwrap().adev_deg_h();
+                if arw == 0.0 {
+                    assert!(bound < 0.25 * n_true, "seed {seed}: bound {bound}");
+                    assert!(
+                        bound < 0.1 * adev_1s / 60.0,
+                        "seed {seed}: {bound} {adev_1s}"
+                    );
+                } else {
+                    assert!(bound > n_true, "seed {seed}: bound {bound}");
+                    assert!(bound < 2.0 * n_true, "seed {seed}: bound {bound}");
+                }
+            }
+        }
     }
 }
