@@ -493,8 +493,8 @@ pub struct CharacterizeArgs {
     /// (1..=50; at 10 % the resonator smooths it too much to fill the dead band in 5 s).
     #[arg(long, default_value_t = 25.0, allow_negative_numbers = true)]
     pub compare_noise_percent: f64,
-    /// Largest input rate magnitude, deg/s (0.1..=300; the default board's readout fails
-    /// some runs from about 90 deg/s and every run from 97 deg/s: such a run is an error).
+    /// Largest input rate magnitude, deg/s (0.1..=300; the default set's dither peaks at
+    /// 305 deg/s; a rate at which the board closes no dither cycle is an error).
     #[arg(long, default_value_t = rlg_sim::characterize::Plan::DEFAULT.max_rate_deg_s, allow_negative_numbers = true)]
     pub max_rate_deg_s: f64,
     /// Log-spaced linear-range rates per sign (2..=50).

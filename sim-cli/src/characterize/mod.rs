@@ -69,13 +69,11 @@ pub struct Plan {
 }
 
 /// Valid `--max-rate-deg-s`: up to 300 deg/s (the default set's dither peaks at 305 deg/s).
-/// The default board's readout closes no dither cycle in some runs from about 90 deg/s
-/// (324000 and 330000 deg/h failed, 320000 and 340000 passed; from 350000 deg/h every run
-/// failed), so the default maximum is 80 deg/s, not the 100. The cause is the
-/// firmware's turnaround sequence check (`CycleConfig::for_dither`, half periods within
-/// +-20 % of nominal): the beat turns where the dither rate equals minus the input, so the
-/// half periods become `180 deg -+ 2 asin(rate / peak dither rate)` of the dither cycle, the
-/// short one 0.8 of nominal at 94 deg/s; latch jitter makes it intermittent just below.
+/// The beat turns where the dither rate equals minus the input, so a large input splits each
+/// dither period into unequal halves, `180 deg -+ 2 asin(rate / peak dither rate)`; the
+/// firmware's cycle assembly holds the period (+-20 %) and lets the halves split (up to
+/// 0.1..1.9 of nominal, `CycleConfig::HALF_SPLIT`). (Its earlier half-period window of
+/// +-20 % refused every cycle from about 94 deg/s, which this command found.)
 pub const MAX_RATE_DEG_S_RANGE: std::ops::RangeInclusive<f64> = 0.1..=300.0;
 /// Valid point counts per sign.
 pub const POINTS_RANGE: std::ops::RangeInclusive<usize> = 2..=50;
@@ -85,13 +83,13 @@ pub const SECONDS_PER_POINT_RANGE: std::ops::RangeInclusive<f64> = 0.5..=3600.0;
 pub const STATIC_SECONDS_RANGE: std::ops::RangeInclusive<f64> = 10.0..=360_000.0;
 
 impl Plan {
-    /// The defaults of `rlg-sim characterize`: 80 deg/s, 8 + 16 points per sign of 5 s, a
+    /// The defaults of `rlg-sim characterize`: 100 deg/s, 8 + 16 points per sign of 5 s, a
     /// 600 s static record (about 2 900 gyro-seconds for `--compare`). The static record is
     /// 600 s because the board's readout floor (white angle noise) hides an ARW of a few
     /// 1e-3 deg/sqrt(h) below tau of about 20 s: the ARW shows, or is bounded, only at the
     /// longer taus.
     pub const DEFAULT: Self = Self {
-        max_rate_deg_s: 80.0,
+        max_rate_deg_s: 100.0,
         range_points: 8,
         dense_points: 16,
         seconds_per_point: 5.0,
@@ -223,7 +221,7 @@ mod tests {
         assert!(near.len() >= 3, "{dense:?}");
         let top = rates.iter().map(|r| r.rate_deg_h).fold(0.0, f64::max);
         let bottom = rates.iter().map(|r| r.rate_deg_h).fold(0.0, f64::min);
-        assert!((top - 80.0 * 3600.0).abs() < 1e-6 && (bottom + top).abs() < 1e-9);
+        assert!((top - 100.0 * 3600.0).abs() < 1e-6 && (bottom + top).abs() < 1e-9);
     }
 
     #[test]

@@ -209,11 +209,10 @@ fn procedure_text(plan: &Plan) -> String {
          record's noise (about ARW x 60 / sqrt({sec} s) deg/h).\n\
          - A static record of {stat} s resolves tau up to a third of it; bias instability \
          needs hours (`--static-seconds`).\n\
-         - The default board's readout closes no dither cycle in some runs from about 90 \
-         deg/s of input and in every run from 97 deg/s (such a run fails the command; nothing \
-         is extrapolated): the default maximum is 80 deg/s. The firmware's turnaround \
-         sequence check (half periods within +-20 % of nominal) refuses the unequal half \
-         periods a large input rate makes.\n",
+         - A rate at which the board closes no dither cycle fails the command (nothing is \
+         extrapolated); the readout keeps cycles up to about 0.99 of the peak dither rate \
+         (305 deg/s for the default set), where the two halves of a dither period split \
+         0.1 / 1.9.\n",
         sec = plan.seconds_per_point,
         tol = THRESHOLD_TOLERANCE,
         stat = plan.static_s,

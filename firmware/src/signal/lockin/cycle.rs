@@ -99,20 +99,37 @@ pub struct TurnaroundReading {
 pub struct CycleConfig {
     /// Capture-timer frequency, Hz.
     pub timer_hz: f32,
-    /// Accepted half-period range, ticks: outside it a turnaround counts as missed or spurious.
+    /// Accepted range of one half period, ticks: outside it a turnaround counts as missed or
+    /// spurious. Wide, because an input rate splits the dither period unequally: the
+    /// turnarounds are where `input + dither rate` crosses zero, so the halves are
+    /// `T/2 (1 +- (2/pi) asin(input / peak dither rate))`: 0.79 and 1.21 of nominal at
+    /// 100 deg/s with the docs/physics.md set (peak 305 deg/s).
     pub min_half_period_ticks: u32,
     /// Upper end of the accepted half-period range, ticks.
     pub max_half_period_ticks: u32,
+    /// Accepted range of a whole period (two consecutive halves), ticks: the input rate moves
+    /// the turnarounds but not the period, so this is what holds the dither frequency.
+    pub min_period_ticks: u32,
+    /// Upper end of the accepted period range, ticks.
+    pub max_period_ticks: u32,
 }
 
 impl CycleConfig {
-    /// A window of +-`tolerance` (relative) around the nominal dither frequency.
+    /// How unequal the two halves of a period may be: each within `1 +- HALF_SPLIT` of half
+    /// the nominal period, i.e. inputs up to `sin(0.9 pi / 2)` = 0.99 of the peak dither rate.
+    pub const HALF_SPLIT: f32 = 0.9;
+
+    /// Periods within +-`tolerance` (relative) of the nominal dither frequency's, halves
+    /// within [`Self::HALF_SPLIT`] of half of it.
     pub fn for_dither(timer_hz: f32, dither_hz: f32, tolerance: f32) -> Self {
-        let half = timer_hz / (2.0 * dither_hz);
+        let period = timer_hz / dither_hz;
+        let half = 0.5 * period;
         Self {
             timer_hz,
-            min_half_period_ticks: (half * (1.0 - tolerance)) as u32,
-            max_half_period_ticks: (half * (1.0 + tolerance)) as u32,
+            min_half_period_ticks: (half * (1.0 - Self::HALF_SPLIT)) as u32,
+            max_half_period_ticks: (half * (1.0 + Self::HALF_SPLIT)) as u32,
+            min_period_ticks: (period * (1.0 - tolerance)) as u32,
+            max_period_ticks: (period * (1.0 + tolerance)) as u32,
         }
     }
 }
@@ -295,7 +312,9 @@ impl CycleAssembler {
         })
     }
 
-    /// Kinds must alternate and the half period must be plausible.
+    /// Kinds must alternate, the half period must be plausible and the period (the two halves
+    /// up to this turnaround) close to the dither's. (A half-period window alone refused every
+    /// cycle above ~90 deg/s of input: the halves split unequally, see [`CycleConfig`].)
     fn in_sequence(&self, config: &CycleConfig, reading: &TurnaroundReading) -> bool {
         let Some(previous) = self.previous else {
             return true;
@@ -303,9 +322,13 @@ impl CycleAssembler {
         let half = reading
             .timestamp_ticks
             .wrapping_sub(previous.timestamp_ticks);
+        let period_ok = self.before_previous.is_none_or(|b| {
+            let period = reading.timestamp_ticks.wrapping_sub(b.timestamp_ticks);
+            (config.min_period_ticks..=config.max_period_ticks).contains(&period)
+        });
         previous.kind != reading.kind
-            && half >= config.min_half_period_ticks
-            && half <= config.max_half_period_ticks
+            && (config.min_half_period_ticks..=config.max_half_period_ticks).contains(&half)
+            && period_ok
     }
 
     fn restart(&mut self, reading: TurnaroundReading) {
@@ -471,6 +494,39 @@ mod tests {
             "the flagged cycle spans the gap: {bridged}"
         );
         assert!((periods - (cycles.len() as f64 + bridged - 1.0)).abs() < 1e-3);
+    }
+
+    /// A large input rate splits each period into unequal halves (here 1.4 and 0.6 of
+    /// nominal, as at ~180 deg/s with the docs/physics.md dither): every cycle is kept, since
+    /// the period is unchanged. (The old half-period window of +-20 % refused them all.) A
+    /// spurious pair of turnarounds inside a half (halves alternate, but no period fits) is
+    /// refused and bridged.
+    #[test]
+    fn unequal_halves_are_kept_and_a_spurious_pair_is_not() {
+        let half_ticks = TIMER_HZ as f64 / (2.0 * DITHER_HZ);
+        let mut rs = readings(1500.0, 0.0, 41, |_, _| 0.0);
+        for r in rs.iter_mut().filter(|r| r.kind == TurnaroundKind::Minus) {
+            r.timestamp_ticks += (0.4 * half_ticks) as u32;
+        }
+        let cycles = assemble(&rs);
+        assert_eq!(cycles.len(), 20);
+        assert!(cycles[1..].iter().all(|c| c.output.flags.is_empty()));
+        // A "-" then "+" 100 and 200 us after turnaround 20 (a "+"): alternating kinds, but
+        // the period up to each is far off.
+        let t20 = rs[20].timestamp_ticks;
+        let mut spurious = rs[19];
+        spurious.timestamp_ticks = t20 + 8_400;
+        let mut spurious_plus = rs[20];
+        spurious_plus.timestamp_ticks = t20 + 16_800;
+        rs.insert(21, spurious);
+        rs.insert(22, spurious_plus);
+        let cycles = assemble(&rs);
+        let flagged = cycles
+            .iter()
+            .filter(|c| c.output.flags.contains(CycleFlags::TURNAROUND_MISSED))
+            .count();
+        assert_eq!(flagged, 1);
+        assert!(cycles.len() >= 17, "{}", cycles.len());
     }
 
     /// A pause (`gap`): the count ran on; the first cycle after it carries the whole angle
