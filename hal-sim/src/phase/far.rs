@@ -122,20 +122,29 @@ const INV_K: [f64; H] = {
 /// peak `omega' = 0`).
 pub fn oscillation_with_means(omega_taylor: &Jet, omega_l: f64) -> (Oscillation, [f64; ORDER]) {
     const _: () = assert!(ORDER == 8, "the order list below names each order");
-    let mut r = Recursion::new(omega_taylor, omega_l);
-    let mut out = Oscillation::default();
-    let mut means = [0.0; ORDER];
-    let negligible = 1e-12 * omega_taylor[0].abs();
-    macro_rules! run {
-        ($($n:literal)*) => {$(
-            means[$n] = r.sc[0][0];
-            if r.order::<$n>(&mut out) < negligible {
-                return (out, means);
-            }
-        )*};
+    // The recursion's 2.5 KB of tables are reused (zeroing them at every call was a tenth
+    // of the simulator's instructions): every entry an order reads was written earlier in
+    // the same call, except row 1 of `S_0` and the mean `S_0[0][0]`, which `reset` sets.
+    thread_local! {
+        static SCRATCH: std::cell::RefCell<Recursion> =
+            std::cell::RefCell::new(Recursion::new(&[1.0; ORDER], 0.0));
     }
-    run!(0 1 2 3 4 5 6 7);
-    (out, means)
+    SCRATCH.with_borrow_mut(|r| {
+        r.reset(omega_taylor, omega_l);
+        let mut out = Oscillation::default();
+        let mut means = [0.0; ORDER];
+        let negligible = 1e-12 * omega_taylor[0].abs();
+        macro_rules! run {
+            ($($n:literal)*) => {$(
+                means[$n] = r.sc[0][0];
+                if r.order::<$n>(&mut out) < negligible {
+                    return (out, means);
+                }
+            )*};
+        }
+        run!(0 1 2 3 4 5 6 7);
+        (out, means)
+    })
 }
 
 /// The recursion's state: `S_n` as cosine and sine coefficients `[harmonic][Taylor term]`,
@@ -161,6 +170,17 @@ impl Recursion {
             inv: jrecip(omega_taylor),
             half: 0.5 * omega_l,
         }
+    }
+
+    /// Starts the recursion at `S_1 = Omega_L cos psi` for the rate `omega_taylor`: sets what
+    /// order 0 reads and nothing else (see [`oscillation_with_means`]).
+    fn reset(&mut self, omega_taylor: &Jet, omega_l: f64) {
+        self.sc[0][0] = 0.0;
+        self.sc[1] = [0.0; ORDER];
+        self.sc[1][0] = omega_l;
+        self.ss[1] = [0.0; ORDER];
+        self.inv = jrecip(omega_taylor);
+        self.half = 0.5 * omega_l;
     }
 
     /// Order `N` (from 0): `w_N` from `S_N` (added to `out`), then `S_{N+1}`; returns the
