@@ -18,8 +18,8 @@
 //!   local Taylor polynomial; the step limits the beat-phase advance to `dtheta` = 2 rad.
 //! - [`far`]: no stepping; a near-identity transformation `phi = chi + W(t, psi)` removes the
 //!   fringe-rate oscillation to 8th order in `Omega_L/omega` and `omega'/omega^2`, and the
-//!   slow `chi` drifts by `-Omega_L^2/(2 omega) + ...`, integrated by a Chebyshev
-//!   interpolant in `ln|t - t_zero|` (dense output anywhere in the segment).
+//!   slow `chi` drifts by `-Omega_L^2/(2 omega) + ...`, integrated by a 10-node Gauss rule
+//!   in `ln|t - t_zero|` (dense output anywhere in the segment from the same nodes).
 //! - [`integrator`] walks the timeline and reports turnarounds and per-traversal errors;
 //!   [`reference`](mod@reference) is the brute-force RK4 the tests hold it against; [`theory`]
 //!   has the closed forms (Eq. 5, the stationary-phase traversal error; Chow's J0 band is the
