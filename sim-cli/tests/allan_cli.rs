@@ -1,25 +1,13 @@
 //! `rlg-sim allan` as a user runs it: a record with a lost row in `rlg-cal record`'s columns,
 //! the table, the CSV and the SVG; bad files and flags refused with the line or the flag.
 
+mod support;
+
 use rlg_sim::allan::synthetic::{NoiseTerms, Synthetic};
 use std::io::Write;
 use std::path::PathBuf;
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
-
-fn rlg_sim(args: &[&str]) -> (Output, Duration) {
-    let started = Instant::now();
-    let out = Command::new(env!("CARGO_BIN_EXE_rlg-sim"))
-        .args(args)
-        .stdin(Stdio::null())
-        .output()
-        .unwrap();
-    (out, started.elapsed())
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
+use std::time::Duration;
+use support::{rlg_sim, text};
 
 fn scratch(name: &str) -> PathBuf {
     std::env::temp_dir().join(format!("rlg-sim-allan-{}-{name}", std::process::id()))

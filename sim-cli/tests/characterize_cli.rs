@@ -2,23 +2,12 @@
 //! exit 2 before anything runs; a short run writes the report and its files, and the same seed
 //! writes the same numbers; Ctrl-C keeps the static record written so far and exits 130.
 
+mod support;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-
-fn rlg_sim(args: &[&str]) -> (Output, Duration) {
-    let started = Instant::now();
-    let out = Command::new(env!("CARGO_BIN_EXE_rlg-sim"))
-        .args(args)
-        .stdin(Stdio::null())
-        .output()
-        .unwrap();
-    (out, started.elapsed())
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
+use support::{rlg_sim, text};
 
 fn scratch(name: &str) -> PathBuf {
     let p = std::env::temp_dir().join(format!("rlg-sim-char-{}-{name}", std::process::id()));

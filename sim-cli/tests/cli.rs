@@ -1,23 +1,12 @@
 //! The `rlg-sim` binary as a user runs it: a calibration the board would refuse exits 1 naming
 //! the board's reason, and a bad output path is refused before the run.
 
+mod support;
+
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
-
-fn rlg_sim(args: &[&str]) -> (Output, Duration) {
-    let started = Instant::now();
-    let out = Command::new(env!("CARGO_BIN_EXE_rlg-sim"))
-        .args(args)
-        .stdin(Stdio::null())
-        .output()
-        .unwrap();
-    (out, started.elapsed())
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
+use std::time::Duration;
+use support::{rlg_sim, text};
 
 /// Calibrating at 0 deg/h (inside the dead band) and on 0.05 s per run (38 cycles; the board
 /// needs 2000) is refused with the firmware's reason codes 1 and 2 and their words, exit 1,

@@ -194,6 +194,20 @@ fn adev_at(analysis: &Analysis, tau_s: f64) -> Option<f64> {
     Some((a.adev_deg_h.ln() + f * (b.adev_deg_h / a.adev_deg_h).ln()).exp())
 }
 
+/// Valid samples of a record whose rate (deg/h = arcsec/s) is `rates`, one per `period_s`.
+#[cfg(test)]
+pub(crate) fn samples_from_rates(rates: &[f64], period_s: f64) -> Vec<StaticSample> {
+    rates
+        .iter()
+        .enumerate()
+        .map(|(i, r)| StaticSample {
+            t_s: (i + 1) as f64 * period_s,
+            delta_angle_arcsec: r * period_s,
+            valid: true,
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -235,15 +249,7 @@ mod tests {
         .into_iter()
         .map(|r| r + 0.7)
         .collect();
-        let samples: Vec<StaticSample> = rates
-            .iter()
-            .enumerate()
-            .map(|(i, r)| StaticSample {
-                t_s: (i + 1) as f64 * period,
-                delta_angle_arcsec: r * period,
-                valid: true,
-            })
-            .collect();
+        let samples = samples_from_rates(&rates, period);
         let f = static_figures(&rate_record(&samples, period), 0.95);
         let sigma_mean = 60.0 * arw / (2000.0f64).sqrt();
         assert!(

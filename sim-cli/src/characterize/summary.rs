@@ -301,7 +301,7 @@ mod tests {
     use super::*;
     use crate::allan::synthetic::{NoiseTerms, Synthetic};
     use crate::characterize::figures::{scale_factor, threshold, RatePoint};
-    use crate::characterize::noise::{rate_record, static_figures, StaticSample};
+    use crate::characterize::noise::{rate_record, samples_from_rates, static_figures};
     use crate::characterize::Configuration;
     use crate::experiment::BoardSetup;
     use firmware::signal::compensation::CompensationSettings;
@@ -314,16 +314,8 @@ mod tests {
             quantisation_arcsec: 0.5,
             ..NoiseTerms::default()
         };
-        let samples: Vec<StaticSample> = Synthetic::new(terms, period, seed)
-            .rates(100_000)
-            .iter()
-            .enumerate()
-            .map(|(i, r)| StaticSample {
-                t_s: (i + 1) as f64 * period,
-                delta_angle_arcsec: r * period,
-                valid: true,
-            })
-            .collect();
+        let rates = Synthetic::new(terms, period, seed).rates(100_000);
+        let samples = samples_from_rates(&rates, period);
         static_figures(&rate_record(&samples, period), 0.95)
     }
 
