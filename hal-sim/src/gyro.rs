@@ -391,6 +391,25 @@ pub struct Speed {
     pub gyro_s_per_cpu_s: Option<f64>,
 }
 
+impl Speed {
+    /// Times `run`, which simulates `gyro_seconds`, on this thread (wall clock and the
+    /// thread's CPU time).
+    pub fn of(gyro_seconds: f64, run: impl FnOnce()) -> Self {
+        let cpu0 = thread_cpu_s();
+        let start = std::time::Instant::now();
+        run();
+        let wall = start.elapsed().as_secs_f64();
+        let cpu = match (cpu0, thread_cpu_s()) {
+            (Some(a), Some(b)) if b > a => Some(gyro_seconds / (b - a)),
+            _ => None,
+        };
+        Self {
+            gyro_s_per_wall_s: gyro_seconds / wall,
+            gyro_s_per_cpu_s: cpu,
+        }
+    }
+}
+
 /// This thread's CPU time in seconds, if the OS tells.
 fn thread_cpu_s() -> Option<f64> {
     let s = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
@@ -412,9 +431,7 @@ pub fn measure_speed(
 ) -> Result<Speed, ParamError> {
     let mut g = Gyro::new(params, input)?;
     let mut drive = params.open_loop_drive();
-    let cpu0 = thread_cpu_s();
-    let start = std::time::Instant::now();
-    match &mut drive {
+    Ok(Speed::of(gyro_seconds, || match &mut drive {
         None => {
             g.advance_to(gyro_seconds);
         }
@@ -429,16 +446,7 @@ pub fn measure_speed(
                 g.advance_to(t);
             }
         }
-    }
-    let wall = start.elapsed().as_secs_f64();
-    let cpu = match (cpu0, thread_cpu_s()) {
-        (Some(a), Some(b)) if b > a => Some(gyro_seconds / (b - a)),
-        _ => None,
-    };
-    Ok(Speed {
-        gyro_s_per_wall_s: gyro_seconds / wall,
-        gyro_s_per_cpu_s: cpu,
-    })
+    }))
 }
 
 #[cfg(test)]

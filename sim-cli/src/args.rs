@@ -425,6 +425,10 @@ pub struct SpeedArgs {
     /// Simulated seconds to time.
     #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
     pub seconds: f64,
+    /// Time the simulated board (firmware in the loop, closed-loop drive, 1 kHz output, as
+    /// `record` runs it) instead of the bare gyro; timed once the drive has locked.
+    #[arg(long)]
+    pub board: bool,
 }
 
 /// `rlg-sim allan`: the Allan deviation of a recorded rate.

@@ -26,6 +26,7 @@ use firmware::signal::output::record::OutputRecord;
 use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use hal_sim::board::{LatchTiming, OutputLatch};
 use hal_sim::dither::resonator::ResonatorParams;
+use hal_sim::gyro::Speed;
 use hal_sim::harness::{DriveSource, Harness, HarnessOptions};
 use hal_sim::input::InputProfile;
 use hal_sim::params::GyroParams;
@@ -259,6 +260,28 @@ pub fn run_constant_rate(
         }
     });
     Ok(())
+}
+
+/// How fast the simulated board runs (firmware in the loop: the readout, the dither drive,
+/// the fixed-rate output, as `record` runs it, compensation off): `gyro_seconds` at a
+/// constant rate timed from the moment the drive has locked and settled (the lock-up itself,
+/// a few seconds of gyro time once per run, is not timed).
+pub fn measure_board_speed(
+    params: &GyroParams,
+    setup: BoardSetup,
+    rate_deg_h: f64,
+    gyro_seconds: f64,
+) -> Result<Speed, ExperimentError> {
+    let (mut harness, start_s) = start_constant_rate(
+        params,
+        setup,
+        rate_deg_h,
+        0.0,
+        CompensationSettings::default(),
+    )?;
+    Ok(Speed::of(gyro_seconds, || {
+        harness.run_until(start_s + gyro_seconds, |_, _| {});
+    }))
 }
 
 /// The paper's Step 2: runs at each calibration rate with compensation off, every cycle after the

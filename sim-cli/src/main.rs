@@ -23,7 +23,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use rlg_sim::dither_run::{self, DitherRunOptions};
 use rlg_sim::experiment::{
-    calibrate, measure_rate, settings_from_fit, BoardSetup, DitherDrive, Latch, RunLength,
+    calibrate, measure_board_speed, measure_rate, settings_from_fit, BoardSetup, DitherDrive,
+    Latch, RunLength,
 };
 use rlg_sim::record_run;
 use rlg_sim::report::{self, SweepRow};
@@ -374,17 +375,28 @@ fn speed(args: &SpeedArgs) -> Result<(), Failure> {
         )));
     }
     let params = args.gyro.params()?;
-    let speed = measure_speed(
-        params,
-        InputProfile::constant(args.rate_deg_h),
-        args.seconds,
-    )
-    .map_err(|e| Failure::Usage(format!("invalid gyro parameters: {e:?}")))?;
+    let (speed, what) = if args.board {
+        let setup = BoardSetup::board(0.0, 1000.0);
+        let speed = measure_board_speed(&params, setup, args.rate_deg_h, args.seconds)
+            .map_err(|e| Failure::Run(e.to_string()))?;
+        (
+            speed,
+            "the simulated board (firmware in the loop, 1 kHz output)",
+        )
+    } else {
+        let speed = measure_speed(
+            params,
+            InputProfile::constant(args.rate_deg_h),
+            args.seconds,
+        )
+        .map_err(|e| Failure::Usage(format!("invalid gyro parameters: {e:?}")))?;
+        (speed, "the gyro")
+    };
     let cpu = speed
         .gyro_s_per_cpu_s
         .map_or(String::new(), |c| format!(", {c:.1} per CPU-second"));
     println!(
-        "simulated {:.1} gyro-s: {:.1} gyro-seconds per wall-second{cpu} (one core)",
+        "simulated {:.1} gyro-s of {what}: {:.1} gyro-seconds per wall-second{cpu} (one core)",
         args.seconds, speed.gyro_s_per_wall_s
     );
     Ok(())

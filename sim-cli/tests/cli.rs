@@ -261,3 +261,38 @@ fn numeric_flags_take_negatives_where_legal_and_state_their_ranges() {
         assert!(took < Duration::from_secs(1), "{flag}: {took:?}");
     }
 }
+
+/// `rlg-sim speed` times the bare gyro and, with `--board`, the simulated board with the
+/// firmware in the loop (the figure of a long `record`): both print a positive speed and
+/// name what they timed; a bad length is refused (exit 2) before anything runs.
+#[test]
+fn speed_times_the_gyro_and_the_board() {
+    for (args, what) in [
+        (&["speed", "--seconds", "0.2"][..], "of the gyro:"),
+        (
+            &["speed", "--board", "--seconds", "0.2", "--rate-deg-h", "-3"][..],
+            "of the simulated board",
+        ),
+    ] {
+        let (out, _) = rlg_sim(args);
+        let stdout = text(&out.stdout);
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+        assert!(stdout.contains(what), "{stdout}");
+        let speed: f64 = stdout
+            .split(": ")
+            .nth(1)
+            .and_then(|r| r.split_whitespace().next())
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("no speed in {stdout}"));
+        assert!(speed > 0.0, "{stdout}");
+    }
+    let (out, took) = rlg_sim(&["speed", "--board", "--seconds", "0"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("--seconds must be in"));
+    assert!(took < Duration::from_secs(1), "{took:?}");
+}
