@@ -272,7 +272,12 @@ impl DrivenDither {
 
     /// The body's dither angle at `t_s`, arcsec (within the known drive).
     pub fn angle_arcsec(&self, t_s: f64) -> f64 {
-        self.state_at(t_s).angle_arcsec
+        // The angle alone (the pick-off's 40 kHz samples ask for it): no rate, no voltage.
+        self.check_known(t_s);
+        let mut angle = [0.0; 1];
+        self.response(self.index_at(t_s))
+            .angle_jet(t_s, 1.0, &mut angle);
+        angle[0]
     }
 
     /// The amplitude of the ringing (free) part at `t_s`, arcsec: how far the resonator is
