@@ -172,11 +172,10 @@ impl Planner {
 }
 
 /// Bisection for the switch of `pred` in `[lo, hi]` (`pred(lo) == at_lo`).
-/// Root of `q` bracketed by `[a, b]` (Illinois regula falsi), to 1e-3 of the bracket (80 ns at
-/// the default probe spacing; 1e-9 cost 1.6 % of the simulator for nothing measurable): a
+/// Root of `q` bracketed by `[a, b]` (Illinois regula falsi), to ~1e-9 of the bracket: a
 /// boundary needs no precision, only determinism and the right side of the sign change.
 fn regula_falsi(q: impl Fn(f64) -> f64, mut a: f64, mut qa: f64, mut b: f64, mut qb: f64) -> f64 {
-    let tol = 1e-3 * (b - a);
+    let tol = 1e-6 * (b - a);
     let mut side = 0;
     for _ in 0..40 {
         let c = (a * qb - b * qa) / (qb - qa);
