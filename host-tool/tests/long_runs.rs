@@ -95,6 +95,21 @@ fn served() -> Served {
     }
 }
 
+/// Takes `child`'s stderr and reads it until a line containing `announcement` (the long
+/// work under way); the rest stays to be read.
+fn stderr_after(child: &mut Child, announcement: &str) -> BufReader<ChildStderr> {
+    let mut stderr = BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    while !line.contains(announcement) {
+        line.clear();
+        assert!(
+            stderr.read_line(&mut line).unwrap() > 0,
+            "ended before {announcement:?}"
+        );
+    }
+    stderr
+}
+
 fn interrupt(child: &Child) {
     // SAFETY: a signal to our own child process.
     assert_eq!(
@@ -129,12 +144,7 @@ fn sigint_keeps_every_streamed_frame() {
     .spawn()
     .unwrap();
     // 3 s after the stream starts (its announcement on stderr), Ctrl-C.
-    let mut stderr = BufReader::new(child.stderr.take().unwrap());
-    let mut line = String::new();
-    while !line.contains("streaming every") {
-        line.clear();
-        assert!(stderr.read_line(&mut line).unwrap() > 0, "announcement");
-    }
+    let mut stderr = stderr_after(&mut child, "streaming every");
     std::thread::sleep(Duration::from_secs(3));
     interrupt(&child);
     let mut stderr_rest = String::new();
@@ -195,12 +205,7 @@ fn sigint_during_calibrate_aborts_the_run_on_the_board() {
     .unwrap();
     // Ctrl-C once the run is under way on the board (its announcement on stderr; a second
     // client cannot look: a new TCP connection takes the served board over).
-    let mut stderr = BufReader::new(child.stderr.take().unwrap());
-    let mut line = String::new();
-    while !line.contains("the calibration runs on the board") {
-        line.clear();
-        assert!(stderr.read_line(&mut line).unwrap() > 0, "announcement");
-    }
+    let mut stderr = stderr_after(&mut child, "the calibration runs on the board");
     interrupt(&child);
     let mut stderr_rest = String::new();
     std::io::Read::read_to_string(&mut stderr, &mut stderr_rest).unwrap();
@@ -400,12 +405,7 @@ fn sigint_during_a_sweep_keeps_the_azimuths_done() {
     .spawn()
     .unwrap();
     // The first azimuth measured (a progress line on stderr), then Ctrl-C.
-    let mut stderr = BufReader::new(child.stderr.take().unwrap());
-    let mut line = String::new();
-    while !line.contains("measured") {
-        line.clear();
-        assert!(stderr.read_line(&mut line).unwrap() > 0);
-    }
+    let mut stderr = stderr_after(&mut child, "measured");
     interrupt(&child);
     let mut rest = String::new();
     std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
