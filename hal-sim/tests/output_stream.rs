@@ -3,60 +3,36 @@
 //! numbered by the records' own 64-bit sequence, decoded by the host's
 //! `protocol::output_frame`; `status` reports the stripping's K and its convergence.
 
-use firmware::protocol::execute::Identity;
-use firmware::protocol::key::Key;
+mod device_support;
+
+use device_support::{boot_with_key, exchange, field, KEY};
 use firmware::protocol::output_frame::{decode_output_frame, OutputGaps};
 use firmware::protocol::parse::crc16;
 use firmware::signal::output::record::OutputStatus;
-use hal_sim::device::{SimDevice, OUTPUT_RATE_HZ, SIM_IDENTITY};
+use hal_sim::device::{SimDevice, OUTPUT_RATE_HZ};
 use hal_sim::flash::CalibrationFlash;
-use hal_sim::input::InputProfile;
 use hal_sim::params::GyroParams;
 
-/// The key this test gives its simulated board (a fixture: the simulator has no fixed key).
-const KEY: &str = "3a7c5e91b2d4f60819e3c5a7b9d1f2e4";
-
 fn boot(seed: u64, rate_deg_h: f64, flash: CalibrationFlash, boot_count: u32) -> SimDevice {
-    SimDevice::boot(
-        GyroParams {
-            seed,
-            ..GyroParams::default()
-        },
-        InputProfile::constant(rate_deg_h),
-        Identity {
-            key: Key::parse_hex(KEY),
-            ..SIM_IDENTITY
-        },
-        flash,
-        boot_count,
-    )
-    .unwrap()
+    let params = GyroParams {
+        seed,
+        ..GyroParams::default()
+    };
+    boot_with_key(params, rate_deg_h, flash, boot_count)
 }
 
 /// One line with its CRC (the host tool's way: a state-changing command runs at once), its
 /// answer without the CRC suffix; waits up to 3 simulated seconds (a `store` answers when its
 /// flash stall is over).
 fn ask(dev: &mut SimDevice, line: &str) -> String {
-    dev.receive(format!("{line}*{:04X}\n", crc16(line.as_bytes())).as_bytes());
-    let mut out = dev.take_output();
-    let sent_s = dev.time_s();
-    while out.is_empty() && dev.time_s() - sent_s < 3.0 {
-        dev.run_for(0.001);
-        out = dev.take_output();
-    }
-    let text = String::from_utf8(out).expect("text answer");
+    let text = exchange(
+        dev,
+        format!("{line}*{:04X}\n", crc16(line.as_bytes())).as_bytes(),
+    );
     let line = text.trim_end();
     line.rsplit_once('*')
         .map_or(line, |(body, _)| body)
         .to_owned()
-}
-
-fn field<'a>(answer: &'a str, key: &str) -> &'a str {
-    answer
-        .split(' ')
-        .find_map(|w| w.strip_prefix(key).and_then(|w| w.strip_prefix('=')))
-        .unwrap_or_else(|| panic!("{key} in {answer}"))
-        .trim_end()
 }
 
 /// One second of `stream output` at 50 deg/h (compensation off: far enough outside the dead

@@ -2,17 +2,15 @@
 //! calibration session and flash store, driven by text lines as a technician or the host tool
 //! would send them. Seeded; every exchange is one line in, exactly one line out.
 
-use firmware::protocol::execute::Identity;
-use firmware::protocol::key::Key;
+mod device_support;
+
+use device_support::{boot_with_key, exchange, field, KEY};
 use firmware::protocol::parse::crc16;
 use firmware::protocol::stream::{decode_frame, GapCounter};
 use hal_sim::device::{SimDevice, SIM_IDENTITY};
 use hal_sim::flash::{CalibrationFlash, PowerCut};
 use hal_sim::input::InputProfile;
 use hal_sim::params::GyroParams;
-
-/// The key this test gives its simulated board (a fixture: the simulator has no fixed key).
-const KEY: &str = "3a7c5e91b2d4f60819e3c5a7b9d1f2e4";
 
 /// Powers the simulated board up and waits, as a technician does, until `status` shows the
 /// dither drive locked (the board's start-up from the ringing dither takes about 1.1 s; 3 s at
@@ -22,17 +20,7 @@ fn boot(flash: CalibrationFlash, rate_deg_h: f64, boot_count: u32) -> SimDevice 
         seed: 31 + boot_count as u64,
         ..GyroParams::default()
     };
-    let mut dev = SimDevice::boot(
-        params,
-        InputProfile::constant(rate_deg_h),
-        Identity {
-            key: Key::parse_hex(KEY),
-            ..SIM_IDENTITY
-        },
-        flash,
-        boot_count,
-    )
-    .unwrap();
+    let mut dev = boot_with_key(params, rate_deg_h, flash, boot_count);
     while field(&ask(&mut dev, "status"), "drive") != "locked" {
         assert!(dev.time_s() < 3.0, "the drive did not lock");
         dev.run_for(0.1);
@@ -59,26 +47,10 @@ fn ask(dev: &mut SimDevice, line: &str) -> String {
 /// One line, its one answer line (waiting up to 3 simulated seconds for it: a `store` answers
 /// when its flash stall is over).
 fn ask_once(dev: &mut SimDevice, line: &str) -> String {
-    dev.receive(line.as_bytes());
-    dev.receive(b"\n");
-    let mut out = dev.take_output();
-    let sent_s = dev.time_s();
-    while out.is_empty() && dev.time_s() - sent_s < 3.0 {
-        dev.run_for(0.001);
-        out = dev.take_output();
-    }
-    let out = String::from_utf8(out).expect("text answer");
+    let out = exchange(dev, format!("{line}\n").as_bytes());
     let lines: Vec<&str> = out.split_terminator("\r\n").collect();
     assert_eq!(lines.len(), 1, "one answer to {line:?}: {out:?}");
     lines[0].to_string()
-}
-
-/// The value of `key=` in an answer.
-fn field<'a>(answer: &'a str, key: &str) -> &'a str {
-    answer
-        .split(' ')
-        .find_map(|w| w.strip_prefix(key).and_then(|w| w.strip_prefix('=')))
-        .unwrap_or_else(|| panic!("{key} in {answer}"))
 }
 
 /// A simulated board booted without a key is a new board: no key unlocks it (the old
