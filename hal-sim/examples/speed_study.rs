@@ -9,7 +9,7 @@
 //!
 //! Defaults: the solver's defaults. The tradeoffs in `src/phase/near.rs` were measured with it.
 
-use hal_sim::gyro::Gyro;
+use hal_sim::gyro::{Gyro, Speed};
 use hal_sim::input::InputProfile;
 use hal_sim::params::GyroParams;
 use hal_sim::phase::free_phase::FreePhase;
@@ -38,9 +38,10 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    let start = std::time::Instant::now();
-    g.advance_to(2.0);
-    let speed = 2.0 / start.elapsed().as_secs_f64();
+    let speed = Speed::of(2.0, || {
+        g.advance_to(2.0);
+    })
+    .gyro_s_per_wall_s;
 
     let d = p.derive().expect("checked by Gyro::new");
     let fp = FreePhase::new(&p, &d, input.clone());
