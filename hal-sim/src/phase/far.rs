@@ -121,28 +121,19 @@ const INV_K: [f64; H] = {
 /// remainder is negligible (far from the near region the series collapses fast: at a dither
 /// peak `omega' = 0`).
 pub fn oscillation_with_means(omega_taylor: &Jet, omega_l: f64) -> (Oscillation, [f64; ORDER]) {
-    const _: () = assert!(ORDER == 8, "the order list below names each order");
+    const _: () = assert!(ORDER == 8, "the order lists below name each order");
     // The recursion's 2.5 KB of tables are reused (zeroing them at every call was a tenth
     // of the simulator's instructions): every entry an order reads was written earlier in
     // the same call, except row 1 of `S_0` and the mean `S_0[0][0]`, which `reset` sets.
     thread_local! {
         static SCRATCH: std::cell::RefCell<Recursion> =
             std::cell::RefCell::new(Recursion::new(&[1.0; ORDER], 0.0));
+        /// The order the previous call stopped at (the next instant is usually alike).
+        static LAST_STOP: std::cell::Cell<usize> = const { std::cell::Cell::new(ORDER - 1) };
     }
     SCRATCH.with_borrow_mut(|r| {
-        r.reset(omega_taylor, omega_l);
-        let mut out = Oscillation::default();
-        let mut means = [0.0; ORDER];
-        let negligible = 1e-12 * omega_taylor[0].abs();
-        macro_rules! run {
-            ($($n:literal)*) => {$(
-                means[$n] = r.sc[0][0];
-                if r.order::<$n>(&mut out) < negligible {
-                    return (out, means);
-                }
-            )*};
-        }
-        run!(0 1 2 3 4 5 6 7);
+        let (out, means, stop) = r.run(omega_taylor, omega_l, LAST_STOP.get() + 2);
+        LAST_STOP.set(stop);
         (out, means)
     })
 }
@@ -159,6 +150,48 @@ struct Recursion {
 }
 
 impl Recursion {
+    /// `W`'s coefficients, the means and the order the series stopped at. First the short
+    /// run that suffices if the series stops within `guess` orders (the order the previous
+    /// instant stopped at plus two: consecutive instants are alike), else the full run. A
+    /// short run that stops gives exactly the full run's terms (see [`Self::truncated`]), so
+    /// the guess changes the cost, never the result.
+    fn run(
+        &mut self,
+        omega_taylor: &Jet,
+        omega_l: f64,
+        guess: usize,
+    ) -> (Oscillation, [f64; ORDER], usize) {
+        let negligible = 1e-12 * omega_taylor[0].abs();
+        let mut out = Oscillation::default();
+        let mut means = [0.0; ORDER];
+        self.reset(omega_taylor, omega_l);
+        let short = match guess {
+            2 => self.truncated::<2>(&mut out, &mut means, negligible),
+            3 => self.truncated::<3>(&mut out, &mut means, negligible),
+            4 => self.truncated::<4>(&mut out, &mut means, negligible),
+            5 => self.truncated::<5>(&mut out, &mut means, negligible),
+            6 => self.truncated::<6>(&mut out, &mut means, negligible),
+            7 => self.truncated::<7>(&mut out, &mut means, negligible),
+            _ => None,
+        };
+        if let Some(stop) = short {
+            return (out, means, stop);
+        }
+        if (2..ORDER).contains(&guess) {
+            self.reset(omega_taylor, omega_l);
+            out = Oscillation::default();
+            means = [0.0; ORDER];
+        }
+        let stop = self
+            .truncated::<ORDER>(&mut out, &mut means, negligible)
+            .unwrap_or_else(|| {
+                means[ORDER - 1] = self.sc[0][0];
+                self.order::<{ ORDER - 1 }, ORDER>(&mut out);
+                ORDER - 1
+            });
+        (out, means, stop)
+    }
+
     fn new(omega_taylor: &Jet, omega_l: f64) -> Self {
         let mut sc = [[0.0; ORDER]; H];
         sc[1][0] = omega_l;
@@ -183,18 +216,55 @@ impl Recursion {
         self.half = 0.5 * omega_l;
     }
 
-    /// Order `N` (from 0): `w_N` from `S_N` (added to `out`), then `S_{N+1}`; returns the
-    /// largest coefficient of `S_{N+1}` at the instant (rad/s), the size of what is left.
+    /// The orders `0 ..= M - 2` of a run truncated at `M` orders, each checked: `Some(n)`
+    /// once the remainder after order `n` is below `negligible` (`W` is then `w_0 .. w_n`),
+    /// `None` if it never is.
+    ///
+    /// Order `n` carries the `M - n` Taylor terms that `w_{M-1}` would need (`w_n`'s term
+    /// `j` reads `S_n`'s terms `0..=j`, and `S_{n+1}`'s term `j` reads `w_n`'s `j` and
+    /// `j + 1`). Every entry it computes is computed by the same operations as in the full
+    /// run (`M = ORDER`), so a run that stops gives the full run's `W` and means bit for bit,
+    /// at a fraction of the cost: the recursion's work grows as the square of the Taylor
+    /// length, and at a dense instant deep in a far segment the series stops after 3-5 of
+    /// its 8 orders (`oscillation_at_any_order_guess_is_the_full_run` checks the identity).
+    #[inline(always)]
+    fn truncated<const M: usize>(
+        &mut self,
+        out: &mut Oscillation,
+        means: &mut [f64; ORDER],
+        negligible: f64,
+    ) -> Option<usize> {
+        macro_rules! checked {
+            ($($n:literal)*) => {$(
+                if $n + 1 < M {
+                    means[$n] = self.sc[0][0];
+                    if self.order::<$n, M>(out) < negligible {
+                        return Some($n);
+                    }
+                }
+            )*};
+        }
+        checked!(0 1 2 3 4 5 6);
+        None
+    }
+
+    /// Order `N` (from 0) of a run truncated at `M` orders: `w_N` from `S_N` (added to
+    /// `out`), then `S_{N+1}`; returns the largest coefficient of `S_{N+1}` at the instant
+    /// (rad/s), the size of what is left.
     ///
     /// At order N only harmonics below `N + 2` and the first `ORDER - N` Taylor terms are
     /// live; each entry of `S_{N+1}` is gathered once from `w_N`:
     /// `-dw/dt` keeps the harmonic, `-Omega_L cos(psi) dw/dpsi` moves it by one either way.
     #[inline(always)]
-    fn order<const N: usize>(&mut self, out: &mut Oscillation) -> f64 {
+    fn order<const N: usize, const M: usize>(&mut self, out: &mut Oscillation) -> f64 {
         let top = if N + 2 < H { N + 2 } else { H };
-        let len = ORDER - N;
+        // (Instantiated for N >= M too, never called: no overflow there.)
+        let len = M.saturating_sub(N);
         // w_N = antiderivative in psi of the oscillating part of S_N, divided by omega.
-        for (k, &inv_k) in INV_K.iter().enumerate().take(top).skip(1) {
+        // (Index loops: the iterator adapters' version was not unrolled.)
+        #[allow(clippy::needless_range_loop)]
+        for k in 1..top {
+            let inv_k = INV_K[k];
             for j in 0..len {
                 let (mut a, mut b) = (0.0, 0.0);
                 for i in 0..=j {
@@ -209,7 +279,7 @@ impl Recursion {
         }
         // S_{N+1} = -dw/dt - Omega_L cos psi dw/dpsi, harmonics 0 ..= top (the next order
         // needs the first len - 1 Taylor terms).
-        let next = len - 1;
+        let next = len.saturating_sub(1);
         let (wc, ws, half) = (&self.wc, &self.ws, self.half);
         let ntop = if top + 1 < H { top + 1 } else { H };
         let mut rest: f64 = 0.0;
@@ -238,7 +308,11 @@ impl Recursion {
                 self.sc[m][j] = c;
                 self.ss[m][j] = s;
                 if j == 0 && m >= 1 {
-                    rest = rest.max(c.abs()).max(s.abs());
+                    // (Not `f64::max`: its NaN handling costs a branch per call.)
+                    let size = if c.abs() > s.abs() { c.abs() } else { s.abs() };
+                    if size > rest {
+                        rest = size;
+                    }
                 }
             }
         }
@@ -402,6 +476,42 @@ mod tests {
         let g = means[1] + means[3];
         let gd = drift_rate(w, d1, d2, omega_l);
         assert!((g - gd).abs() < 1e-9 * gd.abs(), "{g} vs {gd}");
+    }
+
+    /// The short runs are the full run, bit for bit, whatever the guess: at the far boundary
+    /// (all 8 orders needed), across a far segment, and at a dither peak (`omega' = 0`, the
+    /// series stops after a few orders). Instants where a guess is too short fall back.
+    #[test]
+    fn oscillation_at_any_order_guess_is_the_full_run() {
+        let mut r = Recursion::new(&[1.0; ORDER], 0.0);
+        let mut stops = [0usize; ORDER];
+        for i in 0..400 {
+            let x = i as f64 / 400.0;
+            // omega from the near/far boundary (4.8e5 rad/s) to a dither peak (3.7e6).
+            let w = 4.8e5 + x * 3.2e6;
+            let slope = 9.0e9 * (1.0 - x) * (1.0 - 2.0 * (i % 2) as f64);
+            let tay = [
+                w,
+                slope,
+                -4.5e12 * x,
+                -1.5e15 * (1.0 - x),
+                2.0e17,
+                -1e20,
+                3e22,
+                0.0,
+            ];
+            let full = r.run(&tay, 673.6, ORDER);
+            stops[full.2] += 1;
+            for guess in 2..ORDER {
+                let short = r.run(&tay, 673.6, guess);
+                assert_eq!(short.0, full.0, "W at guess {guess}, instant {i}");
+                assert_eq!(short.1, full.1, "means at guess {guess}, instant {i}");
+                assert_eq!(short.2, full.2, "stop at guess {guess}, instant {i}");
+            }
+        }
+        // Both kinds of instant occur: early stops and the full 8 orders.
+        assert!(stops[..5].iter().sum::<usize>() > 50, "{stops:?}");
+        assert!(stops[ORDER - 1] > 10, "{stops:?}");
     }
 
     /// The quartic expansion of `W` in `solve_phi` against fixed-point iteration on `W` itself,
