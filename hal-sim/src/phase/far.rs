@@ -114,12 +114,19 @@ const INV_K: [f64; H] = {
 /// coefficients `omega_taylor[j] = omega^(j) / j!` there. Also returns the means `g_n`
 /// (index n-1) of the recursion (for checks; the integrator uses [`drift_rate`]).
 ///
-/// The recursion runs order by order ([`Recursion::order`], one monomorphised copy per order
-/// so every loop bound is a constant: unrolled, no bounds checks; this runs at both ends of
-/// every far segment and at every dense query inside one, and the loop version with run-time
-/// bounds took four times the arithmetic's instructions), and stops early once the
-/// remainder is negligible (far from the near region the series collapses fast: at a dither
-/// peak `omega' = 0`).
+/// The recursion runs order by order (one monomorphised copy per order so every loop bound is
+/// a constant: unrolled, no bounds checks; this runs at both ends of every far segment and at
+/// every dense query inside one, and the loop version with run-time bounds took four times
+/// the arithmetic's instructions), and stops early once the remainder is negligible (far from
+/// the near region the series collapses fast: at a dither peak `omega' = 0`).
+///
+/// It first tries a *short run*: the Taylor lengths that a series stopping where the previous
+/// instant's did (plus one order) needs, the full run only if that does not stop. The work
+/// grows as the square of the Taylor length and most dense instants stop after 3 of the 8
+/// orders, so this takes the simulated board from 209 M to 183 M instructions per
+/// gyro-second (the bare gyro, whose queries are mostly boundaries, from 57 M to 54 M), with
+/// the same result bit for bit (`oscillation_at_any_order_guess_is_the_full_run`; `rlg-sim
+/// record` writes the same CSV, and a 10 h record the same Allan deviation).
 pub fn oscillation_with_means(omega_taylor: &Jet, omega_l: f64) -> (Oscillation, [f64; ORDER]) {
     const _: () = assert!(ORDER == 8, "the order lists below name each order");
     // The recursion's 2.5 KB of tables are reused (zeroing them at every call was a tenth

@@ -13,7 +13,7 @@
 //! iteration (contraction `~Omega_L h / 2`, < 1e-2 here), and each iteration only rotates
 //! the stage phases by a tiny angle, so a step costs five `(cos, sin)` pairs and five
 //! polynomial evaluations. The tableau is computed once from the Legendre nodes
-//! ([`Tableau::new`]), not typed in.
+//! (`Tableau::new`), not typed in.
 //!
 //! Step size: the beat phase may advance at most `dtheta` per step,
 //! `h = dtheta / (sqrt(omega^2 + |omega'| TURN_PHASE_RAD) + Omega_L)`: far from the
