@@ -9,7 +9,7 @@
 //! without a report (its figures would be of an incomplete test).
 
 use crate::args::{self, CharacterizeArgs, OnOff};
-use crate::{calibrate_board, progress, Failure};
+use crate::{calibrate_board, progress, use_jobs, Failure};
 use firmware::signal::compensation::CompensationSettings;
 use rlg_sim::characterize::report::{self, Context};
 use rlg_sim::characterize::summary::{self, SLUG_NOISE, SLUG_OFF, SLUG_ON};
@@ -116,12 +116,7 @@ pub fn characterize(args: &CharacterizeArgs) -> Result<(), Failure> {
         static_out.push(Box::new(std::io::BufWriter::new(file)));
     }
     let stop = rlg_sim::interrupt::install();
-    if let Some(jobs) = args.jobs {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(jobs)
-            .build_global()
-            .map_err(|e| Failure::Run(format!("thread pool: {e}")))?;
-    }
+    use_jobs(args.jobs)?;
     let compensates = args.compare || args.compensation == OnOff::On;
     let (settings, calibration) = if compensates {
         let s = calibrate_board(

@@ -115,6 +115,17 @@ fn check_output(path: Option<&std::path::PathBuf>) -> Result<(), Failure> {
     }
 }
 
+/// Runs the parallel points on `jobs` threads (`--jobs`; at least one), or one per core.
+fn use_jobs(jobs: Option<usize>) -> Result<(), Failure> {
+    if let Some(jobs) = jobs {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(jobs.max(1))
+            .build_global()
+            .map_err(|e| Failure::Run(format!("thread pool: {e}")))?;
+    }
+    Ok(())
+}
+
 fn sweep(args: &SweepArgs) -> Result<(), Failure> {
     args.validate().map_err(Failure::Usage)?;
     let params = args.gyro.params()?;
@@ -122,12 +133,7 @@ fn sweep(args: &SweepArgs) -> Result<(), Failure> {
     check_output(args.svg.as_ref())?;
     // Ctrl-C: the points under way finish, the rest are skipped, and what was done is written.
     let stop = rlg_sim::interrupt::install();
-    if let Some(jobs) = args.jobs {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(jobs.max(1))
-            .build_global()
-            .map_err(|e| Failure::Run(format!("thread pool: {e}")))?;
-    }
+    use_jobs(args.jobs)?;
     // Step 2 of the paper: calibrate outside the dead band.
     let setup = args.board.setup();
     let settings = calibrate_board(

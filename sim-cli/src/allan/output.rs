@@ -227,11 +227,17 @@ pub fn figure(analysis: &Analysis, title: &str) -> Figure {
             ));
         }
     }
+    adev_figure(title, "Allan deviation of the rate", series)
+}
+
+/// The log-log ADEV-against-tau frame of `series` (this module's figure and `characterize`'s
+/// comparison of the static records).
+pub fn adev_figure(title: &str, panel_title: &str, series: Vec<Series>) -> Figure {
     Figure {
         title: title.into(),
         x_label: "tau (s)".into(),
         panels: vec![Panel {
-            title: "Allan deviation of the rate".into(),
+            title: panel_title.into(),
             y_label: "ADEV (deg/h)".into(),
             series,
             weight: 1.0,

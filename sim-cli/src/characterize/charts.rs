@@ -4,6 +4,7 @@
 
 use super::figures::{resolved, RatePoint};
 use super::procedure::ConfigurationResult;
+use crate::allan::output::adev_figure;
 use crate::plot::{Axes, Figure, Panel, Series, Style};
 
 /// One colour per configuration, in order.
@@ -161,17 +162,6 @@ pub fn allan_compare(results: &[ConfigurationResult], title: &str) -> Option<Fig
             });
         }
     }
-    (!series.is_empty()).then(|| Figure {
-        title: title.into(),
-        x_label: "tau (s)".into(),
-        panels: vec![Panel {
-            title: "Allan deviation of the static records".into(),
-            y_label: "ADEV (deg/h)".into(),
-            series,
-            weight: 1.0,
-        }],
-        width_px: 900.0,
-        height_px: 650.0,
-        axes: Axes::LogLog,
-    })
+    (!series.is_empty())
+        .then(|| adev_figure(title, "Allan deviation of the static records", series))
 }
