@@ -10,9 +10,9 @@
 //!
 //! | fault | hook | expected flags | counters |
 //! | --- | --- | --- | --- |
-//! | register jump (EMI burst, corrupted read) of 10^6 counts | `QuadratureCounter::inject_counts` | COUNTER_GLITCH on the 2 cycles holding the 3 glitched latches | 3 counter glitches (2 rejected reads, then the resync) |
+//! | register jump (EMI burst, corrupted read) of 10^6 counts | `QuadratureCounter::inject_counts` | COUNTER_GLITCH on every cycle holding one of the 3 glitched latches | 3 counter glitches (2 rejected reads, then the resync) |
 //! | a missed turnaround interrupt | the latch is not delivered | TURNAROUND_MISSED on the next cycle | 1 turnaround, 2 cycles fewer |
-//! | ADC saturated (both codes at full scale) for 4 latches | `Photodiodes::set_fault` | SIGNAL_LOST on the 3 cycles holding them, no correction | 4 signal-lost readings |
+//! | ADC saturated (both codes at full scale) for 4 latches | `Photodiodes::set_fault` | SIGNAL_LOST on every cycle holding one of them, no correction | 4 signal-lost readings |
 //! | photodiode light lost (both channels at their DC level) for 4 latches | `Photodiodes::set_fault` | as saturation | as saturation |
 //!
 //! Recovery: no flags from the end of the fault on; every unflagged cycle within
@@ -59,8 +59,10 @@ const RUN_S: f64 = 1.7;
 const FAULT_AT: usize = 540;
 /// Latches an ADC fault lasts.
 const FAULT_LATCHES: usize = 4;
-/// Cycles after the last faulty latch from which the output must be back.
-const RECOVERY_CYCLES: usize = 2;
+/// Cycles after the last faulty latch from which the output must be back: a cycle's increment
+/// spans five latches (the 1-2-1 averages centred on two "-" turnarounds a period apart), so the
+/// third cycle closed after a latch is the first clear of it.
+const RECOVERY_CYCLES: usize = 3;
 /// Per cycle, against the fault-free run: 0.05 deg/h over one cycle (2.6 ms) is 7e-5 fringe,
 /// 4e-4 rad, about half the photodiode noise of one latch (7.6e-4 rad). Measured (seed 51): 0
 /// after the counter glitch and the missed turnaround, 5e-7 after the saturation, 1.6e-4 deg/h
@@ -91,9 +93,10 @@ impl Run {
         fringes / record.duration_s(&self.config.cycle) * paper_gyro(0).scale_factor_arcsec
     }
 
-    /// The cycle's first latch, s.
+    /// The cycle's first latch, s: its increment starts from the 1-2-1 average centred on the
+    /// "-" turnaround before its opening "+", which holds the "+" a period before that.
     fn start_s(&self, end_s: f64, record: &CycleRecord) -> f64 {
-        end_s - record.duration_s(&self.config.cycle)
+        end_s - 2.0 * record.duration_s(&self.config.cycle)
     }
 }
 

@@ -6,21 +6,22 @@
 //! can still fit. With the amplitude jittering, the turnaround phases decorrelate, and only the
 //! correct Eq. 18 explains the truth.
 //!
-//! Truth: the lock-in phase phi = psi - theta at each turnaround (hal-sim); its change from one
-//! "+" turnaround to the next is exactly the lock-in error of the firmware's cycle, latch split
-//! included. Model: a P1 + b P2 with the true a = Omega_L cos(eps + pi/4), b = Omega_L
+//! Truth: the lock-in phase phi = psi - theta at each turnaround (hal-sim). The firmware's cycle
+//! increment runs between 1-2-1 averages of the latched phases centred on two "-" turnarounds
+//! a period apart; the same averages of phi give exactly the lock-in error it holds, latch
+//! split included. Model: a P1 + b P2 with the true a = Omega_L cos(eps + pi/4), b = Omega_L
 //! sin(eps + pi/4). Acceptance: correlation >= 0.999, and the rms residual (model - truth)
 //! bounded twice:
 //! - physics: below 1 % of the rms truth. The parabolic approximation of a traversal neglects
 //!   terms of relative order (w_d k)^2 = 4e-3 for the parameter set of docs/physics.md, and k is
-//!   measured from the dither; 1 % leaves room for both. Measured: 0.10 % to 0.11 %.
+//!   measured from the dither; 1 % leaves room for both. Measured: 0.09 %.
 //! - regression: below 1.5 times the floor set by the photodiode noise. The levels at a latch
 //!   carry sigma = noise / amplitude (1 mV / 1.32 V) plus the ADC's quantisation
-//!   (LSB / sqrt(12)); each latch enters a P term as k sigma, weighted 1/2, 1, 1/2 over the
-//!   cycle's three turnarounds, so the model scatters by Omega_L k sigma sqrt(1.5) = 1.69e-5 rad
-//!   per cycle. Measured over eight seeds (21..=28): 1.84e-5 to 1.97e-5 rad (1.09 to 1.17 times
-//!   the floor); without photodiode noise 0.80e-5 rad (quantisation and the model's own error). The bound,
-//!   1.5 x floor = 2.5e-5 rad, fails if the model's own error grows threefold.
+//!   (LSB / sqrt(12)); each latch enters a P term as k sigma, weighted 1/8, 1/2, 3/4, 1/2, 1/8
+//!   over the cycle's five turnarounds, so the model scatters by Omega_L k sigma 1.046 =
+//!   1.44e-5 rad per cycle. Measured over eight seeds (21..=28): 1.52e-5 to 1.62e-5 rad (1.05
+//!   to 1.12 times the floor). The bound, 1.5 x floor = 2.2e-5 rad, fails if the model's own
+//!   error (0.6e-5 rad) grows threefold.
 
 mod common;
 
@@ -43,6 +44,10 @@ fn correlation(x: &[f64], y: &[f64]) -> f64 {
     sxy / (sxx * syy).sqrt()
 }
 
+/// The weights of a cycle's five latches in its increment (`firmware::signal::lockin`: the
+/// 1-2-1 averages centred on two "-" turnarounds a period apart).
+const WEIGHTS: [f64; 5] = [0.125, 0.5, 0.75, 0.5, 0.125];
+
 /// (model, truth) per cycle, for `seconds` of gyro time at `rate_deg_h`.
 fn model_and_truth(params: &GyroParams, rate_deg_h: f64, seconds: f64) -> (Vec<f64>, Vec<f64>) {
     let mut harness = HarnessOptions::new(*params, InputProfile::constant(rate_deg_h))
@@ -53,33 +58,35 @@ fn model_and_truth(params: &GyroParams, rate_deg_h: f64, seconds: f64) -> (Vec<f
         omega_l * (params.eps_rad + TAU / 8.0).cos(),
         omega_l * (params.eps_rad + TAU / 8.0).sin(),
     );
-    // Firmware cycles: (start time, end time, model); truth: phi at each "+" turnaround.
+    // Firmware cycles: (closing latch, model); truth: phi at every turnaround, in time order.
     let mut cycles = Vec::new();
-    let mut plus_phi = std::collections::BTreeMap::new();
-    let mut last_plus_s = None;
+    let mut phi = std::collections::BTreeMap::new();
     harness.run_until(seconds, |h, half| {
         let t = half.latch_s();
         if let Some(record) = &half.record {
             if record.output.flags.is_empty() && t > 0.5 {
                 let model = a * record.terms.p1_s as f64 + b * record.terms.p2_s as f64;
-                cycles.push((last_plus_s.unwrap(), t, model));
+                cycles.push((t, model));
             }
-        }
-        if half.sample.kind == TurnaroundKind::Plus {
-            last_plus_s = Some(t);
         }
         for tr in h.take_traversals() {
-            if tr.turnaround.kind == TurnaroundKind::Plus {
-                plus_phi.insert(tr.turnaround.time_s.to_bits(), tr.turnaround.phi_rad);
-            }
+            phi.insert(tr.turnaround.time_s.to_bits(), tr.turnaround.phi_rad);
         }
     });
+    // The exact latch is the true turnaround: times match bit for bit.
+    let times: Vec<u64> = phi.keys().copied().collect();
+    let phis: Vec<f64> = phi.values().copied().collect();
+    let smoothed =
+        |centre: usize| 0.25 * (phis[centre - 1] + 2.0 * phis[centre] + phis[centre + 1]);
     let (mut model, mut truth) = (Vec::new(), Vec::new());
-    for (start, end, m) in cycles {
-        if let (Some(p0), Some(p1)) = (plus_phi.get(&start.to_bits()), plus_phi.get(&end.to_bits()))
-        {
-            model.push(m);
-            truth.push(p1 - p0);
+    for (end, m) in cycles {
+        // The cycle closing at "+" turnaround e runs from the smoothed phi centred on e - 3 to
+        // the one centred on e - 1.
+        if let Ok(e) = times.binary_search(&end.to_bits()) {
+            if e >= 4 {
+                model.push(m);
+                truth.push(smoothed(e - 1) - smoothed(e - 3));
+            }
         }
     }
     (model, truth)
@@ -133,5 +140,6 @@ fn noise_floor_rad(params: &GyroParams) -> f64 {
     let w_d = TAU * params.dither_hz;
     let k_s = (TAU / (amplitude_rad * w_d * w_d)).sqrt();
     let omega_l = TAU * params.lock_in_deg_per_h / params.scale_factor_arcsec;
-    omega_l * k_s * sigma * 1.5f64.sqrt()
+    let weights_rms = WEIGHTS.iter().map(|w| w * w).sum::<f64>().sqrt();
+    omega_l * k_s * sigma * weights_rms
 }

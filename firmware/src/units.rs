@@ -99,6 +99,16 @@ impl TotalPhase {
     pub const fn to_q32(self) -> i64 {
         self.0
     }
+
+    /// The 1-2-1 average of three latches with `self` in the middle, `(before + 2 self +
+    /// after) / 4`, rounded down to the Q32 step: `self + floor(((before - self) + (after -
+    /// self)) / 4)` (wrapping, exact while the neighbours are within 2^61 Q32 of `self`).
+    /// Differences of such averages telescope exactly, whatever the rounding.
+    #[inline]
+    pub const fn smoothed_121(self, before: Self, after: Self) -> Self {
+        let spread = before.0.wrapping_sub(self.0) + after.0.wrapping_sub(self.0);
+        Self(self.0.wrapping_add(spread >> 2))
+    }
 }
 
 impl core::ops::Sub for TotalPhase {
@@ -136,5 +146,21 @@ mod tests {
             TotalPhase::from_q32(5 << 32) - TotalPhase::from_q32(3 << 32),
             2 << 32
         );
+    }
+
+    #[test]
+    fn smoothed_121_rounds_down_and_wraps() {
+        let m = |a: i64, b: i64, c: i64| {
+            TotalPhase::from_q32(b)
+                .smoothed_121(TotalPhase::from_q32(a), TotalPhase::from_q32(c))
+                .to_q32()
+        };
+        assert_eq!(m(4, 8, 16), 9);
+        assert_eq!(m(16, 8, 4), 9);
+        assert_eq!(m(0, 0, 5), 1);
+        assert_eq!(m(0, 0, -5), -2);
+        assert_eq!(m(-8, 0, -8), -4);
+        assert_eq!(m(i64::MAX - 3, i64::MAX, i64::MIN + 3), i64::MAX);
+        assert_eq!(m(i64::MAX, i64::MIN + 1, i64::MIN + 6), i64::MIN + 1);
     }
 }

@@ -100,11 +100,7 @@ impl Drive {
     }
 }
 
-/// `(cos, sin)` of `phase` in Q31 (`idsp::cossin`: ~40 Cortex-M4 instructions).
-#[inline]
-pub fn cos_sin_q31(phase: Phase) -> (i32, i32) {
-    idsp::cossin(phase.to_signed())
-}
+pub use crate::math::sine_fit::cos_sin_q31;
 
 /// The DDS step (Q32 turns per tick) of `hz` at tick rate `tick_hz`, rounded; saturates at half
 /// a turn (Nyquist).

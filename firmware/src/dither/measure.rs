@@ -3,41 +3,21 @@
 //! a window that is not a whole number of samples), plus the window's extremes and rail count
 //! for the supervisor.
 //!
-//! # Why a fit and not a plain lock-in sum
-//! A half-cycle window holds 33-72 samples (40 kHz tick, 280-620 Hz); its ends fall between
-//! samples. A plain demodulation `sum x cos` then leaks the 2f term by up to one sample's worth,
-//! 1/N = 1-3 % of the amplitude, and a pick-off offset d enters the amplitude as 4/pi d with a
-//! sign that alternates every half cycle (the window spans a drive peak to the next, where cos
-//! keeps one sign). Solving the 3x3 normal equations of [1, cos, sin] instead is exact for an
-//! offset plus a sine at the drive frequency whatever the window, and costs 5 more 64-bit
-//! multiply-accumulates per tick (the reference's own sums) and one small solve per half cycle.
-//!
-//! # Formats
-//! Samples are centred on the nominal mid-code (`x = code - mid`, |x| <= 2^12); the regressors
-//! are `idsp::cossin`'s Q31 shifted to Q15; sums are exact integers (`i32` for the plain sums,
-//! `i64` for the products; a window is capped at [`MAX_WINDOW`] = 2^10 samples, so every term
-//! of the centred normal equations, n * sum - sum * sum, stays below 2^51). The 2x2 solve after
-//! centring is `f32` (the centred system's condition number is below 10 for a half-turn
-//! window: 1e-6 relative error, against 1e-4 from the ADC's quantisation).
+//! The fit itself is [`crate::math::sine_fit`] (why a fit and not a plain lock-in sum, the
+//! formats); a half-cycle window holds 33-72 samples (40 kHz tick, 280-620 Hz) and is capped at
+//! [`MAX_WINDOW`] = [`crate::math::sine_fit::MAX_SAMPLES`].
 
-use crate::units::Phase;
+pub use crate::math::sine_fit::SineFit;
+use crate::math::sine_fit::{SineSums, MAX_SAMPLES};
 
 /// Samples after which a window is closed even if no half cycle ended (the controller forces an
 /// update; at 280 Hz a half cycle is 72 samples).
-pub const MAX_WINDOW: u32 = 1 << 10;
+pub const MAX_WINDOW: u32 = MAX_SAMPLES;
 
-/// The running sums of one half-cycle window.
+/// The running sums of one half-cycle window, and its extremes.
 #[derive(Clone, Copy, Debug)]
 pub struct Window {
-    n: u32,
-    sx: i32,
-    sc: i32,
-    ss: i32,
-    scc: i64,
-    scs: i64,
-    sss: i64,
-    sxc: i64,
-    sxs: i64,
+    sums: SineSums,
     min: u16,
     max: u16,
     rails: u32,
@@ -47,20 +27,6 @@ impl Default for Window {
     fn default() -> Self {
         Self::new()
     }
-}
-
-/// The fitted pick-off of one window: `x = offset + a cos(theta) + b sin(theta)` in codes, with
-/// theta the regressor phase (the controller's drive phase of the sample).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct SineFit {
-    /// Amplitude, codes: `hypot(a, b)`.
-    pub amplitude_codes: f32,
-    /// Phase of the pick-off relative to the regressor phase: `x = offset + amplitude *
-    /// cos(theta + phase)`, Q32 turns (`idsp::atan2`).
-    pub phase: Phase,
-    /// The offset, codes relative to the nominal mid-code.
-    pub offset_codes: f32,
 }
 
 /// One closed window: its extremes and the fit.
@@ -90,15 +56,7 @@ impl Window {
     /// An empty window.
     pub const fn new() -> Self {
         Self {
-            n: 0,
-            sx: 0,
-            sc: 0,
-            ss: 0,
-            scc: 0,
-            scs: 0,
-            sss: 0,
-            sxc: 0,
-            sxs: 0,
+            sums: SineSums::new(),
             min: u16::MAX,
             max: 0,
             rails: 0,
@@ -108,27 +66,19 @@ impl Window {
     /// Samples so far.
     #[inline]
     pub fn len(&self) -> u32 {
-        self.n
+        self.sums.len()
     }
 
     /// No sample yet.
     #[inline]
     pub fn is_empty(&self) -> bool {
-        self.n == 0
+        self.sums.is_empty()
     }
 
     /// Adds one sample: the pick-off code, centred `x = code - mid`, and the regressors in Q15.
     #[inline]
     pub fn push(&mut self, code: u16, x: i32, cos_q15: i32, sin_q15: i32, rail_code: u16) {
-        self.n += 1;
-        self.sx += x;
-        self.sc += cos_q15;
-        self.ss += sin_q15;
-        self.scc += (cos_q15 * cos_q15) as i64;
-        self.scs += (cos_q15 * sin_q15) as i64;
-        self.sss += (sin_q15 * sin_q15) as i64;
-        self.sxc += (x * cos_q15) as i64;
-        self.sxs += (x * sin_q15) as i64;
+        self.sums.push(x, cos_q15, sin_q15);
         self.min = self.min.min(code);
         self.max = self.max.max(code);
         if code == 0 || code >= rail_code {
@@ -139,45 +89,12 @@ impl Window {
     /// Closes the window: its extremes and the least-squares fit.
     pub fn close(&self) -> HalfCycle {
         HalfCycle {
-            samples: self.n,
-            min_code: if self.n == 0 { 0 } else { self.min },
+            samples: self.len(),
+            min_code: if self.is_empty() { 0 } else { self.min },
             max_code: self.max,
             rail_samples: self.rails,
-            fit: self.fit(),
+            fit: self.sums.fit(),
         }
-    }
-
-    /// The least-squares fit of `[1, cos, sin]`: centred normal equations (exact integers), then
-    /// the 2x2 solve in `f32`.
-    fn fit(&self) -> Option<SineFit> {
-        if self.n < 4 {
-            return None;
-        }
-        let n = self.n as i64;
-        let (sx, sc, ss) = (self.sx as i64, self.sc as i64, self.ss as i64);
-        let dcc = (n * self.scc - sc * sc) as f32;
-        let dcs = (n * self.scs - sc * ss) as f32;
-        let dss = (n * self.sss - ss * ss) as f32;
-        let dxc = (n * self.sxc - sx * sc) as f32;
-        let dxs = (n * self.sxs - sx * ss) as f32;
-        let det = dcc * dss - dcs * dcs;
-        if det.is_nan() || det <= 0.0 {
-            return None;
-        }
-        // Coefficients per Q15 unit of the regressors; * 2^15 gives codes.
-        let a = (dss * dxc - dcs * dxs) / det;
-        let b = (dcc * dxs - dcs * dxc) / det;
-        let offset = (self.sx as f32 - a * self.sc as f32 - b * self.ss as f32) / self.n as f32;
-        let (a, b) = (a * 32_768.0, b * 32_768.0);
-        // x = a cos + b sin = A cos(theta + phase) with A cos(phase) = a, A sin(phase) = -b.
-        let amplitude = libm::sqrtf(a * a + b * b);
-        let to_i32 = |v: f32| crate::math::round_f32_to_i32(v * 65_536.0);
-        let phase = Phase::from_bits(idsp::atan2(to_i32(-b), to_i32(a)) as u32);
-        Some(SineFit {
-            amplitude_codes: amplitude,
-            phase,
-            offset_codes: offset,
-        })
     }
 }
 
@@ -186,6 +103,7 @@ mod tests {
     use super::*;
     use crate::dither::dds::cos_sin_q31;
     use crate::test_rng::XorShift;
+    use crate::units::Phase;
     use std::f64::consts::TAU;
 
     fn turns(p: Phase) -> f64 {

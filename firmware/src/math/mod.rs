@@ -38,13 +38,18 @@
 //! accuracy would be enough for the readout: its 2.3e-6 rad is 100x below what the 12-bit
 //! photodiode levels resolve (0.5 code on a 2047-code radius = 2.4e-4 rad), 1e-4 of the
 //! 0.018 rad lock-in correction per cycle, and the phase errors of the readings telescope in
-//! the averaged rate (only the window's first and last reading count). `idsp::cossin` (37
-//! instructions) has no caller: the chain never forms a sine or cosine (P1/P2 take the
-//! normalised levels, which are cos and sin psi_H).
+//! the averaged rate (only the window's first and last reading count).
+//!
+//! # `sine_fit`: a sine of known phase
+//!
+//! The least-squares fit of offset + cos + sin of a known regressor phase, in exact integer
+//! sums ([`sine_fit::SineSums`]), shared by the dither drive's half-cycle measurement and the
+//! output stage's dither model; `idsp::cossin` makes the regressors.
 
 mod atan2;
 mod linear;
 mod scalar;
+pub mod sine_fit;
 
 pub use atan2::{atan2_q32, radius_sq_q30, CORDIC_ITERATIONS, MAX_ERROR_Q32};
 pub use linear::solve5;

@@ -34,7 +34,7 @@ pub const MAX_FRAME: usize = FRAME_PAYLOAD + 6;
 pub struct StreamRecord {
     /// Frame number, +1 per frame sent (wrapping): a gap means lost frames.
     pub sequence: u32,
-    /// Total beat phase at the cycle's closing turnaround, Q32 fringes (wrapping).
+    /// Total beat phase at the cycle's end, Q32 fringes (wrapping; `CycleRecord::end_phase_q32`).
     pub end_phase_q32: i64,
     /// Beat-phase increment over the cycle before compensation, Q32 fringes.
     pub raw_increment_q32: i64,

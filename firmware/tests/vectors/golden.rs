@@ -62,11 +62,11 @@ pub const GOLDEN: &[Golden] = &[
     // signal::output (bit-identical)
     Golden { name: "signal::output", words: 1386, digest: 0x2b136ccbc1c6122f, f32_bits: &[] },
     // signal::cycle (bit-identical)
-    Golden { name: "signal::cycle", words: 11892, digest: 0x4ceb3c890877f74a, f32_bits: &[] },
+    Golden { name: "signal::cycle", words: 11844, digest: 0x1ab06d153d56b255, f32_bits: &[] },
     // readout (whole chain) (bit-identical)
-    Golden { name: "readout (whole chain)", words: 3603, digest: 0xac390132f7d9aba2, f32_bits: &[] },
+    Golden { name: "readout (whole chain)", words: 3597, digest: 0x1f9aab517e3e8ed2, f32_bits: &[] },
     // readout output stage (bit-identical)
-    Golden { name: "readout output stage", words: 43376, digest: 0x9abd755b2aed6bc1, f32_bits: &[] },
+    Golden { name: "readout output stage", words: 43375, digest: 0x9a166b29b998984c, f32_bits: &[] },
     // calibration::fit (bit-identical)
     Golden { name: "calibration::fit", words: 951, digest: 0x7c27fe47192c1138, f32_bits: &[] },
     // calibration::tracking (bit-identical)

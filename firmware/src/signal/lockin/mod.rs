@@ -3,7 +3,7 @@
 //! | file | what | rate |
 //! |---|---|---|
 //! | `terms.rs` | [`traversal_terms`]: one traversal's share of (P1, P2) from the normalised levels and k | per turnaround |
-//! | `cycle.rs` | [`CycleAssembler`]: "+" to "+" cycles, the latch split, k from the measured dither; the [`CycleRecord`] it closes with its [`CycleFlags`] | per turnaround, a record per cycle |
+//! | `cycle.rs` | [`CycleAssembler`]: cycles closing at "+", their increment between 1-2-1 averages of the latched phases (a wandering dither cancels), the latch split, k from the measured dither; the [`CycleRecord`] it closes with its [`CycleFlags`] | per turnaround, a record per cycle |
 //!
 //! The record leaves the assembler uncompensated (increment = raw increment, correction 0);
 //! stage 5 (`super::compensation`) subtracts a P1 + b P2.

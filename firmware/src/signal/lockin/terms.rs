@@ -58,7 +58,7 @@ impl core::ops::Add for LockinTerms {
 }
 
 impl LockinTerms {
-    /// A share scaled by `weight` (the latch split gives the boundary traversals weight 1/2).
+    /// A share scaled by `weight` (a traversal's weight in a cycle: `cycle.rs`, the latch split).
     pub fn scaled(self, weight: f32) -> Self {
         Self {
             p1_s: self.p1_s * weight,
