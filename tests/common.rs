@@ -32,3 +32,61 @@ pub fn chow_dead_band_deg_h(params: &GyroParams) -> f64 {
     );
     beat_rad_per_s_to_deg_per_h(band_rad_per_s, sf)
 }
+
+/// `rlg-sim sweep` on `params` and `setup` over `rates_deg_h`: the calibration as the CLI's
+/// (+-13.888 deg/h, 20 s each after 0.5 s of warm-up, the fit rounded to the flash format),
+/// then every rate for `seconds` (in parallel). Returns the fit and the worst |board output -
+/// input| in deg/h; every output record of the runs must be valid.
+pub fn sweep_worst_deg_h(
+    params: &GyroParams,
+    setup: rlg_sim::experiment::BoardSetup,
+    rates_deg_h: &[f64],
+    seconds: f64,
+) -> (firmware::calibration::fit::FitResult, f64) {
+    use rayon::prelude::*;
+    use rlg_sim::experiment::{calibrate, measure_rate, settings_from_fit, RunLength};
+    let warmup_s = 0.5;
+    let fit = calibrate(
+        params,
+        setup,
+        &[-13.888, 13.888],
+        RunLength {
+            warmup_s,
+            record_s: 20.0,
+        },
+    )
+    .expect("calibration");
+    let settings = settings_from_fit(&fit).expect("coefficients");
+    let sf = params.scale_factor_arcsec;
+    let worst = rates_deg_h
+        .par_iter()
+        .map(|&rate| {
+            let length = RunLength {
+                warmup_s,
+                record_s: seconds,
+            };
+            let m = measure_rate(params, setup, rate, length, settings).expect("run");
+            assert_eq!(m.invalid_records, 0, "{rate} deg/h");
+            (m.board_output_hz() * sf - rate).abs()
+        })
+        .reduce(|| 0.0, f64::max);
+    (fit, worst)
+}
+
+/// Amplitude of the best-fitting sine near `f_hz` (+-1 Hz, 0.01 Hz steps) in a series sampled
+/// at `rate_hz`: the dither tone of an output.
+pub fn tone_amplitude(series: &[f64], rate_hz: f64, f_hz: f64) -> f64 {
+    let mean = series.iter().sum::<f64>() / series.len() as f64;
+    (-100..=100)
+        .map(|k| {
+            let f = f_hz + 0.01 * k as f64;
+            let (mut c, mut s) = (0.0, 0.0);
+            for (i, x) in series.iter().enumerate() {
+                let ph = std::f64::consts::TAU * f * i as f64 / rate_hz;
+                c += (x - mean) * ph.cos();
+                s += (x - mean) * ph.sin();
+            }
+            2.0 * (c * c + s * s).sqrt() / series.len() as f64
+        })
+        .fold(0.0, f64::max)
+}

@@ -26,7 +26,6 @@
 mod common;
 
 use common::{paper_gyro, TAU};
-use firmware::sample::TurnaroundKind;
 use hal_sim::board::BoardConfig;
 use hal_sim::harness::HarnessOptions;
 use hal_sim::input::InputProfile;

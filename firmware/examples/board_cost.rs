@@ -107,14 +107,14 @@ mod app {
             } else {
                 Edge::Falling
             };
-            scheduler.on_edge(edge, t, 0);
+            scheduler.on_edge(edge, t, 0, 0);
             t = t.wrapping_add(half);
         }
         let mut scheduled = None;
         let mut prediction = 0;
         let prediction_stack = firmware::stack::depth_of(|| {
             prediction = counter.count(|| {
-                scheduled = scheduler.on_edge(Edge::Rising, t, 123);
+                scheduled = scheduler.on_edge(Edge::Rising, t, 123, 0);
             });
         });
 

@@ -72,7 +72,7 @@ mod app {
                 (Edge::Rising, rise, t.wrapping_add(half / 2)),
                 (Edge::Falling, fall, t.wrapping_add(half + half / 2)),
             ] {
-                if let Some(c) = s.on_edge(&CONFIG, edge, at, shift).schedule {
+                if let Some(c) = s.on_edge(&CONFIG, edge, at, shift, 0).schedule {
                     let expect_kind = if edge == Edge::Rising {
                         CONFIG.after_rising_edge
                     } else {
@@ -152,9 +152,9 @@ mod app {
         // A lost falling edge: two rising edges in a row give nothing, then it recovers.
         let mut s = new();
         let (_, _, t) = run_cycles(&mut s, 1_000, 3, 0, 0);
-        let r1 = s.on_edge(&CONFIG, Edge::Rising, t + OFFSET, 0).schedule;
+        let r1 = s.on_edge(&CONFIG, Edge::Rising, t + OFFSET, 0, 0).schedule;
         let r2 = s
-            .on_edge(&CONFIG, Edge::Rising, t + PERIOD + OFFSET, 0)
+            .on_edge(&CONFIG, Edge::Rising, t + PERIOD + OFFSET, 0, 0)
             .schedule;
         c.check(
             "no compare after a lost edge",
@@ -174,8 +174,8 @@ mod app {
         // A glitch: an interval of 10 ticks is implausible; the board's wrapper counts it.
         let mut s = new();
         let (_, _, t) = run_cycles(&mut s, 1_000, 3, 0, 0);
-        let _ = s.on_edge(&CONFIG, Edge::Rising, t + OFFSET, 0);
-        let g = s.on_edge(&CONFIG, Edge::Falling, t + OFFSET + 10, 0);
+        let _ = s.on_edge(&CONFIG, Edge::Rising, t + OFFSET, 0, 0);
+        let g = s.on_edge(&CONFIG, Edge::Falling, t + OFFSET + 10, 0, 0);
         c.check(
             "no compare after a glitch",
             g.implausible && g.schedule.is_none(),
@@ -184,8 +184,8 @@ mod app {
         );
         let mut board = turnaround::Scheduler::new();
         let before = IMPLAUSIBLE.load(Ordering::Relaxed);
-        let _ = board.on_edge(Edge::Rising, 1_000, 0);
-        let b = board.on_edge(Edge::Falling, 1_010, 0);
+        let _ = board.on_edge(Edge::Rising, 1_000, 0, 0);
+        let b = board.on_edge(Edge::Falling, 1_010, 0, 0);
         let counted = IMPLAUSIBLE.load(Ordering::Relaxed).wrapping_sub(before) as i64;
         c.check(
             "board counts the implausible edge",

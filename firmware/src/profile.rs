@@ -13,6 +13,7 @@
 use crate::readout::ReadoutConfig;
 use crate::sample::TurnaroundKind;
 use crate::signal::count::CounterWidth;
+use crate::signal::output::dither_model::DitherModelConfig;
 use crate::signal::output::record::OutputConfig;
 use crate::signal::output::strip::StripConfig;
 use crate::signal::turnaround::SchedulerConfig;
@@ -107,11 +108,12 @@ impl BoardProfile {
     /// The readout's settings on this board for a dither near `dither_hz`.
     pub fn readout_config(&self, dither_hz: f64) -> ReadoutConfig {
         let output = OutputConfig {
-            strip: StripConfig::for_pickoff(
-                self.pickoff_arcsec_per_code,
-                self.scale_factor_arcsec,
+            model: DitherModelConfig::for_pickoff(
+                self.drive_tick_hz as f32,
+                self.timer_hz,
                 self.pickoff_mid_code,
             ),
+            strip: StripConfig::for_pickoff(self.pickoff_arcsec_per_code, self.scale_factor_arcsec),
             timer_hz: self.timer_hz,
             scale_factor_arcsec: self.scale_factor_arcsec as f32,
         };

@@ -11,10 +11,15 @@
 //!   [`CycleRecord`]. The stages know nothing of each other's state: this is the one place
 //!   that wires them (stage 2, the turnaround schedule, runs in the pick-off interrupt;
 //!   stage 6's averaged rate in the cycle task).
+//! - The pick-off stream (the drive tick's conversion, 40 kHz on the board) goes to
+//!   [`Readout::on_pickoff_sample`]: stage 6's model of the dither, seeded with the dither
+//!   frequency the cycle assembly measures.
 //! - The output latch (a sync edge, or the internal output rate) latches an [`OutputSample`]
 //!   and calls [`Readout::on_output_latch`]: stages 1 and 3 as for a turnaround, less the
-//!   lock-in corrections of the cycles closed so far, then stage 6's dither stripping and the
-//!   fixed-rate [`OutputRecord`].
+//!   lock-in corrections of the cycles closed so far, then stage 6's dither stripping with the
+//!   modelled dither at the latch and the fixed-rate [`OutputRecord`]. The pick-off samples up
+//!   to the latch must have been handed over first (the board's readout task drains the
+//!   stream up to the latch's tick).
 //!
 //! Coefficients (immutable, `Copy`) live in [`ReadoutConfig`]; the state in [`Readout`]. New
 //! compensation settings are staged with [`Readout::stage_compensation`] and take effect whole
@@ -30,12 +35,18 @@ use crate::signal::fringe::{
 use crate::signal::lockin::{
     CycleAssembler, CycleConfig, CycleFlags, CycleRecord, LevelPair, TurnaroundReading,
 };
+use crate::signal::output::dither_model::{DitherModel, DitherModelStatus, PickoffSample};
 use crate::signal::output::record::{OutputConfig, OutputRecord, OutputRecorder, OutputStatus};
 use crate::signal::output::strip::{DitherStripper, StripStatus};
 
 /// Highest x4 edge rate the count extension accepts between reads, edges/s: above the
 /// 2.4 M edges/s of the docs/physics.md parameter set with margin.
 pub const MAX_EDGE_RATE_HZ: u32 = 4_000_000;
+
+/// The largest pick-off lag the turnaround schedule takes from the stripping, s: a lag beyond
+/// it is a wiring fault, not a phase the schedule should follow (20 us is 2.8 degrees at
+/// 389 Hz; the pick-off of docs/board.md lags by under 5 us).
+pub const MAX_PICKOFF_LAG_S: f32 = 20e-6;
 
 /// Every setting of the signal chain (immutable).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -110,6 +121,7 @@ pub struct Readout {
     cycles: CycleAssembler,
     compensator: Compensator,
     counters: ReadoutCounters,
+    model: DitherModel,
     stripper: DitherStripper,
     recorder: OutputRecorder,
     /// Sum of the lock-in corrections of the cycles closed so far, Q32 fringes (wrapping): the
@@ -131,6 +143,7 @@ impl Readout {
             cycles: CycleAssembler::new(),
             compensator: Compensator::new(settings),
             counters: ReadoutCounters::default(),
+            model: DitherModel::new(),
             stripper: DitherStripper::new(&config.output.strip),
             recorder: OutputRecorder::new(),
             correction_total_q32: 0,
@@ -151,6 +164,11 @@ impl Readout {
             }
             None => {}
         }
+    }
+
+    /// One conversion of the pick-off stream (every drive tick), in tick order.
+    pub fn on_pickoff_sample(&mut self, config: &ReadoutConfig, sample: PickoffSample) {
+        self.model.push(&config.output.model, sample);
     }
 
     /// One turnaround latch; returns the dither cycle it completes, if any.
@@ -186,7 +204,12 @@ impl Readout {
             timestamp_ticks: sample.timestamp_ticks,
             flags,
         };
-        let record = self.cycles.on_turnaround(&config.cycle, turnaround)?;
+        let record = self.cycles.on_turnaround(&config.cycle, turnaround);
+        // The dither model's oscillator starts at (and is checked against) the dither the
+        // turnarounds measure.
+        self.model
+            .seed(&config.output.model, self.cycles.dither_hz());
+        let record = record?;
         let record = self.compensator.compensate(record);
         self.counters.cycles = self.counters.cycles.wrapping_add(1);
         self.correction_total_q32 = self
@@ -262,6 +285,18 @@ impl Readout {
         if self.compensator.active().enabled {
             status = status.union(OutputStatus::COMPENSATION_ON);
         }
+        let model = &config.output.model;
+        let dither = self
+            .model
+            .estimate(model, sample.pickoff_tick, sample.pickoff_offset_ticks);
+        match &dither {
+            None => status = status.union(OutputStatus::NO_DITHER_MODEL),
+            Some(d) => {
+                if self.model.disagrees(model, d, sample.pickoff_code) {
+                    status = status.union(OutputStatus::PICKOFF_FAULT);
+                }
+            }
+        }
         let usable = sample.drive_locked && !status.intersects(OutputStatus::FAULTS);
         let phase_q32 = reading
             .phase
@@ -270,7 +305,7 @@ impl Readout {
             .wrapping_sub(self.correction_total_q32);
         let stripped =
             self.stripper
-                .strip(&config.output.strip, phase_q32, sample.pickoff_code, usable);
+                .strip(&config.output.strip, phase_q32, dither.as_ref(), usable);
         if stripped.implausible {
             status = status.union(OutputStatus::PICKOFF_FAULT);
         }
@@ -302,11 +337,33 @@ impl Readout {
         self.stripper.status(&config.output.strip)
     }
 
-    /// Starts the stripping from the taps `k` and `k_previous` (fringes per pick-off code: the
-    /// values stored with the calibration), forgetting the fit.
-    pub fn restart_strip_from(&mut self, config: &ReadoutConfig, k: f32, k_previous: f32) {
+    /// Starts the stripping from the taps `k` and `k_quadrature` (fringes per pick-off code:
+    /// the values stored with the calibration), forgetting the fit.
+    pub fn restart_strip_from(&mut self, config: &ReadoutConfig, k: f32, k_quadrature: f32) {
         self.stripper
-            .restart_from(&config.output.strip, k, k_previous);
+            .restart_from(&config.output.strip, k, k_quadrature);
+    }
+
+    /// The model of the pick-off stream (valid, frequency, amplitude, restarts).
+    pub fn dither_model_status(&self, config: &ReadoutConfig) -> DitherModelStatus {
+        self.model.status(&config.output.model)
+    }
+
+    /// How far the pick-off lags the dither, capture-timer ticks (rounded; negative: it
+    /// leads), as the stripping's quadrature tap measures it against the count: the turnaround
+    /// schedule subtracts it, since the pick-off comparator's edges lag by as much
+    /// (`signal::turnaround`). `None` until the stripping has converged; clamped to
+    /// +-[`MAX_PICKOFF_LAG_S`].
+    pub fn pickoff_lag_ticks(&self, config: &ReadoutConfig) -> Option<i32> {
+        let w = self.model.angular_frequency_rad_per_s(&config.output.model);
+        let lag_s = self
+            .stripper
+            .status(&config.output.strip)
+            .pickoff_lag_s(w)?
+            .clamp(-MAX_PICKOFF_LAG_S, MAX_PICKOFF_LAG_S);
+        Some(crate::math::round_f32_to_i32(
+            lag_s * config.output.timer_hz as f32,
+        ))
     }
 
     /// Picks up again after the readout was paused (a flash store stalls the CPU for up to

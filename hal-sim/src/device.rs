@@ -106,7 +106,6 @@ impl SimDevice {
         };
         let profile = BoardProfile {
             nominal_dither_hz: params.dither_hz,
-            scale_factor_arcsec: params.scale_factor_arcsec,
             ..board.profile()
         };
         let config = ServiceConfig::for_profile(
@@ -136,7 +135,7 @@ impl SimDevice {
             let config = *harness.config();
             harness
                 .readout_mut()
-                .restart_strip_from(&config, strip.k(), strip.k_previous());
+                .restart_strip_from(&config, strip.k(), strip.k_quadrature());
         }
         if let (Some(stored), Some(drive)) = (booted.dither, harness.firmware_drive_mut()) {
             // As `board::resources::start_dither`: refused values leave the defaults.

@@ -6,7 +6,7 @@
 //! `BoardProfile::aperture_delay_ticks`) and loads the DAC with the code the previous tick's
 //! handler wrote; the handler then runs `on_tick` with the new pick-off code and writes the
 //! code for the next edge. [`FirmwareDrive::run_until`] does exactly that, tick by tick, on the
-//! simulated board: the pick-off code from [`SimBoard::pickoff_code`] at the sampling instant,
+//! simulated board: the pick-off code from the board's stream ([`SimBoard::drive_tick_code`]),
 //! `on_tick`, and when the controller reports a new DDS ([`firmware::dither::Tick`]'s
 //! `drive_changed`) a [`DriveSegment`] from the tick at which its first sample is written.
 //!
@@ -49,8 +49,6 @@ pub struct FirmwareDrive {
     next_tick: u64,
     /// Ticks the controller did not see (CPU stalls): absolute tick = controller tick + this.
     missed_ticks: u64,
-    /// Edge to pick-off sampling instant, s.
-    sample_delay_s: f64,
     /// (first tick, locked) at every change of the lock state, oldest first.
     locked_since: VecDeque<(u64, bool)>,
 }
@@ -69,7 +67,6 @@ impl FirmwareDrive {
         let mut controller = DitherController::new(&config);
         controller.enable();
         Ok(Self {
-            sample_delay_s: f64::from(profile.aperture_delay_ticks) / f64::from(profile.timer_hz),
             controller,
             config,
             dac,
@@ -137,10 +134,10 @@ impl FirmwareDrive {
     /// One tick: sample the pick-off, run the controller, pass a new DDS on as a segment.
     fn tick(&mut self, board: &mut SimBoard) -> Result<(), DriveError> {
         let n = self.next_tick;
-        let edge_s = self.tick_time_s(n);
         // The DAC holds this tick's code until the next edge at least.
         board.extend_drive_until(self.tick_time_s(n + 1))?;
-        let code = board.pickoff_code(edge_s + self.sample_delay_s);
+        // The board's pick-off stream: the conversion an aperture delay after the edge.
+        let code = board.drive_tick_code(n);
         let tick: Tick = self.controller.on_tick(&self.config, code);
         if tick.drive_changed {
             let segment = self.segment(self.controller.drive(), n + 1)?;

@@ -10,9 +10,13 @@
 //! it:
 //! 1. the board ([`SimBoard::next_half_cycle`]) runs the gyro to the next turnaround latch
 //!    (exact, or scheduled from the pick-off: [`LatchTiming`]), collecting the free-running
-//!    photodiode conversions on the way;
-//! 2. the conversions go to [`Readout::on_lissajous_sample`] (the ADC DMA stream), then the latch
-//!    to [`Readout::on_turnaround`] (the turnaround interrupt);
+//!    photodiode conversions, the pick-off stream (a conversion per drive tick) and the output
+//!    latches on the way;
+//! 2. the conversions go to [`Readout::on_lissajous_sample`] (the ADC DMA stream), the pick-off
+//!    stream to [`Readout::on_pickoff_sample`] and each output latch, after the stream up to
+//!    it, to [`Readout::on_output_latch`]; then the latch to [`Readout::on_turnaround`] (the
+//!    turnaround interrupt); the pick-off lag the output stage measures goes back to the
+//!    board's schedule;
 //! 3. a dither cycle the latch closed goes back to the board ([`SimBoard::on_cycle`]: the
 //!    input-rate shift of the next scheduled latches, the board's cycle task) **before** the
 //!    caller sees it, so no caller can forget it.
@@ -71,6 +75,7 @@ use firmware::readout::{Readout, ReadoutConfig};
 use firmware::sample::TurnaroundSample;
 use firmware::signal::compensation::CompensationSettings;
 use firmware::signal::lockin::CycleRecord;
+use firmware::signal::output::dither_model::PickoffSample;
 use firmware::signal::output::record::OutputRecord;
 
 /// How far ahead of the board's time the harness feeds an open-loop drive at most while it
@@ -225,6 +230,8 @@ pub struct Harness {
     readout: Readout,
     /// The photodiode conversions of the last half cycle.
     lissajous: Vec<(u16, u16)>,
+    /// The pick-off stream of the last half cycle.
+    pickoff: Vec<PickoffSample>,
     /// The output latches of the last half cycle, and the records the readout made of them
     /// (none when stalled).
     latches: Vec<OutputLatch>,
@@ -255,6 +262,7 @@ impl Harness {
             board,
             config,
             lissajous: Vec::new(),
+            pickoff: Vec::new(),
             latches: Vec::new(),
             outputs: Vec::new(),
             last: None,
@@ -272,6 +280,7 @@ impl Harness {
         self.feed_drive();
         let mut sample = self.board.next_half_cycle(&mut self.lissajous);
         self.board.drain_outputs(&mut self.latches);
+        self.board.drain_pickoff_samples(&mut self.pickoff);
         if let DriveSource::Firmware(drive) = &self.drive {
             // The latch copies the drive tick's state, as `board::turnaround::latch` does.
             sample.drive_locked = drive.locked_at(self.board.time_s());
@@ -289,6 +298,7 @@ impl Harness {
             &self.config,
             Fed {
                 lissajous: &self.lissajous,
+                pickoff: &self.pickoff,
                 latches: &self.latches,
                 sample,
                 feed,
@@ -298,6 +308,8 @@ impl Harness {
         if let Some(record) = &record {
             self.board.on_cycle(record);
         }
+        self.board
+            .set_pickoff_lag_ticks(self.readout.pickoff_lag_ticks(&self.config));
         self.last = Some((sample, feed));
         HalfCycle {
             sample,
@@ -402,6 +414,7 @@ impl Harness {
         let (sample, feed) = self.last?;
         let fed = Fed {
             lissajous: &self.lissajous,
+            pickoff: &self.pickoff,
             latches: &self.latches,
             sample,
             feed,
@@ -465,14 +478,16 @@ impl Harness {
 /// What the board produced in one half cycle, and what the firmware sees of it.
 struct Fed<'a> {
     lissajous: &'a [(u16, u16)],
+    pickoff: &'a [PickoffSample],
     latches: &'a [OutputLatch],
     sample: TurnaroundSample,
     feed: Feed,
 }
 
 /// The readout's interrupts for one half cycle, as `fed.feed` says: the conversions, the
-/// output latches (each record handed to `on_output`), then the turnaround latch. Returns the
-/// cycle the latch closes.
+/// pick-off stream with the output latches in time order (each latch after the stream up to
+/// its tick, its record handed to `on_output`), then the turnaround latch. Returns the cycle
+/// the latch closes.
 fn feed_readout(
     readout: &mut Readout,
     config: &ReadoutConfig,
@@ -485,8 +500,17 @@ fn feed_readout(
     for &(a_code, b_code) in fed.lissajous {
         readout.on_lissajous_sample(config, a_code, b_code);
     }
+    let mut stream = fed.pickoff.iter().peekable();
     for latch in fed.latches {
+        let last = latch.sample.pickoff_tick;
+        // Up to the latch's tick (wrapping ticks: at or before it).
+        while let Some(s) = stream.next_if(|s| last.wrapping_sub(s.tick) < u32::MAX / 2) {
+            readout.on_pickoff_sample(config, *s);
+        }
         on_output(latch, readout.on_output_latch(config, latch.sample));
+    }
+    for s in stream {
+        readout.on_pickoff_sample(config, *s);
     }
     match fed.feed {
         Feed::Everything => readout.on_turnaround(config, fed.sample),

@@ -1,7 +1,8 @@
 //! A simulated ring laser gyro and readout board, so the firmware's logic runs on x86.
 //!
 //! The rooms:
-//! - the gyro ([`params`], [`units`], [`input`], [`dither`], [`noise`], [`phase`], [`gyro`]):
+//! - the gyro ([`params`], [`units`], [`input`], [`dither`], [`noise`], [`phase`], [`gyro`];
+//!   [`random_gyro`] draws gyros within what real ones have):
 //!   the phase equation (docs/physics.md Eq. 6) integrated with the dither phase known analytically,
 //!   the dither a prescribed sine (`ideal`) or a resonator driven by the firmware's DAC through
 //!   its amplifier (the drive pushed in segments, [`dither`]);
@@ -24,6 +25,7 @@ pub mod noise;
 pub mod param_error;
 pub mod params;
 pub mod phase;
+pub mod random_gyro;
 pub mod units;
 
 pub mod clock;

@@ -521,8 +521,8 @@ fn allan(args: &AllanArgs) -> Result<(), Failure> {
         .map_err(|e| Failure::Usage(format!("--input {name}: {e}")))?;
     let record = input::read_csv(std::io::BufReader::with_capacity(1 << 20, file))
         .map_err(|e| Failure::Run(format!("{name}: {e}")))?;
-    let analysis =
-        analyse(&record, args.confidence).map_err(|e| Failure::Run(format!("{name}: {e}")))?;
+    let analysis = analyse(&record, args.confidence, args.min_fit_tau_s)
+        .map_err(|e| Failure::Run(format!("{name}: {e}")))?;
     println!("# {name}: {}", output::record_summary(&record));
     print!("{}", output::table(&analysis));
     let write = |path: &std::path::PathBuf, text: String| {

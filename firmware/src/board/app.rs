@@ -127,7 +127,7 @@ pub fn boot<F: NorFlash>(
     let mut readout = Readout::new(&config.readout, booted.settings);
     if let Some(strip) = booted.strip {
         // The stripping starts from the stored K (its fit learns on from there).
-        readout.restart_strip_from(&config.readout, strip.k(), strip.k_previous());
+        readout.restart_strip_from(&config.readout, strip.k(), strip.k_quadrature());
     }
     let queues = resources::init_readout(config.readout, readout);
     (booted.service, queues, booted.dither)

@@ -64,6 +64,9 @@ pub const AFTER_RISING_EDGE: TurnaroundKind = BoardProfile::F405.after_rising_ed
 /// Input-rate shift `Omega_i / |psi_ddot|` in timer ticks (signed), written by the cycle task,
 /// read by the pick-off handler. One aligned word: no lock needed.
 pub static RATE_SHIFT_TICKS: AtomicI32 = AtomicI32::new(0);
+/// The pick-off's lag behind the dither in timer ticks (signed), written by the readout task
+/// ([`publish_pickoff_lag`]), read by the pick-off handler. 0 until measured.
+pub static PICKOFF_LAG_TICKS: AtomicI32 = AtomicI32::new(0);
 /// What the compare is armed for: the next turnaround, an output latch (`super::sync`), or
 /// both in turn ([`LatchPlan`]). Shared by the pick-off handler (priority 0x20) and the latch
 /// (0x00): every use is a short critical section that also writes CCR1, so the plan and the
@@ -217,10 +220,19 @@ impl Scheduler {
         self.state.reset();
     }
 
-    /// One edge at `t` (ticks); `rate_shift` = Omega_i/|psi_ddot| in ticks. Returns the compare.
+    /// One edge at `t` (ticks); `rate_shift` = Omega_i/|psi_ddot| in ticks, `pickoff_lag` the
+    /// pick-off's measured lag in ticks. Returns the compare.
     #[inline(always)]
-    pub fn on_edge(&mut self, edge: Edge, t: u32, rate_shift: i32) -> Option<Schedule> {
-        let outcome = self.state.on_edge(&self.config, edge, t, rate_shift);
+    pub fn on_edge(
+        &mut self,
+        edge: Edge,
+        t: u32,
+        rate_shift: i32,
+        pickoff_lag: i32,
+    ) -> Option<Schedule> {
+        let outcome = self
+            .state
+            .on_edge(&self.config, edge, t, rate_shift, pickoff_lag);
         if outcome.implausible {
             IMPLAUSIBLE.fetch_add(1, Ordering::Relaxed);
         }
@@ -259,8 +271,9 @@ pub fn on_pickoff_interrupt(tim: &pac::tim2::RegisterBlock, scheduler: &mut Sche
         scheduler.reset();
     }
     let shift = RATE_SHIFT_TICKS.load(Ordering::Relaxed);
+    let lag = PICKOFF_LAG_TICKS.load(Ordering::Relaxed);
     for (edge, t) in edges.into_iter().flatten() {
-        let Some(s) = scheduler.on_edge(edge, t, shift) else {
+        let Some(s) = scheduler.on_edge(edge, t, shift, lag) else {
             continue;
         };
         if !arm(tim, s, now) {
@@ -359,6 +372,13 @@ pub fn sync_overruns() -> u32 {
 pub fn publish_rate_shift(record: &CycleRecord) {
     let shift = crate::signal::output::rate_shift_ticks(record, super::TIMER_HZ);
     RATE_SHIFT_TICKS.store(shift, Ordering::Relaxed);
+}
+
+/// Publishes the pick-off's lag behind the dither as the output stage measures it (the
+/// readout task, after an output latch with a converged stripping:
+/// `Readout::pickoff_lag_ticks`). The last value stays while the stripping learns anew.
+pub fn publish_pickoff_lag(lag_ticks: i32) {
+    PICKOFF_LAG_TICKS.store(lag_ticks, Ordering::Relaxed);
 }
 
 /// Input-rate shift in ticks of this board's timer for a rate (rad/s of beat phase) and a

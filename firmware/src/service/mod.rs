@@ -409,13 +409,13 @@ impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess + Secrets> DeviceLink
         if !status.converged {
             return None;
         }
-        StripCoefficients::from_fringes_per_code(status.k, status.k_previous)
+        StripCoefficients::from_fringes_per_code(status.k, status.k_quadrature)
     }
 
     fn apply_strip(&mut self, strip: StripCoefficients) {
         let config = self.readout;
         self.ports
-            .with_readout(|r| r.restart_strip_from(config, strip.k(), strip.k_previous()));
+            .with_readout(|r| r.restart_strip_from(config, strip.k(), strip.k_quadrature()));
     }
 
     fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError> {

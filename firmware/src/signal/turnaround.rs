@@ -11,10 +11,12 @@
 //! ```text
 //! pick-off comparator --capture--> Edge + t_edge (ticks)
 //!     Scheduler::on_edge: t_compare = t_edge + half the previous same-polarity interval
-//!                         -/+ input-rate shift - fixed delays (pick-off path, ADC aperture)
+//!                         -/+ input-rate shift - pick-off lag
+//!                         - fixed delays (comparator path, ADC aperture)
 //! compare match at t_compare -> encoder latch + ADC injected pair; the sampling instant (the
 //! end of the aperture) lands on the turnaround
 //! cycle task: CycleRecord -> rate_shift_ticks -> the shift for the next edges
+//! output stage: the stripping's quadrature tap -> the pick-off's lag -> the next edges
 //! ```
 //!
 //! # Prediction (docs/physics.md pitfalls 2 and 3)
@@ -33,6 +35,13 @@
 //! stage 6) and hands it to the next edges; at 1 deg/s of input it is 1.3 us, at Earth rate
 //! 6 ns. The feedback arrives as a plain `i32`, so this stage imports nothing of the later ones.
 //!
+//! The pick-off's own lag behind the dither (the gauge and its preamplifier, up to a few
+//! microseconds, different on every gyro) delays every comparator edge by as much. It is not a
+//! constant of the board: the output stage measures it against the optical angle (the
+//! stripping's quadrature tap, `crate::readout::Readout::pickoff_lag_ticks`) and hands it to
+//! the next edges as a plain `i32`, like the rate shift. A 5 us lag left in would put the latch
+//! 5 us off the turnaround, 0.1 rad of beat phase (pitfall 2).
+//!
 //! Fixed delays subtracted ([`SchedulerConfig`], calibrated on a board with a scope on the
 //! compare's test point): the pick-off path (comparator, input filter, resynchronisation) and the
 //! ADC aperture (trigger latency plus sampling time; the hold happens at the end of sampling, so
@@ -49,7 +58,8 @@
 //! | injected trigger latency (2-3 ADC clocks at 21 MHz) | 119 ns mean, +-24 ns jitter |
 //! | comparator noise at the zero crossing (sigma_v / slope) | ~10-50 ns (pick-off noise) |
 //! | dither period change within one cycle (high-Q resonator) | < 10 ns |
-//! | pick-off phase lag vs the true angle, comparator delay | fixed: calibrate once |
+//! | pick-off phase lag vs the true angle | measured online (the stripping), +-10 ns |
+//! | comparator delay | fixed: calibrate once |
 //! | rate shift taken from the previous cycle | (rate change per cycle) / psi_ddot: 0 for a steady rate |
 //!
 //! So about +-0.1 us random error once the fixed terms are calibrated, against the ~1 us
@@ -164,13 +174,16 @@ impl Scheduler {
     }
 
     /// One edge captured at `t_ticks` (wrapping); `rate_shift_ticks` = Omega_i/|psi_ddot| in
-    /// ticks (signed, [`rate_shift_ticks`](crate::signal::output::rate_shift_ticks)). Integer only, no division.
+    /// ticks (signed, [`rate_shift_ticks`](crate::signal::output::rate_shift_ticks));
+    /// `pickoff_lag_ticks` = how far the pick-off lags the dither (signed,
+    /// `Readout::pickoff_lag_ticks`, 0 until measured). Integer only, no division.
     pub fn on_edge(
         &mut self,
         config: &SchedulerConfig,
         edge: Edge,
         t_ticks: u32,
         rate_shift_ticks: i32,
+        pickoff_lag_ticks: i32,
     ) -> EdgeOutcome {
         let mut implausible = false;
         if let Some((previous, t0)) = self.last {
@@ -190,7 +203,7 @@ impl Scheduler {
         }
         self.last = Some((edge, t_ticks));
         EdgeOutcome {
-            schedule: self.predict(config, edge, t_ticks, rate_shift_ticks),
+            schedule: self.predict(config, edge, t_ticks, rate_shift_ticks, pickoff_lag_ticks),
             implausible,
         }
     }
@@ -201,6 +214,7 @@ impl Scheduler {
         edge: Edge,
         t_ticks: u32,
         rate_shift_ticks: i32,
+        pickoff_lag_ticks: i32,
     ) -> Option<Schedule> {
         let (half_same_polarity, kind) = match edge {
             Edge::Rising => (self.high_ticks?, config.after_rising_edge),
@@ -211,7 +225,9 @@ impl Scheduler {
             TurnaroundKind::Minus => rate_shift_ticks,
         };
         let quarter = (half_same_polarity / 2) as i32;
-        let lead = quarter + shift - config.fixed_delay_ticks() as i32;
+        let lead = quarter + shift
+            - pickoff_lag_ticks.clamp(-quarter / 2, quarter / 2)
+            - config.fixed_delay_ticks() as i32;
         Some(Schedule {
             compare_ticks: t_ticks.wrapping_add_signed(lead),
             kind,
@@ -287,7 +303,7 @@ mod tests {
                 (Edge::Rising, rise, t.wrapping_add(half / 2)),
                 (Edge::Falling, fall, t.wrapping_add(half + half / 2)),
             ] {
-                let outcome = s.on_edge(&CONFIG, edge, at, shift);
+                let outcome = s.on_edge(&CONFIG, edge, at, shift, 0);
                 r.implausible += outcome.implausible as u32;
                 let Some(c) = outcome.schedule else { continue };
                 let expect_kind = match edge {
@@ -342,17 +358,38 @@ mod tests {
         // Directly: the same edges with and without the shift.
         let (mut a, mut b) = (Scheduler::new(), Scheduler::new());
         for (edge, t) in [(Edge::Rising, 0), (Edge::Falling, PERIOD / 2)] {
-            a.on_edge(&CONFIG, edge, t, 0);
-            b.on_edge(&CONFIG, edge, t, shift);
+            a.on_edge(&CONFIG, edge, t, 0, 0);
+            b.on_edge(&CONFIG, edge, t, shift, 0);
         }
         for (edge, t) in [(Edge::Rising, PERIOD), (Edge::Falling, PERIOD * 3 / 2)] {
-            let plain = a.on_edge(&CONFIG, edge, t, 0).schedule.unwrap();
-            let shifted = b.on_edge(&CONFIG, edge, t, shift).schedule.unwrap();
+            let plain = a.on_edge(&CONFIG, edge, t, 0, 0).schedule.unwrap();
+            let shifted = b.on_edge(&CONFIG, edge, t, shift, 0).schedule.unwrap();
             let moved = shifted.compare_ticks.wrapping_sub(plain.compare_ticks) as i32;
             match shifted.kind {
                 TurnaroundKind::Plus => assert_eq!(moved, -shift),
                 TurnaroundKind::Minus => assert_eq!(moved, shift),
             }
+        }
+    }
+
+    /// A pick-off lag moves both kinds of turnaround earlier by as much; a lag beyond an
+    /// eighth of the period (a wiring fault, not a lag) is clamped there.
+    #[test]
+    fn a_pickoff_lag_moves_every_latch_earlier() {
+        let lag = 420; // 5 us
+        let (mut a, mut b, mut c) = (Scheduler::new(), Scheduler::new(), Scheduler::new());
+        for (edge, t) in [(Edge::Rising, 0), (Edge::Falling, PERIOD / 2)] {
+            a.on_edge(&CONFIG, edge, t, 0, 0);
+            b.on_edge(&CONFIG, edge, t, 0, lag);
+            c.on_edge(&CONFIG, edge, t, 0, i32::MAX);
+        }
+        for (edge, t) in [(Edge::Rising, PERIOD), (Edge::Falling, PERIOD * 3 / 2)] {
+            let plain = a.on_edge(&CONFIG, edge, t, 0, 0).schedule.unwrap();
+            let lagged = b.on_edge(&CONFIG, edge, t, 0, lag).schedule.unwrap();
+            let clamped = c.on_edge(&CONFIG, edge, t, 0, i32::MAX).schedule.unwrap();
+            assert_eq!(plain.compare_ticks.wrapping_sub(lagged.compare_ticks), 420);
+            let moved = plain.compare_ticks.wrapping_sub(clamped.compare_ticks);
+            assert_eq!(moved, PERIOD / 8, "{:?}", clamped.kind);
         }
     }
 
@@ -369,12 +406,12 @@ mod tests {
         let mut s = Scheduler::new();
         let t = run(&mut s, 1_000, 3, 0, 0).next_t;
         assert!(s
-            .on_edge(&CONFIG, Edge::Rising, t + OFFSET, 0)
+            .on_edge(&CONFIG, Edge::Rising, t + OFFSET, 0, 0)
             .schedule
             .is_some());
         // The falling edge is lost: the next rising edge comes a full period later, which is
         // a plausible interval (< 0.7 x 1/200 Hz) but of the wrong polarity pattern.
-        let o = s.on_edge(&CONFIG, Edge::Rising, t + PERIOD + OFFSET, 0);
+        let o = s.on_edge(&CONFIG, Edge::Rising, t + PERIOD + OFFSET, 0, 0);
         assert_eq!(o, EdgeOutcome::default());
         let r = run(&mut s, t + PERIOD + PERIOD / 2, 3, 0, 0);
         assert!(
@@ -389,12 +426,12 @@ mod tests {
     fn a_glitch_is_implausible_and_drops_the_history() {
         let mut s = Scheduler::new();
         let t = run(&mut s, 1_000, 3, 0, 0).next_t;
-        s.on_edge(&CONFIG, Edge::Rising, t + OFFSET, 0);
-        let g = s.on_edge(&CONFIG, Edge::Falling, t + OFFSET + 10, 0);
+        s.on_edge(&CONFIG, Edge::Rising, t + OFFSET, 0, 0);
+        let g = s.on_edge(&CONFIG, Edge::Falling, t + OFFSET + 10, 0, 0);
         assert!(g.implausible);
         assert!(g.schedule.is_none());
         // A gap (no dither for a second) is implausible too.
-        let gap = s.on_edge(&CONFIG, Edge::Rising, t + TIMER_HZ, 0);
+        let gap = s.on_edge(&CONFIG, Edge::Rising, t + TIMER_HZ, 0, 0);
         assert!(gap.implausible && gap.schedule.is_none());
         // One full cycle later the prediction is back.
         let r = run(&mut s, t + TIMER_HZ + PERIOD - OFFSET, 3, 0, 0);

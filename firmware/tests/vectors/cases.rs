@@ -27,6 +27,7 @@ pub const CASES: &[Case] = &[
     Case::exact("signal::cycle", signal::cycle_assembly),
     Case::exact("readout (whole chain)", signal::readout_chain),
     Case::exact("readout output stage", signal::output_stage),
+    Case::exact("signal::dither_model", signal::dither_model),
     // Calibration (firmware::calibration).
     Case::exact("calibration::fit", calibration::calibration_fit),
     Case::exact("calibration::tracking", calibration::calibration_tracking),

@@ -231,7 +231,8 @@ pub fn turnaround_schedule(out: &mut Outputs) {
         rising = !rising;
         let shift = shift_ticks_for_rate(rng.f32_in(-20.0, 20.0), 940.0, 389.0, timer_hz);
         out.i32(shift);
-        let outcome = scheduler.on_edge(&config, edge, t, shift);
+        let lag = rng.i32_in(-500, 500);
+        let outcome = scheduler.on_edge(&config, edge, t, shift, lag);
         out.bool(outcome.implausible);
         match outcome.schedule {
             Some(s) => {

@@ -54,7 +54,7 @@ pub const GOLDEN: &[Golden] = &[
     // signal::fringe_phase (bit-identical)
     Golden { name: "signal::fringe_phase", words: 14406, digest: 0x1c9c4ba0623dbf4c, f32_bits: &[] },
     // signal::turnaround_schedule (bit-identical)
-    Golden { name: "signal::turnaround_schedule", words: 6194, digest: 0x94c808b8af1b373b, f32_bits: &[] },
+    Golden { name: "signal::turnaround_schedule", words: 6200, digest: 0x00fde87cae2a4552, f32_bits: &[] },
     // signal::lockin_terms (bit-identical)
     Golden { name: "signal::lockin_terms", words: 4036, digest: 0x13610772f20528d1, f32_bits: &[] },
     // signal::compensation (bit-identical)
@@ -66,7 +66,9 @@ pub const GOLDEN: &[Golden] = &[
     // readout (whole chain) (bit-identical)
     Golden { name: "readout (whole chain)", words: 3597, digest: 0x1f9aab517e3e8ed2, f32_bits: &[] },
     // readout output stage (bit-identical)
-    Golden { name: "readout output stage", words: 43375, digest: 0x9a166b29b998984c, f32_bits: &[] },
+    Golden { name: "readout output stage", words: 43379, digest: 0x580777b92d100b29, f32_bits: &[] },
+    // signal::dither_model (bit-identical)
+    Golden { name: "signal::dither_model", words: 1706, digest: 0x6d9b14794d0a433f, f32_bits: &[] },
     // calibration::fit (bit-identical)
     Golden { name: "calibration::fit", words: 951, digest: 0x7c27fe47192c1138, f32_bits: &[] },
     // calibration::tracking (bit-identical)

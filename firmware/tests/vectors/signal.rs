@@ -277,14 +277,17 @@ pub fn readout_chain(out: &mut Outputs) {
     out.f32(dither_hz);
 }
 
-/// The output stage (`Readout::on_output_latch`: stripping with K's two-tap fit, the record,
-/// its wire frame): output latches at 1 kHz on a 389 Hz dither whose pick-off reads 4 % high
-/// and lags, with a slow input rate, interleaved with the turnarounds that close cycles (so the
-/// compensation's corrections enter too). Every record's fields, its frame's bytes and the
-/// fitted taps: the f32 fit and the i128 angle must agree bit for bit on both sides.
+/// The output stage (`Readout::on_output_latch`: the pick-off stream's model, stripping with
+/// K's in-phase and quadrature fit, the record, its wire frame): the pick-off stream at 40 kHz
+/// and output latches at 1 kHz on a 389 Hz dither whose pick-off reads 4 % high and lags 3 us,
+/// with a slow input rate, interleaved with the turnarounds that close cycles (so the
+/// compensation's corrections enter too, and the model is seeded). Every record's fields, its
+/// frame's bytes, the fitted taps and the measured lag: the model's integer sums, the f32 fits
+/// and the i128 angle must agree bit for bit on both sides.
 pub fn output_stage(out: &mut Outputs) {
     use firmware::protocol::output_frame::{encode_output_frame, MAX_OUTPUT_FRAME};
     use firmware::sample::{OutputSample, TurnaroundSample};
+    use firmware::signal::output::dither_model::PickoffSample;
     let mut rng = Rng::new(0x5eed_0020);
     let (config, mut readout, figure) = trained_readout(&mut rng);
     // psi_H (Q32 turns) = rate t + 240 fringes sin(w t); the pick-off 1.04 x the nominal
@@ -295,27 +298,38 @@ pub fn output_stage(out: &mut Outputs) {
         let fringes = 0.3 * t + 240.0 * libm::sinf(w * t);
         (fringes as f64 * 4_294_967_296.0) as i64
     };
+    let pickoff_at = |t: f32| 2048.0 + 1.04 * 1125.0 * libm::sinf(w * (t - 3e-6));
     let mut frame = [0u8; MAX_OUTPUT_FRAME];
     let half_period = 1.0 / (2.0 * 389.0);
     let (mut next_sync, mut next_turn, mut plus) = (0.001f32, 0.25 * 4.0 * half_period, false);
+    let mut tick = 0u32;
+    let tick_s = |k: u32| k as f32 / 40_000.0;
     for _ in 0..1500 {
         let (t, is_sync) = if next_sync < next_turn {
             (next_sync, true)
         } else {
             (next_turn, false)
         };
+        // The pick-off stream up to the latch.
+        while tick_s(tick) <= t {
+            let code = (pickoff_at(tick_s(tick)) + rng.f32_in(-1.0, 1.0)) as u16;
+            readout.on_pickoff_sample(&config, PickoffSample { tick, code });
+            tick += 1;
+        }
         let psi_q32 = psi_at(t);
         let angle = (psi_q32 as u32) as f32 * (core::f32::consts::TAU / 4_294_967_296.0);
         let (adc_a_code, adc_b_code) = figure.codes_at(&mut rng, angle);
         let encoder_count = (psi_q32 >> 30) as u32;
         let timestamp_ticks = (t as f64 * 84e6) as u32;
         if is_sync {
-            let pickoff = 2048.0 + 1.04 * 1125.0 * libm::sinf(w * (t - 3e-6));
+            let last = tick - 1;
             let sample = OutputSample {
                 encoder_count,
                 adc_a_code,
                 adc_b_code,
-                pickoff_code: (pickoff + rng.f32_in(-1.0, 1.0)) as u16,
+                pickoff_code: (pickoff_at(t) + rng.f32_in(-1.0, 1.0)) as u16,
+                pickoff_tick: last,
+                pickoff_offset_ticks: ((t - tick_s(last)) * 84e6) as u32,
                 timestamp_ticks,
                 drive_locked: true,
             };
@@ -354,8 +368,61 @@ pub fn output_stage(out: &mut Outputs) {
     }
     let s = readout.strip_status(&config);
     out.f32(s.k);
-    out.f32(s.k_previous);
+    out.f32(s.k_quadrature);
     out.f32(s.k_std_rel);
     out.u32(s.updates);
     out.u32(s.converged as u32);
+    out.i32(readout.pickoff_lag_ticks(&config).unwrap_or(i32::MIN));
+    let m = readout.dither_model_status(&config);
+    out.f32(m.frequency_hz);
+    out.f32(m.amplitude_codes);
+    out.u32(m.restarts);
+}
+
+/// The dither model alone (`signal::output::dither_model`): a noisy pick-off stream at 40 kHz
+/// of a dither at 300-600 Hz with random amplitude, phase and offset, a seed off by up to
+/// 0.5 Hz, a gap, a far re-seed; the estimates at random instants between samples and the
+/// model's state after every window. Integer sums, `cossin`, the f32 solve and `atan2`.
+pub fn dither_model(out: &mut Outputs) {
+    use firmware::signal::output::dither_model::{DitherModel, DitherModelConfig, PickoffSample};
+    let mut rng = Rng::new(0x5eed_0022);
+    let config = DitherModelConfig::for_pickoff(40_000.0, 84_000_000, 2048);
+    for _ in 0..3 {
+        let hz = rng.f32_in(300.0, 600.0);
+        let amp = rng.f32_in(400.0, 1500.0);
+        let (phase, offset) = (rng.f32_in(-3.0, 3.0), rng.f32_in(-40.0, 40.0));
+        let mut model = DitherModel::new();
+        model.seed(&config, hz + rng.f32_in(-0.5, 0.5));
+        let mut tick = rng.u32();
+        for k in 0..8_000u32 {
+            if k == 5_000 {
+                tick = tick.wrapping_add(100); // a gap
+            }
+            if k == 6_000 {
+                model.seed(&config, hz + 3.0); // far: restarts
+            }
+            let t = k as f32 / 40_000.0;
+            let x = amp * libm::cosf(core::f32::consts::TAU * hz * t + phase);
+            let code = (2048.0 + offset + x + rng.f32_in(-1.5, 1.5)) as u16;
+            model.push(&config, PickoffSample { tick, code });
+            if k % 97 == 0 {
+                let offset_ticks = rng.i32_in(0, 2099) as u32;
+                match model.estimate(&config, tick, offset_ticks) {
+                    Some(e) => {
+                        out.f32(e.in_phase_codes);
+                        out.f32(e.quadrature_codes);
+                        out.f32(e.offset_codes);
+                    }
+                    None => out.u32(u32::MAX),
+                }
+                let s = model.status(&config);
+                out.bool(s.valid);
+                out.f32(s.frequency_hz);
+                out.f32(s.frequency_error_hz);
+                out.f32(s.amplitude_codes);
+                out.u32(s.restarts);
+            }
+            tick = tick.wrapping_add(1);
+        }
+    }
 }

@@ -79,6 +79,9 @@ pub struct BoardConfig {
     /// The sync input: output latches at this rate, Hz (100..=2000 for a navigation
     /// computer's sync; `None`: no output latches).
     pub sync_hz: Option<f64>,
+    /// The gyro's nominal scale factor as the board is provisioned with it (its data sheet),
+    /// arcsec per fringe: the firmware's starting stripping coefficient and its rate unit.
+    pub scale_factor_arcsec: f64,
 }
 
 impl BoardConfig {
@@ -99,6 +102,7 @@ impl BoardConfig {
             eps_drift_until_s: 0.0,
             seed: params.seed ^ 0xB0A2_D5EE_D000_0001,
             sync_hz: None,
+            scale_factor_arcsec: params.scale_factor_arcsec,
         }
     }
 }
@@ -119,6 +123,7 @@ impl BoardConfig {
         };
         BoardProfile {
             timer_hz: self.timer_hz.round() as u32,
+            scale_factor_arcsec: self.scale_factor_arcsec,
             counter_width: self.counter.width,
             pickoff_delay_ticks,
             aperture_delay_ticks,

@@ -44,6 +44,7 @@
 //! before each [`SimBoard::next_half_cycle`] (the harness does, [`crate::harness`]).
 
 mod config;
+mod pickoff_stream;
 
 use crate::clock::CaptureTimer;
 use crate::counter::{latch_turnaround, QuadratureCounter};
@@ -56,8 +57,10 @@ use crate::pickoff::Pickoff;
 pub use config::{BoardConfig, LatchTiming};
 use firmware::sample::{OutputSample, TurnaroundKind, TurnaroundSample};
 use firmware::signal::lockin::CycleRecord;
+use firmware::signal::output::dither_model::PickoffSample;
 use firmware::signal::output::rate_shift_ticks;
 use firmware::signal::turnaround::{Edge, Scheduler, SchedulerConfig};
+use pickoff_stream::PickoffStream;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -131,6 +134,10 @@ pub struct SimBoard {
     /// The next sync edge, s, and the output latches taken since the last drain.
     next_sync_s: f64,
     outputs: Vec<OutputLatch>,
+    /// The pick-off's conversion at every drive tick.
+    stream: PickoffStream,
+    /// The pick-off's lag as the readout measures it, ticks (the schedule subtracts it).
+    pickoff_lag_ticks: i32,
 }
 
 /// One output latch (a sync edge) and its truth.
@@ -166,6 +173,12 @@ impl SimBoard {
             }
         }
         let schedule = Self::schedule(&config)?;
+        let profile = config.profile();
+        let stream = PickoffStream::new(
+            f64::from(profile.drive_tick_hz),
+            f64::from(profile.aperture_delay_ticks) / config.timer_hz,
+            config.timer_hz,
+        );
         let eps_rad = gyro.params().eps_rad;
         let psi_h0 = gyro.advance_to(0.0) - eps_rad;
         let counter = QuadratureCounter::new(&config.photodiodes, config.counter, psi_h0)
@@ -183,6 +196,8 @@ impl SimBoard {
             last_latch: None,
             next_sync_s: config.sync_hz.map_or(f64::INFINITY, |hz| 1.0 / hz),
             outputs: Vec::new(),
+            stream,
+            pickoff_lag_ticks: 0,
             eps_rad,
             counter,
             config,
@@ -261,9 +276,15 @@ impl SimBoard {
         t_s + self.config.latch_offset_s + jitter
     }
 
-    /// The free-running conversions and the output latches before `until_s`, in time order.
+    /// The free-running conversions, the pick-off stream and the output latches before
+    /// `until_s`, in time order.
     fn sample_lissajous_until(&mut self, until_s: f64, lissajous: &mut Vec<(u16, u16)>) {
         loop {
+            let tick_s = self.stream.next_instant_s();
+            if tick_s < until_s && tick_s <= self.next_lissajous_s.min(self.next_sync_s) {
+                self.stream.take_next(&mut self.pickoff, &self.gyro);
+                continue;
+            }
             let sync_first = self.next_sync_s < self.next_lissajous_s;
             let t = self.next_lissajous_s.min(self.next_sync_s);
             if t >= until_s {
@@ -273,12 +294,15 @@ impl SimBoard {
             self.counter.advance_to(psi_h);
             let codes = self.photodiodes.sample_codes(psi_h);
             if sync_first {
+                let (pickoff_tick, pickoff_offset_ticks) = self.stream.reference(t);
                 self.outputs.push(OutputLatch {
                     sample: OutputSample {
                         encoder_count: self.counter.count(),
                         adc_a_code: codes.a_code,
                         adc_b_code: codes.b_code,
                         pickoff_code: self.pickoff.sample_latch_code(&self.gyro, t),
+                        pickoff_tick,
+                        pickoff_offset_ticks,
                         timestamp_ticks: self.timer.ticks_at(t),
                         drive_locked: true,
                     },
@@ -299,6 +323,27 @@ impl SimBoard {
     pub fn drain_outputs(&mut self, into: &mut Vec<OutputLatch>) {
         into.clear();
         into.append(&mut self.outputs);
+    }
+
+    /// Hands over the pick-off stream's conversions up to the board's time since the last call
+    /// (in tick order; an output latch's `pickoff_tick` names the last one before it).
+    pub fn drain_pickoff_samples(&mut self, into: &mut Vec<PickoffSample>) {
+        self.stream.drain(into);
+    }
+
+    /// The pick-off's conversion at drive tick `n` (absolute, from t = 0): the firmware's drive
+    /// reads it at each tick; the readout gets the same conversion from the stream.
+    pub fn drive_tick_code(&mut self, n: u64) -> u16 {
+        self.stream.code(&mut self.pickoff, &self.gyro, n)
+    }
+
+    /// The pick-off's lag as the readout measures it (`Readout::pickoff_lag_ticks`): the
+    /// schedule subtracts it from the next latches, as the board's readout task publishes it to
+    /// the pick-off handler. `None` keeps the last value.
+    pub fn set_pickoff_lag_ticks(&mut self, lag_ticks: Option<i32>) {
+        if let Some(lag) = lag_ticks {
+            self.pickoff_lag_ticks = lag;
+        }
     }
 
     /// The next pick-off edge, its capture and its schedule; the kind and instant of the latch.
@@ -325,10 +370,13 @@ impl SimBoard {
                 } else {
                     0
                 };
-                let outcome =
-                    schedule
-                        .scheduler
-                        .on_edge(&schedule.config, edge, capture_ticks, shift);
+                let outcome = schedule.scheduler.on_edge(
+                    &schedule.config,
+                    edge,
+                    capture_ticks,
+                    shift,
+                    self.pickoff_lag_ticks,
+                );
                 self.stats.implausible_edges += outcome.implausible as u64;
                 planned = outcome.schedule.map(|s| {
                     let compare_s = self.timer.time_of_ticks_s(s.compare_ticks, capture_s);

@@ -29,6 +29,12 @@
 //! A term whose coefficient is below twice its standard deviation is flagged not significant
 //! (compatible with zero: the interval of a variance never reaches zero, so its lower end is
 //! then no evidence of the term).
+//!
+//! The fit may start at a tau (`min_tau_s`): a dithered gyro's output holds what is left of
+//! the dither (a model's error at the dither frequency, modulated), whose Allan deviation at
+//! taus of a few dither periods rises and falls with the tau and is none of the model's
+//! noises; fitted there, it takes the weight of the best-determined points and hides the
+//! terms the longer taus show. `rlg-sim characterize` starts at ten dither periods.
 
 use super::chi2::variance_interval;
 use super::estimator::{AllanVariance, NoiseType};
@@ -94,6 +100,8 @@ pub struct NoiseFit {
     pub coefficients: [f64; 4],
     /// The confidence of the intervals.
     pub confidence: f64,
+    /// The shortest tau fitted, s.
+    pub min_tau_s: f64,
 }
 
 impl NoiseFit {
@@ -258,7 +266,11 @@ fn inflate(mut v: [f64; 4], cost: f64, points: usize, terms: usize) -> [f64; 4] 
 /// 97.7 %). Unlike reading the -1/2 line off the longest tau, this uses every octave: the
 /// short taus pin the floor, so the bound is as tight as the record allows.
 pub fn arw_upper_bound(av: &AllanVariance, fit: &NoiseFit) -> Option<f64> {
-    let points: Vec<_> = av.points.iter().filter(|p| p.avar > 0.0).collect();
+    let points: Vec<_> = av
+        .points
+        .iter()
+        .filter(|p| p.avar > 0.0 && p.tau_s >= fit.min_tau_s)
+        .collect();
     let taus: Vec<f64> = points.iter().map(|p| p.tau_s).collect();
     let avar: Vec<f64> = points.iter().map(|p| p.avar).collect();
     let weights: Vec<f64> = points
@@ -291,9 +303,14 @@ fn term(c: f64, var: f64, confidence: f64, value: impl Fn(f64) -> f64) -> Option
     })
 }
 
-/// Fits the noise model to `av`; `None` if no point has a positive variance.
-pub fn fit(av: &AllanVariance, confidence: f64) -> Option<NoiseFit> {
-    let points: Vec<_> = av.points.iter().filter(|p| p.avar > 0.0).collect();
+/// Fits the noise model to the points of `av` at `min_tau_s` and above; `None` if none of them
+/// has a positive variance.
+pub fn fit(av: &AllanVariance, confidence: f64, min_tau_s: f64) -> Option<NoiseFit> {
+    let points: Vec<_> = av
+        .points
+        .iter()
+        .filter(|p| p.avar > 0.0 && p.tau_s >= min_tau_s)
+        .collect();
     let taus: Vec<f64> = points.iter().map(|p| p.tau_s).collect();
     let avar: Vec<f64> = points.iter().map(|p| p.avar).collect();
     let mut result: Option<NoiseFit> = None;
@@ -319,6 +336,7 @@ pub fn fit(av: &AllanVariance, confidence: f64) -> Option<NoiseFit> {
             }),
             coefficients,
             confidence,
+            min_tau_s,
         };
         result = Some(fit);
     }
@@ -342,7 +360,7 @@ mod tests {
             invalid_rows: 0,
             missing_samples: 0,
         };
-        fit(&allan_variance(&record).unwrap(), 0.95).unwrap()
+        fit(&allan_variance(&record).unwrap(), 0.95, 0.0).unwrap()
     }
 
     fn within(name: &str, term: Option<Term>, truth: f64) {
@@ -474,7 +492,7 @@ mod tests {
                     missing_samples: 0,
                 };
                 let av = allan_variance(&record).unwrap();
-                let f = fit(&av, 0.95).unwrap();
+                let f = fit(&av, 0.95, 0.0).unwrap();
                 let bound = arw_upper_bound(&av, &f).unwrap();
                 let adev_1s = av.points.iter().find(|p| p.m == 1024).unwrap().adev_deg_h();
                 if arw == 0.0 {

@@ -58,13 +58,18 @@ pub struct Analysis {
     pub variance: AllanVariance,
 }
 
-/// The Allan deviation of `record` with intervals at `confidence`, and the fitted terms. Errs
-/// when the record is too short (no segment of 3 valid samples) or has no variance.
-pub fn analyse(record: &RateRecord, confidence: f64) -> Result<Analysis, String> {
+/// The Allan deviation of `record` with intervals at `confidence`, and the terms fitted from
+/// `min_fit_tau_s` on (`fit`). Errs when the record is too short (no segment of 3 valid
+/// samples) or has no variance there.
+pub fn analyse(
+    record: &RateRecord,
+    confidence: f64,
+    min_fit_tau_s: f64,
+) -> Result<Analysis, String> {
     let variance = estimator::allan_variance(record).ok_or_else(|| {
         "no run of at least 2 consecutive valid samples: nothing to compute".to_string()
     })?;
-    let fit = fit::fit(&variance, confidence)
+    let fit = fit::fit(&variance, confidence, min_fit_tau_s)
         .ok_or("the Allan variance is zero at every tau (a constant rate): nothing to fit")?;
     let rows = variance
         .points

@@ -12,9 +12,10 @@
 //! - **Bias**: the mean rate of the valid samples, deg/h.
 //! - **Bias stability**: the standard deviation of consecutive [`BIAS_STABILITY_BLOCK_S`]
 //!   means (a tenth of the record when that is shorter than 100 s).
-//! - **ARW** and **bias instability**: the IEEE 952 fit's `N` and `B`. Where the fit finds no
-//!   white rate noise (the simulated board's readout floor, white angle noise of about 0.5
-//!   arcsec per sync period, dominates the deviation up to tens of seconds), the ARW is
+//! - **ARW** and **bias instability**: the IEEE 952 fit's `N` and `B`, fitted from
+//!   [`FIT_FROM_DITHER_PERIODS`] dither periods on. Where the fit finds no white rate noise
+//!   (the board's readout floor, white angle noise of about 0.04 arcsec per sync period,
+//!   dominates the deviation at short taus), the ARW is
 //!   bounded from above instead ([`StaticFigures::arw_bound_deg_rt_h`],
 //!   [`crate::allan::fit::arw_upper_bound`]: the ARW term forced into the fit beside the
 //!   terms it found, its coefficient plus two standard deviations). The ADEV at 1 s over 60,
@@ -28,6 +29,9 @@ use crate::allan::{analyse, Analysis};
 pub const MAX_STATIC_SAMPLES: u64 = 1_000_000;
 /// The averaging time of the bias stability, s.
 pub const BIAS_STABILITY_BLOCK_S: f64 = 10.0;
+/// The noise terms are fitted from this many dither periods on (`crate::allan::fit`: what is
+/// left of the dither at shorter taus is none of the IEEE 952 noises).
+pub const FIT_FROM_DITHER_PERIODS: f64 = 10.0;
 
 /// One (decimated) sample of the static record.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -152,8 +156,9 @@ impl StaticFigures {
     }
 }
 
-/// The figures of a static record at `confidence`.
-pub fn static_figures(record: &RateRecord, confidence: f64) -> StaticFigures {
+/// The figures of a static record at `confidence`, its noise terms fitted from
+/// `min_fit_tau_s` on.
+pub fn static_figures(record: &RateRecord, confidence: f64, min_fit_tau_s: f64) -> StaticFigures {
     let valid: Vec<f64> = record
         .rates_deg_h
         .iter()
@@ -164,7 +169,7 @@ pub fn static_figures(record: &RateRecord, confidence: f64) -> StaticFigures {
     let length_s = record.rates_deg_h.len() as f64 * record.period_s;
     let block_s = BIAS_STABILITY_BLOCK_S.min(length_s / 10.0);
     let block = (block_s / record.period_s).round().max(1.0) as usize;
-    let allan = analyse(record, confidence);
+    let allan = analyse(record, confidence, min_fit_tau_s);
     let adev_1s_deg_h = allan.as_ref().ok().and_then(|a| adev_at(a, 1.0));
     let arw_bound_deg_rt_h = allan
         .as_ref()
@@ -250,7 +255,7 @@ mod tests {
         .map(|r| r + 0.7)
         .collect();
         let samples = samples_from_rates(&rates, period);
-        let f = static_figures(&rate_record(&samples, period), 0.95);
+        let f = static_figures(&rate_record(&samples, period), 0.95, 0.0);
         let sigma_mean = 60.0 * arw / (2000.0f64).sqrt();
         assert!(
             (f.bias_deg_h - 0.7).abs() < 4.0 * sigma_mean,
@@ -281,7 +286,7 @@ mod tests {
                 valid: true,
             })
             .collect();
-        let f = static_figures(&rate_record(&samples, 0.001), 0.95);
+        let f = static_figures(&rate_record(&samples, 0.001), 0.95, 0.0);
         assert_eq!(f.bias_deg_h, 0.0);
         assert!(f.allan.is_err() && f.arw().is_none() && f.arw_for_comparison().is_none());
     }

@@ -259,6 +259,10 @@ fn static_record(
     }
     let span_s = samples[samples.len() - 1].t_s - samples[0].t_s;
     let period_s = span_s / (samples.len() - 1) as f64;
-    let figures = static_figures(&rate_record(&samples, period_s), plan.confidence);
+    let figures = static_figures(
+        &rate_record(&samples, period_s),
+        plan.confidence,
+        super::noise::FIT_FROM_DITHER_PERIODS / params.dither_hz,
+    );
     Ok((!stop.load(Ordering::Relaxed)).then_some(figures))
 }

@@ -316,7 +316,7 @@ mod tests {
         };
         let rates = Synthetic::new(terms, period, seed).rates(100_000);
         let samples = samples_from_rates(&rates, period);
-        static_figures(&rate_record(&samples, period), 0.95)
+        static_figures(&rate_record(&samples, period), 0.95, 0.0)
     }
 
     /// A gyro with Chow's dead band of `band` deg/h (0: linear), tested at 0.5..10 deg/h and

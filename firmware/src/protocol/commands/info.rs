@@ -56,7 +56,7 @@ pub fn status<D: DeviceLink>(id: &Identity, device: &mut D, flags: StatusFlags) 
     ok_with(format_args!(
         "signal={} drive={} dither_hz={:.3} dither_amp_arcsec={:.2} rate_deg_h={:.4} turnarounds={} \
 cycles={} counter_glitches={} phase_glitches={} signal_lost={} missed={} dropped={} comp={} track={} \
-coeffs={} locked={} key={} strip_k={:.7} strip_k_prev={:.7} strip_k_std_rel={:.1e} strip={} \
+coeffs={} locked={} key={} strip_k={:.7} strip_k_quad={:.7} strip_k_std_rel={:.1e} strip={} \
 output_records={}",
         if s.signal_ok { "ok" } else { "lost" },
         drive,
@@ -80,7 +80,7 @@ output_records={}",
             "unprovisioned"
         },
         s.strip.k,
-        s.strip.k_previous,
+        s.strip.k_quadrature,
         s.strip.k_std_rel,
         if s.strip.converged {
             "converged"
@@ -160,7 +160,7 @@ mod tests {
                 cycles_dropped: 6,
                 strip: crate::signal::output::strip::StripStatus {
                     k: 0.2144199,
-                    k_previous: -0.0001234,
+                    k_quadrature: -0.0001234,
                     k_std_rel: 2.1e-5,
                     updates: 9000,
                     converged: true,
@@ -180,7 +180,7 @@ mod tests {
             "OK signal=ok drive=locked dither_hz=389.000 dither_amp_arcsec=200.00 rate_deg_h=15.0000 \
 turnarounds=10 cycles=5 counter_glitches=1 phase_glitches=2 signal_lost=3 missed=4 dropped=6 \
 comp=off track=on coeffs=flash:3 locked=yes key=unprovisioned strip_k=0.2144199 \
-strip_k_prev=-0.0001234 strip_k_std_rel=2.1e-5 strip=converged output_records=12345"
+strip_k_quad=-0.0001234 strip_k_std_rel=2.1e-5 strip=converged output_records=12345"
         );
     }
 

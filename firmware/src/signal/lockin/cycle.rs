@@ -569,7 +569,8 @@ mod tests {
         let parabola = |t: f64| amp * (1.0 - 0.06 * t * t);
         let w = core::f64::consts::TAU * 2.0;
         let wander = |t: f64| amp * (1.0 + 1e-3 * (w * t + 0.4).sin());
-        let cases: [(&str, f64, &dyn Fn(f64) -> f64); 3] = [
+        type AmplitudeAt<'a> = &'a dyn Fn(f64) -> f64;
+        let cases: [(&str, f64, AmplitudeAt); 3] = [
             ("ramp", 1e-8, &ramp),
             ("parabola", 1e-8, &parabola),
             ("wander", 5e-6, &wander),

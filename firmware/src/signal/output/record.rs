@@ -25,11 +25,14 @@
 //! is invalid: its increment is 0, the integrated angle holds, and [`OutputStatus::VALID`] is
 //! clear. The angle of that period is lost, and says so; it is never replaced by a guess.
 
+use super::dither_model::DitherModelConfig;
 use super::strip::StripConfig;
 
 /// The output stage's settings (immutable).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OutputConfig {
+    /// The model of the pick-off stream (the dither at a latch).
+    pub model: DitherModelConfig,
     /// Dither stripping.
     pub strip: StripConfig,
     /// Capture-timer frequency, Hz.
@@ -65,10 +68,17 @@ impl OutputStatus {
     pub const PICKOFF_FAULT: Self = Self(1 << 7);
     /// No previous latch to difference against (start, resynchronisation).
     pub const RESTART: Self = Self(1 << 8);
+    /// The model of the pick-off stream was not valid at the latch (start, a gap in the
+    /// stream, a re-seed): the dither angle there is not known to the output's precision.
+    pub const NO_DITHER_MODEL: Self = Self(1 << 10);
 
     /// Bits that make a period invalid.
     pub const FAULTS: Self = Self(
-        Self::COUNTER_GLITCH.0 | Self::SIGNAL_LOST.0 | Self::PICKOFF_FAULT.0 | Self::RESTART.0,
+        Self::COUNTER_GLITCH.0
+            | Self::SIGNAL_LOST.0
+            | Self::PICKOFF_FAULT.0
+            | Self::RESTART.0
+            | Self::NO_DITHER_MODEL.0,
     );
 }
 
@@ -198,7 +208,8 @@ mod tests {
 
     fn config() -> OutputConfig {
         OutputConfig {
-            strip: StripConfig::for_pickoff(0.4, 1.8655, 2048),
+            model: DitherModelConfig::for_pickoff(40_000.0, 84_000_000, 2048),
+            strip: StripConfig::for_pickoff(0.4, 1.8655),
             timer_hz: 84_000_000,
             scale_factor_arcsec: 1.8655,
         }

@@ -1,6 +1,8 @@
 //! Stage 6a, dither stripping: the output angle is the counted (and compensated) beat phase
 //! minus `K` times the dither angle the pick-off reports at the same instant, so an output
-//! period may begin and end anywhere in the dither cycle (docs/physics.md section 12).
+//! period may begin and end anywhere in the dither cycle (docs/physics.md section 12). The
+//! pick-off's dither at the latch comes from the model of its 40 kHz stream
+//! ([`super::dither_model`]), in phase and in quadrature, far below one conversion's noise.
 //!
 //! # K, and how it is learned
 //!
@@ -11,35 +13,31 @@
 //! what the board measures: between two output latches the phase moves by
 //!
 //! ```text
-//! d_psi = Omega dt + K d_p + (lock-in, photodiode and pick-off noise)
+//! d_psi = Omega dt + K d_p + K_q d_q + (lock-in, photodiode and model noise)
 //! ```
 //!
-//! and the exponentially weighted least-squares fit of `d_psi` on `[1, d_p]` (an intercept for
-//! the input rate; with the second tap below, on `[1, d_p, d_p_previous]`) gives the `K` that
-//! leaves the output uncorrelated with the pick-off.
+//! with p and q the modelled dither in phase and in quadrature, and the exponentially weighted
+//! least-squares fit of `d_psi` on `[1, d_p, d_q]` (an intercept for the input rate) gives the
+//! `K` that leaves the output uncorrelated with the pick-off.
 //! Increments at output latches (100 Hz - 2 kHz, incommensurate with the dither) sample every
-//! phase of the dither, so `d_p` spans +-2 amplitudes and the fit is well conditioned; the
-//! pick-off's noise in the regressor biases `K` by its variance over the dither's, about 1e-6.
+//! phase of the dither, so `d_p` and `d_q` span +-2 amplitudes and the fit is well conditioned.
 //!
 //! The sums are `f32` (IEEE on both the M4F's FPU and the host: the same bits) and decay by
 //! `1 - 1/memory` per update; the estimate replaces the starting `K` after
 //! [`StripConfig::min_updates`] increments, and counts as converged when its standard error
 //! (from the weighted residual) falls below [`StripConfig::converged_rel`] of `K`. An increment
-//! with a fault (counter glitch, signal lost, pick-off at a rail, drive not locked) is not
-//! learned from; the stripping itself goes on with the last `K`.
+//! with a fault (counter glitch, signal lost, pick-off at a rail, drive not locked, no valid
+//! model) is not learned from, and breaks the chain of increments.
 //!
 //! # A pick-off out of phase
 //!
 //! A pick-off that lags the dither (the gauge, the preamplifier) by `tau` reads
-//! `p(t) = G theta(t - tau)`: one coefficient would leave the quadrature part, `K A w tau`
-//! (0.1 % of the dither per 0.4 us at 389 Hz: -60 dB needs the lag below 0.4 us). So the fit
-//! has two taps, on the latch's own code and on the previous latch's:
-//! `dither = K (p_k - mid) + K' (p_{k-1} - mid)`. Two samples of one sinusoid a sync period
-//! apart span every phase of it (unless the sync is at the dither frequency or twice it, where
-//! the fit falls back to one tap), so the pair reproduces the dither in the count whatever the
-//! pick-off's phase at the dither frequency; `K'` is about `K w tau / sin(w dt)`, small, and
-//! adds little of the pick-off's noise. The two taps assume a steady sync period: a missed
-//! sync leaves one record off by `K'` times the dither's step.
+//! `p(t) = G theta(t - tau)`: `K` alone would leave the quadrature part, `K A w tau`
+//! (0.1 % of the dither per 0.4 us at 389 Hz: -60 dB needs the lag below 0.4 us). The dither
+//! in the count is `(cos(w tau) p - sin(w tau) q) / G`, so the quadrature tap
+//! `K_q = -K tan(w tau)` takes it out whatever the sync, and measures the lag:
+//! [`StripStatus::pickoff_lag_s`], which the turnaround schedule subtracts (the comparator
+//! edges lag by the same `tau`: docs/physics.md pitfall 2).
 //!
 //! # The innovation gate
 //!
@@ -48,6 +46,7 @@
 //! itself in the increment, hundreds of fringes, and the latch is flagged before the dither
 //! supervisor has even noticed; the record is then invalid (`record.rs`).
 
+use super::dither_model::DitherEstimate;
 use crate::units::Q32_PER_FRINGE;
 
 /// Settings of the stripper (immutable).
@@ -56,8 +55,6 @@ pub struct StripConfig {
     /// The `K` to start from, fringes per pick-off code (the profile's nominal pick-off
     /// sensitivity over the nominal scale factor, or the value stored with the calibration).
     pub initial_k: f32,
-    /// The pick-off code of a zero dither angle.
-    pub mid_code: u16,
     /// Memory of the fit, increments: the sums decay by `1 - 1/memory` per increment.
     pub memory_updates: u32,
     /// Increments before the fitted `K` replaces the starting one.
@@ -76,13 +73,12 @@ pub struct StripConfig {
 }
 
 impl StripConfig {
-    /// For a pick-off of `arcsec_per_code` read by a gyro of `scale_factor_arcsec` per fringe,
-    /// centred at `mid_code`: memory 4096 increments (4 s at a 1 kHz sync), the fit in use
-    /// after 64, converged at 1e-4.
-    pub fn for_pickoff(arcsec_per_code: f64, scale_factor_arcsec: f64, mid_code: u16) -> Self {
+    /// For a pick-off of `arcsec_per_code` read by a gyro of `scale_factor_arcsec` per fringe:
+    /// memory 4096 increments (4 s at a 1 kHz sync), the fit in use after 64, converged at
+    /// 1e-4.
+    pub fn for_pickoff(arcsec_per_code: f64, scale_factor_arcsec: f64) -> Self {
         Self {
             initial_k: (arcsec_per_code / scale_factor_arcsec) as f32,
-            mid_code,
             memory_updates: 4096,
             min_updates: 64,
             converged_rel: 1e-4,
@@ -100,11 +96,11 @@ impl StripConfig {
 /// The state of `K`'s fit, as `status` reports it.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct StripStatus {
-    /// `K` in use, fringes per pick-off code (the tap on the latch's own pick-off code).
+    /// `K` in use, fringes per pick-off code (the tap on the modelled dither in phase).
     pub k: f32,
-    /// The tap on the previous latch's code, fringes per code: the pick-off's phase error
-    /// (0 for a pick-off in phase with the dither).
-    pub k_previous: f32,
+    /// The tap on the modelled dither in quadrature, fringes per code: `-K tan(w tau)` for a
+    /// pick-off lagging the dither by `tau` (0 for a pick-off in phase with it).
+    pub k_quadrature: f32,
     /// Relative standard error of the fitted `K` (infinite before the fit is in use).
     pub k_std_rel: f32,
     /// Increments learned from since start (saturating).
@@ -113,12 +109,21 @@ pub struct StripStatus {
     pub converged: bool,
 }
 
+impl StripStatus {
+    /// How far the pick-off lags the dither, s, for a dither at `w_rad_per_s`:
+    /// `atan(-K_q / K) / w` (negative: it leads). `None` before the fit converged.
+    pub fn pickoff_lag_s(&self, w_rad_per_s: f32) -> Option<f32> {
+        let lag = libm::atanf(-self.k_quadrature / self.k) / w_rad_per_s;
+        (self.converged && lag.is_finite()).then_some(lag)
+    }
+}
+
 /// The stripper's running state.
 #[derive(Clone, Copy, Debug)]
 pub struct DitherStripper {
     k: f32,
-    k_previous: f32,
-    /// Weighted sums of the regression of `d_psi` on `[1, d_p, d_p_previous]`: 1, x1, x2,
+    k_quadrature: f32,
+    /// Weighted sums of the regression of `d_psi` on `[1, d_p, d_q]`: 1, x1, x2,
     /// x1 x1, x1 x2, x2 x2, y, x1 y, x2 y (fringes and codes); and of the squared a-priori
     /// residual (the prediction error before each update: no cancellation between large sums).
     s: [f32; 9],
@@ -126,9 +131,9 @@ pub struct DitherStripper {
     sr0: f32,
     updates: u32,
     std_rel: f32,
-    /// The previous latch: phase (Q32 fringes, wrapping), its pick-off code and the code before
-    /// it, while the chain of latches holds.
-    previous: Option<(i64, u16, Option<u16>)>,
+    /// The previous latch: phase (Q32 fringes, wrapping) and the modelled dither there (in
+    /// phase, in quadrature), while the chain of latches holds.
+    previous: Option<(i64, f32, f32)>,
     /// The recent stripped increment, fringes (the innovation gate's prediction: an average
     /// with gain 1/2, so it follows a changing rate within two latches).
     recent_increment: Option<f32>,
@@ -139,8 +144,8 @@ pub struct DitherStripper {
 /// Consecutive rejections after which the gate's prediction is learned anew.
 const MAX_REJECTIONS: u32 = 16;
 /// Below this normalised determinant of the two taps' regressors (the latches sample the dither
-/// near twice its frequency or at it, where the two codes carry the same information) the
-/// fit keeps one tap.
+/// at its frequency or twice it, where the increments of p and q carry the same information)
+/// the fit keeps one tap.
 const MIN_TWO_TAP_DETERMINANT: f32 = 0.02;
 
 /// One stripped latch.
@@ -158,7 +163,7 @@ impl DitherStripper {
     pub fn new(config: &StripConfig) -> Self {
         Self {
             k: config.initial_k,
-            k_previous: 0.0,
+            k_quadrature: 0.0,
             s: [0.0; 9],
             srr: 0.0,
             sr0: 0.0,
@@ -170,80 +175,69 @@ impl DitherStripper {
         }
     }
 
-    /// Starts from stored taps `k` and `k_previous` and forgets the fit.
-    pub fn restart_from(&mut self, config: &StripConfig, k: f32, k_previous: f32) {
+    /// Starts from stored taps `k` and `k_quadrature` and forgets the fit.
+    pub fn restart_from(&mut self, config: &StripConfig, k: f32, k_quadrature: f32) {
         *self = Self::new(&StripConfig {
             initial_k: k,
             ..*config
         });
-        self.k_previous = k_previous;
+        self.k_quadrature = k_quadrature;
     }
 
-    /// The dither in the count at a latch, fringes: the two taps on this latch's code and the
-    /// previous one's (this one's twice when there is none).
-    fn dither_fringes(&self, config: &StripConfig, code: u16, previous: Option<u16>) -> f32 {
-        let mid = f32::from(config.mid_code);
-        let p = f32::from(code) - mid;
-        let p1 = previous.map_or(p, |c| f32::from(c) - mid);
-        self.k * p + self.k_previous * p1
+    /// The dither in the count at a latch, fringes.
+    fn dither_fringes(&self, dither: &DitherEstimate) -> f32 {
+        self.k * dither.in_phase_codes + self.k_quadrature * dither.quadrature_codes
     }
 
-    /// The stripped phase at one latch: `phase_q32 - K (p - mid) - K' (p_previous - mid)`, and
-    /// whether the increment since the previous latch passes the innovation gate. `usable`
-    /// false (a fault in the period) leaves the fit alone and breaks the chain of increments;
-    /// an implausible increment is not learned from either.
+    /// The stripped phase at one latch: `phase_q32 - K p - K_q q` with the modelled dither
+    /// there, and whether the increment since the previous latch passes the innovation gate.
+    /// No model, or `usable` false (a fault in the period), leaves the fit alone and breaks the
+    /// chain of increments (the phase is then returned unstripped: the record is invalid); an
+    /// implausible increment is not learned from either.
     pub fn strip(
         &mut self,
         config: &StripConfig,
         phase_q32: i64,
-        pickoff_code: u16,
+        dither: Option<&DitherEstimate>,
         usable: bool,
     ) -> Stripped {
-        let mut implausible = false;
-        let before = self.previous;
-        let previous_code = before.map(|(_, code, _)| code);
-        if usable {
-            if let Some((phase0, code0, code00)) = before {
-                let d_psi = (phase_q32.wrapping_sub(phase0) as f64 / Q32_PER_FRINGE) as f32;
-                let increment = d_psi
-                    - (self.dither_fringes(config, pickoff_code, Some(code0))
-                        - self.dither_fringes(config, code0, code00));
-                if let Some(recent) = self.recent_increment {
-                    implausible = (increment - recent).abs() > config.innovation_limit_fringes;
-                }
-                if implausible {
-                    // The prediction stays; after a run of rejections (a real change of rate
-                    // beyond the gate) it is learned anew.
-                    self.rejections = self.rejections.saturating_add(1);
-                    if self.rejections >= MAX_REJECTIONS {
-                        self.recent_increment = None;
-                        self.rejections = 0;
-                    }
-                } else {
-                    self.rejections = 0;
-                    if let Some(code00) = code00 {
-                        let x1 = f32::from(pickoff_code) - f32::from(code0);
-                        let x2 = f32::from(code0) - f32::from(code00);
-                        self.learn(config, d_psi, x1, x2);
-                    }
-                    self.recent_increment = Some(match self.recent_increment {
-                        Some(recent) => recent + 0.5 * (increment - recent),
-                        None => increment,
-                    });
-                }
-            }
-            self.previous = Some((phase_q32, pickoff_code, previous_code));
-        } else {
+        let Some(dither) = dither.filter(|_| usable) else {
             self.previous = None;
             self.recent_increment = None;
+            return Stripped {
+                phase_q32,
+                implausible: false,
+            };
+        };
+        let mut implausible = false;
+        let dither_fringes = self.dither_fringes(dither);
+        if let Some((phase0, p0, q0)) = self.previous {
+            let d_psi = (phase_q32.wrapping_sub(phase0) as f64 / Q32_PER_FRINGE) as f32;
+            let (x1, x2) = (dither.in_phase_codes - p0, dither.quadrature_codes - q0);
+            let increment = d_psi - (self.k * x1 + self.k_quadrature * x2);
+            if let Some(recent) = self.recent_increment {
+                implausible = (increment - recent).abs() > config.innovation_limit_fringes;
+            }
+            if implausible {
+                // The prediction stays; after a run of rejections (a real change of rate
+                // beyond the gate) it is learned anew.
+                self.rejections = self.rejections.saturating_add(1);
+                if self.rejections >= MAX_REJECTIONS {
+                    self.recent_increment = None;
+                    self.rejections = 0;
+                }
+            } else {
+                self.rejections = 0;
+                self.learn(config, d_psi, x1, x2);
+                self.recent_increment = Some(match self.recent_increment {
+                    Some(recent) => recent + 0.5 * (increment - recent),
+                    None => increment,
+                });
+            }
         }
-        let dither = self.dither_fringes(
-            config,
-            pickoff_code,
-            if usable { previous_code } else { None },
-        );
+        self.previous = Some((phase_q32, dither.in_phase_codes, dither.quadrature_codes));
         Stripped {
-            phase_q32: phase_q32.wrapping_sub((dither as f64 * Q32_PER_FRINGE) as i64),
+            phase_q32: phase_q32.wrapping_sub((dither_fringes as f64 * Q32_PER_FRINGE) as i64),
             implausible,
         }
     }
@@ -253,8 +247,8 @@ impl DitherStripper {
         let in_use = self.updates >= config.min_updates.max(4);
         let s = &mut self.s;
         if in_use {
-            let intercept = (s[6] - self.k * s[1] - self.k_previous * s[2]) / s[0];
-            let r = y - self.k * x1 - self.k_previous * x2 - intercept;
+            let intercept = (s[6] - self.k * s[1] - self.k_quadrature * s[2]) / s[0];
+            let r = y - self.k * x1 - self.k_quadrature * x2 - intercept;
             self.srr = self.srr * decay + r * r;
             self.sr0 = self.sr0 * decay + 1.0;
         }
@@ -279,7 +273,7 @@ impl DitherStripper {
             return;
         }
         let det = c11 * c22 - c12 * c12;
-        let (k, k_previous, var_factor) = if det > MIN_TWO_TAP_DETERMINANT * c11 * c22 {
+        let (k, k_quadrature, var_factor) = if det > MIN_TWO_TAP_DETERMINANT * c11 * c22 {
             (
                 (c1y * c22 - c2y * c12) / det,
                 (c2y * c11 - c1y * c12) / det,
@@ -288,11 +282,11 @@ impl DitherStripper {
         } else {
             (c1y / c11, 0.0, 1.0 / c11)
         };
-        if !(k.is_finite() && k_previous.is_finite()) || k == 0.0 {
+        if !(k.is_finite() && k_quadrature.is_finite()) || k == 0.0 {
             return;
         }
         self.k = k;
-        self.k_previous = k_previous;
+        self.k_quadrature = k_quadrature;
         if in_use {
             let residual_var = self.srr / self.sr0.max(1.0);
             self.std_rel = libm::sqrtf(residual_var * var_factor) / k.abs();
@@ -304,7 +298,7 @@ impl DitherStripper {
         let in_use = self.updates >= config.min_updates.max(4);
         StripStatus {
             k: self.k,
-            k_previous: self.k_previous,
+            k_quadrature: self.k_quadrature,
             k_std_rel: if in_use { self.std_rel } else { f32::INFINITY },
             updates: self.updates,
             converged: in_use && self.std_rel < config.converged_rel,
@@ -315,16 +309,28 @@ impl DitherStripper {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use core::f64::consts::TAU;
 
     fn config(k: f32) -> StripConfig {
         StripConfig {
             initial_k: k,
-            ..StripConfig::for_pickoff(0.4, 1.8655, 2048)
+            ..StripConfig::for_pickoff(0.4, 1.8655)
         }
     }
 
-    /// A synthetic dither seen by the count (K_true fringes per code) and the pick-off: the
-    /// fit finds K_true from a 5 % error, and the stripped phase is the input angle alone.
+    /// The modelled dither of a pick-off reading `amp` codes of a 389 Hz dither lagging by
+    /// `lag_s`, at `t` s (what `dither_model` gives, noise-free).
+    fn model(amp: f64, lag_s: f64, t: f64) -> DitherEstimate {
+        let x = TAU * 389.0 * (t - lag_s);
+        DitherEstimate {
+            in_phase_codes: (amp * x.cos()) as f32,
+            quadrature_codes: (amp * x.sin()) as f32,
+            offset_codes: 0.0,
+        }
+    }
+
+    /// A synthetic dither seen by the count (K_true fringes per code) and the model: the fit
+    /// finds K_true from a 5 % error, and the stripped phase is the input angle alone.
     #[test]
     fn learns_k_and_strips_the_dither() {
         let k_true = 0.4 / 1.8655 * 1.05;
@@ -334,11 +340,10 @@ mod tests {
         let (mut worst, mut n) = (0.0f64, 0);
         for i in 0..20_000 {
             let t = i as f64 * 1e-3;
-            let dither_codes = 1125.0 * (core::f64::consts::TAU * 389.0 * t).sin();
-            let code = (2048.0 + dither_codes).round();
-            let psi = rate_fringes_per_s * t + k_true * (code - 2048.0);
+            let m = model(1125.0, 0.0, t);
+            let psi = rate_fringes_per_s * t + k_true * m.in_phase_codes as f64;
             let out = s
-                .strip(&cfg, (psi * Q32_PER_FRINGE) as i64, code as u16, true)
+                .strip(&cfg, (psi * Q32_PER_FRINGE) as i64, Some(&m), true)
                 .phase_q32;
             let err = out as f64 / Q32_PER_FRINGE - rate_fringes_per_s * t;
             if i > 2000 {
@@ -350,26 +355,30 @@ mod tests {
         // The fit is exact on noise-free data up to f32 rounding of the sums (1e-6 relative).
         assert!(((st.k as f64) / k_true - 1.0).abs() < 1e-5, "{st:?}");
         assert!(st.converged, "{st:?}");
-        // Residual: the fit's f32 precision (~1e-5 of K) times the 240-fringe dither, 2.2e-3
-        // fringes measured; 0.004 arcsec, against 0.5 arcsec of pick-off noise on a board.
+        assert!(st.k_quadrature.abs() < 1e-5 * st.k, "{st:?}");
+        // Residual: the fit's f32 precision (~1e-5 of K) times the 240-fringe dither;
+        // 0.004 arcsec, against the model's 0.04 arcsec on a board.
         assert!(worst < 5e-3, "worst {worst} fringes over {n} latches");
     }
 
-    /// A fault breaks the chain: the increment across it is not learned from.
+    /// A fault breaks the chain: the increment across it is not learned from; no model is the
+    /// same.
     #[test]
-    fn a_fault_is_not_learned_from() {
+    fn a_fault_or_no_model_is_not_learned_from() {
         let cfg = config(0.2);
         let mut s = DitherStripper::new(&cfg);
-        s.strip(&cfg, 0, 2048, true);
-        s.strip(&cfg, 1 << 40, 3000, false);
-        s.strip(&cfg, 1 << 41, 100, true);
+        s.strip(&cfg, 0, Some(&model(1000.0, 0.0, 0.0)), true);
+        s.strip(&cfg, 1 << 40, Some(&model(1000.0, 0.0, 1e-3)), false);
+        s.strip(&cfg, 1 << 41, Some(&model(1000.0, 0.0, 2e-3)), true);
+        s.strip(&cfg, 1 << 42, None, true);
+        s.strip(&cfg, 1 << 43, Some(&model(1000.0, 0.0, 4e-3)), true);
         assert_eq!(s.status(&cfg).updates, 0);
         assert_eq!(s.status(&cfg).k, 0.2);
         assert!(!s.status(&cfg).converged);
     }
 
-    /// A pick-off that stops reporting the dither (it reads its offset) breaks the gate at
-    /// once: the increment then carries the dither itself.
+    /// A pick-off that stops reporting the dither (the model of a flat pick-off) breaks the
+    /// gate at once: the increment then carries the dither itself.
     #[test]
     fn a_silent_pickoff_breaks_the_innovation_gate() {
         let cfg = config(0.2144);
@@ -378,14 +387,10 @@ mod tests {
         for i in 0..2000 {
             let t = i as f64 * 1e-3;
             let lost = i >= 1000;
-            let dither_codes = 1125.0 * (core::f64::consts::TAU * 389.0 * t).sin();
-            let psi = 0.2144 * dither_codes;
-            let code = if lost {
-                2048.0
-            } else {
-                2048.0 + dither_codes.round()
-            };
-            let out = s.strip(&cfg, (psi * Q32_PER_FRINGE) as i64, code as u16, true);
+            let m = model(1125.0, 0.0, t);
+            let psi = 0.2144 * m.in_phase_codes as f64;
+            let seen = if lost { model(0.0, 0.0, t) } else { m };
+            let out = s.strip(&cfg, (psi * Q32_PER_FRINGE) as i64, Some(&seen), true);
             assert!(lost || !out.implausible, "latch {i}");
             flagged += usize::from(out.implausible);
         }
@@ -394,11 +399,11 @@ mod tests {
         assert!(flagged > 600, "{flagged} of 1000 flagged");
     }
 
-    /// A pick-off lagging the dither by 5 us with a 3 % gain error: the two taps strip the
-    /// dither to the noise-free residual of f32 rounding (a single K would leave 12 mrad of
-    /// quadrature, 2.9 fringes).
+    /// A pick-off lagging the dither by 5 us with a 3 % gain error: the quadrature tap strips
+    /// the dither to the f32 rounding (K alone would leave 12 mrad of quadrature, 2.9 fringes),
+    /// and gives back the lag (5 us to 1 ns).
     #[test]
-    fn two_taps_strip_a_lagging_pickoff() {
+    fn the_quadrature_tap_strips_a_lagging_pickoff_and_measures_its_lag() {
         let k_nominal = 0.4 / 1.8655;
         let cfg = config(k_nominal as f32);
         let mut s = DitherStripper::new(&cfg);
@@ -406,12 +411,11 @@ mod tests {
         let mut worst = 0.0f64;
         for i in 0..20_000 {
             let t = i as f64 * 1e-3;
-            let w = core::f64::consts::TAU * 389.0;
-            let dither_codes = 1125.0 * (w * t).sin();
-            let code = (2048.0 + gain * 1125.0 * (w * (t - lag_s)).sin()).round();
+            let dither_codes = 1125.0 * (TAU * 389.0 * t).cos();
             let psi = 2.5 * t + k_nominal * dither_codes;
+            let m = model(gain * 1125.0, lag_s, t);
             let out = s
-                .strip(&cfg, (psi * Q32_PER_FRINGE) as i64, code as u16, true)
+                .strip(&cfg, (psi * Q32_PER_FRINGE) as i64, Some(&m), true)
                 .phase_q32;
             if i > 2000 {
                 let err = out as f64 / Q32_PER_FRINGE - 2.5 * t;
@@ -419,9 +423,9 @@ mod tests {
             }
         }
         let st = s.status(&cfg);
-        // The codes' rounding (0.29 codes rms) is the noise here: 0.06 fringes rms, 0.25 worst.
-        assert!(worst < 0.35, "worst {worst} fringes; {st:?}");
-        assert!(st.k_previous.abs() > 1e-4, "{st:?}");
+        assert!(worst < 5e-3, "worst {worst} fringes; {st:?}");
+        let lag = st.pickoff_lag_s((TAU * 389.0) as f32).unwrap();
+        assert!((lag as f64 - lag_s).abs() < 1e-9, "{lag} s; {st:?}");
     }
 
     #[test]

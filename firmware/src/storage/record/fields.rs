@@ -100,15 +100,15 @@ impl FitSummary {
 }
 
 /// The dither stripping's coefficients as stored (fixed point, Q8.24 fringes per pick-off
-/// code): the taps on the latch's own pick-off code and the previous latch's
+/// code): the taps on the modelled dither in phase and in quadrature
 /// (`signal::output::strip`). What the board starts its stripping with at power-up.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct StripCoefficients {
     /// K, Q8.24 fringes per code.
     pub k_q24: i32,
-    /// K', Q8.24 fringes per code.
-    pub k_previous_q24: i32,
+    /// K_q, Q8.24 fringes per code.
+    pub k_quadrature_q24: i32,
 }
 
 impl StripCoefficients {
@@ -116,14 +116,14 @@ impl StripCoefficients {
     const ONE: f32 = (1u32 << 24) as f32;
 
     /// From the taps in fringes per code; `None` when one is not finite or beyond +-128.
-    pub fn from_fringes_per_code(k: f32, k_previous: f32) -> Option<Self> {
+    pub fn from_fringes_per_code(k: f32, k_quadrature: f32) -> Option<Self> {
         let q = |x: f32| {
             let v = x * Self::ONE;
             (x.is_finite() && v.abs() < i32::MAX as f32).then(|| crate::math::round_f32_to_i32(v))
         };
         Some(Self {
             k_q24: q(k)?,
-            k_previous_q24: q(k_previous)?,
+            k_quadrature_q24: q(k_quadrature)?,
         })
     }
 
@@ -132,9 +132,9 @@ impl StripCoefficients {
         self.k_q24 as f32 / Self::ONE
     }
 
-    /// K' in fringes per code.
-    pub fn k_previous(&self) -> f32 {
-        self.k_previous_q24 as f32 / Self::ONE
+    /// K_q in fringes per code.
+    pub fn k_quadrature(&self) -> f32 {
+        self.k_quadrature_q24 as f32 / Self::ONE
     }
 
     /// A K of zero strips nothing: no board stores one (the fit refuses a zero K).

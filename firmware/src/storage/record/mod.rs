@@ -31,7 +31,7 @@
 //! | 16 | 4 | a, Q15.16 rad/s (i32) |
 //! | 20 | 4 | b, Q15.16 rad/s (i32) |
 //! | 24 | 1 | compensation enabled: 0 or 1 |
-//! | 25 | 1 | flags: bit 0 fit summary present, bit 1 reset-to-defaults record, bit 2 dither setpoints present, bit 3 stripping coefficients present; others 0 |
+//! | 25 | 1 | flags: bit 0 fit summary present, bit 1 reset-to-defaults record, bit 2 dither setpoints present, bit 3 stripping coefficients present, bit 4 the second stripping tap is the quadrature tap; others 0 |
 //! | 26 | 2 | fit: runs pooled (u16, saturated) |
 //! | 28 | 4 | fit: cycles (u32, saturated) |
 //! | 32 | 4 | fit: standard error of a, rad/s (f32) |
@@ -45,7 +45,7 @@
 //! | 64 | 1 | dither: drive enabled at power-up, 0 or 1 |
 //! | 65 | 7 | reserved, 0 |
 //! | 72 | 4 | stripping: K, Q8.24 fringes per pick-off code (i32) |
-//! | 76 | 4 | stripping: K', the previous latch's tap, Q8.24 fringes per code (i32) |
+//! | 76 | 4 | stripping: K_q, the tap on the modelled dither in quadrature (flag bit 4; without it, an older firmware's tap on the previous latch's code, not loaded), Q8.24 fringes per code (i32) |
 //! | 80 | 8 | reserved, 0 |
 //! | 88 | 4 | CRC-32 of bytes 0..88 |
 //! | 92 | 4 | commit marker |
@@ -163,8 +163,8 @@ pub mod offset {
     pub const RESERVED: usize = 65;
     /// Stripping coefficient K, Q8.24 fringes per pick-off code, i32.
     pub const STRIP_K: usize = 72;
-    /// Stripping coefficient K' (the previous latch's tap), Q8.24, i32.
-    pub const STRIP_K_PREVIOUS: usize = 76;
+    /// Stripping coefficient K_q (the quadrature tap), Q8.24, i32.
+    pub const STRIP_K_QUADRATURE: usize = 76;
     /// Reserved bytes after the stripping coefficients, 0, up to [`CRC`].
     pub const RESERVED_2: usize = 80;
     /// CRC of `[0, CRC)`; in any frame of length n bytes it sits at n - 8.
@@ -181,9 +181,13 @@ const FLAG_FIT_PRESENT: u8 = 1 << 0;
 const FLAG_RESET: u8 = 1 << 1;
 const FLAG_DITHER_PRESENT: u8 = 1 << 2;
 const FLAG_STRIP_PRESENT: u8 = 1 << 3;
+/// The second stripping tap is the quadrature tap (`signal::output::strip`). A version-3 record
+/// without it holds an older firmware's tap on the previous latch's pick-off code, which means
+/// nothing to the quadrature fit: it loads as 0 (K is kept), and the fit learns the tap anew.
+const FLAG_STRIP_QUADRATURE: u8 = 1 << 4;
 const V1_KNOWN_FLAGS: u8 = FLAG_FIT_PRESENT | FLAG_RESET;
 const V2_KNOWN_FLAGS: u8 = V1_KNOWN_FLAGS | FLAG_DITHER_PRESENT;
-const KNOWN_FLAGS: u8 = V2_KNOWN_FLAGS | FLAG_STRIP_PRESENT;
+const KNOWN_FLAGS: u8 = V2_KNOWN_FLAGS | FLAG_STRIP_PRESENT | FLAG_STRIP_QUADRATURE;
 
 /// Why bytes are not a usable record, or a record may not be stored.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -363,12 +367,12 @@ pub fn encode(record: &CalibrationRecord, sequence: u32) -> [u8; RECORD_BYTES] {
         bytes[offset::DITHER_ENABLED] = dither.enabled as u8;
     }
     if let Some(strip) = &record.strip {
-        flags |= FLAG_STRIP_PRESENT;
+        flags |= FLAG_STRIP_PRESENT | FLAG_STRIP_QUADRATURE;
         put(&mut bytes, offset::STRIP_K, &strip.k_q24.to_le_bytes());
         put(
             &mut bytes,
-            offset::STRIP_K_PREVIOUS,
-            &strip.k_previous_q24.to_le_bytes(),
+            offset::STRIP_K_QUADRATURE,
+            &strip.k_quadrature_q24.to_le_bytes(),
         );
     }
     bytes[offset::FLAGS] = flags;
@@ -457,7 +461,11 @@ fn decode_body(bytes: &[u8], version: u8) -> Result<CalibrationRecord, RecordErr
         decode_dither(bytes, flags & FLAG_DITHER_PRESENT != 0)?
     };
     let strip = if version == FORMAT_VERSION {
-        decode_strip(bytes, flags & FLAG_STRIP_PRESENT != 0)?
+        decode_strip(
+            bytes,
+            flags & FLAG_STRIP_PRESENT != 0,
+            flags & FLAG_STRIP_QUADRATURE != 0,
+        )?
     } else {
         None
     };
@@ -479,19 +487,28 @@ fn decode_body(bytes: &[u8], version: u8) -> Result<CalibrationRecord, RecordErr
 }
 
 /// The version-3 stripping bytes: coefficients when `present`, else zero; reserved bytes zero.
-fn decode_strip(bytes: &[u8], present: bool) -> Result<Option<StripCoefficients>, RecordError> {
+fn decode_strip(
+    bytes: &[u8],
+    present: bool,
+    quadrature: bool,
+) -> Result<Option<StripCoefficients>, RecordError> {
     let reserved_clear = bytes[offset::RESERVED_2..offset::CRC]
         .iter()
         .all(|&b| b == 0);
     let strip = StripCoefficients {
         k_q24: get_u32(bytes, offset::STRIP_K) as i32,
-        k_previous_q24: get_u32(bytes, offset::STRIP_K_PREVIOUS) as i32,
+        k_quadrature_q24: get_u32(bytes, offset::STRIP_K_QUADRATURE) as i32,
     };
-    match (reserved_clear, present) {
-        (false, _) => Err(RecordError::ImplausibleStrip),
-        (true, true) => Ok(Some(strip)),
-        (true, false) if strip == StripCoefficients::default() => Ok(None),
-        (true, false) => Err(RecordError::ImplausibleStrip),
+    match (reserved_clear, present, quadrature) {
+        (false, _, _) | (true, false, true) => Err(RecordError::ImplausibleStrip),
+        (true, true, true) => Ok(Some(strip)),
+        // An older firmware's previous-latch tap: K only.
+        (true, true, false) => Ok(Some(StripCoefficients {
+            k_quadrature_q24: 0,
+            ..strip
+        })),
+        (true, false, false) if strip == StripCoefficients::default() => Ok(None),
+        (true, false, false) => Err(RecordError::ImplausibleStrip),
     }
 }
 

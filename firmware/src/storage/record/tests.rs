@@ -79,11 +79,14 @@ fn layout_is_little_endian_at_documented_offsets() {
     assert_eq!(&bytes[8..12], &[0x78, 0x56, 0x34, 0x12]);
     assert_eq!(&bytes[56..60], &450.0f32.to_le_bytes());
     assert_eq!(&bytes[60..64], &12.5f32.to_le_bytes());
-    assert_eq!(bytes[25], 0b1101, "fit, dither and stripping present");
+    assert_eq!(
+        bytes[25], 0b1_1101,
+        "fit, dither, stripping present, quadrature tap"
+    );
     assert_eq!(&bytes[64..72], &[1, 0, 0, 0, 0, 0, 0, 0]);
     // K = 0.2144199 in Q8.24: round(0.2144199 * 2^24) = 3597369.
     assert_eq!(get_u32(&bytes, offset::STRIP_K) as i32, 3_597_369);
-    assert_eq!(get_u32(&bytes, offset::STRIP_K_PREVIOUS) as i32, -20_133);
+    assert_eq!(get_u32(&bytes, offset::STRIP_K_QUADRATURE) as i32, -20_133);
     assert_eq!(&bytes[80..88], &[0; 8]);
     assert_eq!(get_u32(&bytes, offset::CRC), crc32(&bytes[..88]));
     assert_eq!(get_u32(&bytes, offset::COMMIT), COMMIT_MARKER);
@@ -126,12 +129,32 @@ fn stripping_coefficients_are_checked() {
     seal(&mut bytes);
     assert_eq!(decode(&bytes), Err(RecordError::ImplausibleStrip));
     let strip = StripCoefficients::from_fringes_per_code(0.2144199, -0.0012).unwrap();
-    assert!((strip.k() - 0.2144199).abs() < 6e-8 && (strip.k_previous() + 0.0012).abs() < 6e-8);
+    assert!((strip.k() - 0.2144199).abs() < 6e-8 && (strip.k_quadrature() + 0.0012).abs() < 6e-8);
     assert_eq!(
         StripCoefficients::from_fringes_per_code(f32::NAN, 0.0),
         None
     );
     assert_eq!(StripCoefficients::from_fringes_per_code(200.0, 0.0), None);
+}
+
+/// A version-3 record of an older firmware (flag bit 3 without bit 4) holds the tap on the
+/// previous latch's code: it loads with its K and a zero quadrature tap. Bit 4 without bit 3
+/// is refused; this firmware writes both.
+#[test]
+fn an_older_previous_latch_tap_loads_as_k_alone() {
+    let mut record = sample();
+    record.strip = StripCoefficients::from_fringes_per_code(0.2144199, -0.0012);
+    let mut bytes = encode(&record, 1);
+    assert_eq!(bytes[offset::FLAGS] & 0x18, 0x18);
+    assert_eq!(decode(&bytes).unwrap().1.strip, record.strip);
+    bytes[offset::FLAGS] &= !0x10;
+    seal(&mut bytes);
+    let loaded = decode(&bytes).unwrap().1.strip.unwrap();
+    assert_eq!(loaded.k_q24, record.strip.unwrap().k_q24);
+    assert_eq!(loaded.k_quadrature_q24, 0);
+    bytes[offset::FLAGS] = (bytes[offset::FLAGS] & !0x08) | 0x10;
+    seal(&mut bytes);
+    assert_eq!(decode(&bytes), Err(RecordError::ImplausibleStrip));
 }
 
 #[test]
