@@ -10,9 +10,35 @@ use std::time::Duration;
 /// A stop flag that is never set, for runs nobody interrupts.
 pub static NEVER: AtomicBool = AtomicBool::new(false);
 
-/// Unlocks protected commands with `key` (hex, as the board expects it).
+/// Longest wait for an unlock window the client accepts from an `ERR 14` (the board's window
+/// period, `AccessConfig::DEFAULT.window_period_ms`, plus a margin for the link).
+pub const UNLOCK_WINDOW_WAIT_MAX: Duration = Duration::from_millis(
+    firmware::protocol::access::AccessConfig::DEFAULT.window_period_ms as u64 + 1_000,
+);
+
+/// Unlocks protected commands with `key` (hex, as the board expects it). After wrong keys the
+/// board checks attempts only in its windows: on an `ERR 14` the client waits the time it names
+/// (at most [`UNLOCK_WINDOW_WAIT_MAX`]) and tries again, three times at most, so the key holder
+/// is in at the next window whatever wrong keys others sent.
 pub fn unlock<L: Link>(client: &mut Client<L>, key: &str) -> Result<Answer, ClientError> {
-    client.command(&format!("unlock {key}"))
+    let mut tries = 0;
+    loop {
+        let refused = match client.command(&format!("unlock {key}")) {
+            Err(ClientError::Device(e)) if e.code == 14 && tries < 3 => e,
+            other => return other,
+        };
+        let wait_ms = crate::output::fields(&refused.text)
+            .into_iter()
+            .find(|(k, _)| k == "wait_ms")
+            .and_then(|(_, v)| v.parse::<u64>().ok())
+            .map(Duration::from_millis)
+            .filter(|wait| *wait <= UNLOCK_WINDOW_WAIT_MAX);
+        let Some(wait) = wait_ms else {
+            return Err(ClientError::Device(refused));
+        };
+        client.pause(wait)?;
+        tries += 1;
+    }
 }
 
 /// The board's scale factor and capture-timer frequency from `id`, for rates in deg/h.
