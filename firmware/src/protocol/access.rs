@@ -344,7 +344,7 @@ mod tests {
                     t < start_ms + 3_600_000,
                     "kept out for an hour from {start_ms} ms"
                 );
-                if t % 7 == 0 || t == owner_at {
+                if t.is_multiple_of(7) || t == owner_at {
                     let _ = a.unlock(&C, t, &KEY, &wrong(3));
                 }
                 if t == owner_at {
