@@ -21,6 +21,8 @@
 //! nothing touches a register. It builds and is tested on the host.
 
 pub mod ports;
+pub mod power_up;
+pub mod record_queue;
 
 use embedded_storage::nor_flash::NorFlash;
 use heapless::String;
@@ -169,15 +171,17 @@ impl<F: NorFlash> Service<F> {
 
     /// One main-loop pass with bounded work: bytes from `read_byte` until at most
     /// [`LINES_PER_PASS`] lines were executed, then at most [`OUTPUTS_PER_PASS`] output records
-    /// from `next_output` and [`RECORDS_PER_PASS`] cycle records from `next_record`. Returns whether anything was done (more may be waiting: the caller
-    /// runs another pass before it sleeps). The bound keeps a pass short whatever the host
+    /// from `next_output` and [`RECORDS_PER_PASS`] cycle records from `next_record`, each after
+    /// the cycles lost right before it ([`record_queue`]: the stream's gap stands where they
+    /// were). Returns whether anything was done (more may be waiting: the caller runs another
+    /// pass before it sleeps). The bound keeps a pass short whatever the host
     /// sends, so the board's main loop refreshes its watchdog between any two commands (a
     /// flood of `reload`, each a scan of both flash sectors, cannot starve it).
     pub fn pass<P: Clock + SerialTx + ReadoutAccess + DitherAccess + Secrets>(
         &mut self,
         ports: &mut P,
         mut read_byte: impl FnMut(&mut P) -> Option<u8>,
-        mut next_record: impl FnMut() -> Option<CycleRecord>,
+        mut next_record: impl FnMut() -> Option<record_queue::Tagged<CycleRecord>>,
         mut next_output: impl FnMut() -> Option<OutputRecord>,
     ) -> bool {
         let mut busy = false;
@@ -197,10 +201,13 @@ impl<F: NorFlash> Service<F> {
             busy = true;
         }
         for _ in 0..RECORDS_PER_PASS {
-            let Some(record) = next_record() else {
+            let Some(tagged) = next_record() else {
                 break;
             };
-            self.on_cycle(&record, ports);
+            if tagged.lost_before > 0 {
+                self.on_cycles_lost(tagged.lost_before);
+            }
+            self.on_cycle(&tagged.record, ports);
             busy = true;
         }
         busy
