@@ -297,8 +297,8 @@ impl<'a, L: Link> Device<'a, L> {
             self.client,
             Duration::from_secs_f64(args.seconds),
             &mut |fraction| bar.set_position((fraction * 1000.0) as u64),
-            &mut |chunk| {
-                if let Err(e) = rows.push_chunk(chunk) {
+            &mut |chunk, received| {
+                if let Err(e) = rows.push_chunk(chunk, received) {
                     row_error.get_or_insert(e);
                 }
             },
@@ -317,6 +317,7 @@ impl<'a, L: Link> Device<'a, L> {
             ("lost", gaps.lost.to_string()),
             ("bad", bad.to_string()),
             ("invalid", invalid.to_string()),
+            ("restarts", (gaps.jumps + gaps.out_of_order).to_string()),
             ("span_s", format!("{span_s:.3}")),
             (
                 "interrupted",
@@ -330,6 +331,13 @@ impl<'a, L: Link> Device<'a, L> {
                 "rlg-cal: {} records lost (sequence gaps, marked in the CSV): the link is slower \
                  than the output (44 bytes per record)",
                 gaps.lost
+            );
+        }
+        if gaps.jumps + gaps.out_of_order > 0 {
+            eprintln!(
+                "rlg-cal: the sequence restarted {} times (a board reset, or a frame whose \
+                 sequence or time the elapsed time does not allow): no rows for those steps",
+                gaps.jumps + gaps.out_of_order
             );
         }
         if interrupted {

@@ -207,7 +207,7 @@ pub fn stream_until<L: Link>(
     stop: &AtomicBool,
 ) -> Result<Capture, ClientError> {
     let mut capture = Capture::new(divider);
-    let on_chunk = &mut |chunk: &[u8]| {
+    let on_chunk = &mut |chunk: &[u8], _received: Duration| {
         if let Some(record) = capture.push_chunk(chunk) {
             on_record(record);
         }
@@ -218,26 +218,26 @@ pub fn stream_until<L: Link>(
 }
 
 /// The board's fixed-rate output for `duration` (`stream output`): every chunk to `on_chunk`
-/// as it arrives, ending early when `stop` is set.
+/// as it arrives, with the link's clock then, ending early when `stop` is set.
 pub fn record_until<L: Link>(
     client: &mut Client<L>,
     duration: Duration,
     progress: &mut dyn FnMut(f64),
-    on_chunk: &mut dyn FnMut(&[u8]),
+    on_chunk: &mut dyn FnMut(&[u8], Duration),
     stop: &AtomicBool,
 ) -> Result<(), ClientError> {
     chunks_until(client, "stream output", duration, progress, on_chunk, stop)
 }
 
 /// One binary stream (`command` switches it on) for `duration` or until `stop`: every
-/// 0x00-delimited chunk to `on_chunk` as it arrives; the stream is switched off and the frames
-/// in flight handed over before it returns.
+/// 0x00-delimited chunk to `on_chunk` as it arrives, with the link's clock then; the stream is
+/// switched off and the frames in flight handed over before it returns.
 fn chunks_until<L: Link>(
     client: &mut Client<L>,
     command: &str,
     duration: Duration,
     progress: &mut dyn FnMut(f64),
-    on_chunk: &mut dyn FnMut(&[u8]),
+    on_chunk: &mut dyn FnMut(&[u8], Duration),
     stop: &AtomicBool,
 ) -> Result<(), ClientError> {
     client.command(command)?;
@@ -250,14 +250,16 @@ fn chunks_until<L: Link>(
             }
             progress(elapsed.as_secs_f64() / duration.as_secs_f64());
             client.poll((duration - elapsed).min(Duration::from_millis(100)))?;
+            let received = client.elapsed();
             for chunk in client.take_frames() {
-                on_chunk(&chunk);
+                on_chunk(&chunk, received);
             }
         }
     })();
     let stopped = client.command("stream off");
+    let received = client.elapsed();
     for chunk in client.take_frames() {
-        on_chunk(&chunk);
+        on_chunk(&chunk, received);
     }
     result?;
     stopped?;

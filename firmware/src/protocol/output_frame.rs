@@ -83,6 +83,9 @@ pub struct OutputGaps {
     /// Frames whose sequence did not advance (a repeat or a board restart): counted, not
     /// taken as a gap.
     pub out_of_order: u64,
+    /// Frames whose step forward the receiver could not believe ([`OutputGaps::observe_jump`]:
+    /// further than the elapsed time allows): a restart or a corrupt frame, not a gap.
+    pub jumps: u64,
 }
 
 impl OutputGaps {
@@ -95,6 +98,14 @@ impl OutputGaps {
         }
         self.last = Some(sequence);
         self.received += 1;
+    }
+
+    /// One record received with `sequence`, whose step from the last one is not believed (the
+    /// receiver's clocks do not allow it): counted as a jump, not as lost records.
+    pub fn observe_jump(&mut self, sequence: u64) {
+        self.last = Some(sequence);
+        self.received += 1;
+        self.jumps += 1;
     }
 }
 
