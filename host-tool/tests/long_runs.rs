@@ -452,3 +452,32 @@ fn serve_sim_starts_with_an_address_alone_and_stops_on_ctrl_c() {
     interrupt(&child);
     assert_eq!(child.wait().unwrap().code(), Some(130));
 }
+
+/// A state file at the last boot count: the next call boots and saves it again, the count
+/// saturated (it never wraps, and adding one does not panic).
+#[test]
+fn a_state_file_at_the_last_boot_count_does_not_overflow() {
+    let state = scratch("last-boot.state");
+    let _ = std::fs::remove_file(&state);
+    let s = state.to_str().unwrap();
+    let (code, _, err, _) = run(&["--sim", "--sim-state", s, "id"], &[]);
+    assert_eq!(code, 0, "{err}");
+    let bytes = std::fs::read(&state).unwrap();
+    let text = String::from_utf8_lossy(&bytes);
+    assert!(text.contains("\nboot_count=1\n"), "{text}");
+    let header_end = bytes.windows(2).position(|w| w == b"\n\n").unwrap();
+    let header = String::from_utf8(bytes[..header_end].to_vec()).unwrap();
+    let mut edited = header
+        .replace("boot_count=1", &format!("boot_count={}", u32::MAX))
+        .into_bytes();
+    edited.extend_from_slice(&bytes[header_end..]);
+    std::fs::write(&state, edited).unwrap();
+    let (code, _, err, _) = run(&["--sim", "--sim-state", s, "id"], &[]);
+    assert_eq!(code, 0, "{err}");
+    let text = String::from_utf8_lossy(&std::fs::read(&state).unwrap()).into_owned();
+    assert!(
+        text.contains(&format!("\nboot_count={}\n", u32::MAX)),
+        "{text}"
+    );
+    std::fs::remove_file(&state).unwrap();
+}

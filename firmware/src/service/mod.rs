@@ -134,7 +134,8 @@ impl<F: NorFlash> Service<F> {
     ) -> Result<Booted<F>, GeometryError> {
         let store = CalibrationStore::new(&flash, config.geometry)?;
         let (record, report) = store.load_for_serial(&mut flash, config.identity.serial_number);
-        let boots = boot_count.unwrap_or(record.boot_count.wrapping_add(1));
+        // Saturating: a counter never wraps in the field.
+        let boots = boot_count.unwrap_or(record.boot_count.saturating_add(1));
         let service = Self {
             executor: Executor::new(&report, record.fit, boots, AcceptanceLimits::DEFAULT),
             line: LineAssembler::new(),

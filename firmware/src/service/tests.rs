@@ -541,3 +541,21 @@ fn cycles_dropped_on_a_full_queue_leave_their_gap_after_the_older_records() {
     ask(&mut s, &mut p, "stream off");
     assert!(ask(&mut s, &mut p, "status").contains(" dropped=8 "));
 }
+
+/// The boot count read from the newest record goes up by one per boot and stops at u32::MAX:
+/// a record stored at the last count boots into the same count, never 0.
+#[test]
+fn the_boot_count_saturates() {
+    let booted = Service::boot(config(), Flash::new(), Some(u32::MAX)).unwrap();
+    let mut s = booted.service;
+    let mut p = TestPorts::new(Readout::new(&config().readout, booted.settings));
+    ask(&mut s, &mut p, &format!("unlock {KEY}"));
+    assert!(ask(&mut s, &mut p, "store").starts_with("OK stored seq=1"));
+    let (mut s, mut p) = boot(s.into_flash());
+    ask(&mut s, &mut p, &format!("unlock {KEY}"));
+    assert!(ask(&mut s, &mut p, "store").starts_with("OK stored seq=2"));
+    let mut flash = s.into_flash();
+    let store = CalibrationStore::new(&flash, config().geometry).unwrap();
+    let (record, _) = store.load_for_serial(&mut flash, 7);
+    assert_eq!(record.boot_count, u32::MAX);
+}
