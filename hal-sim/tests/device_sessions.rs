@@ -4,7 +4,7 @@
 
 mod device_support;
 
-use device_support::{boot_with_key, KEY};
+use device_support::{boot_with_key, exchange, field, KEY};
 use embedded_storage::nor_flash::NorFlash;
 use firmware::protocol::parse::crc16;
 use hal_sim::device::SimDevice;
@@ -98,7 +98,6 @@ fn a_new_session_during_a_stall_inherits_no_held_bytes_or_answers() {
     assert_eq!(lines[2], "OK a=0", "{text:?}");
     assert!(!text.contains("stored"), "A's answer went to B: {text:?}");
     // The store itself went through: it is the board's, not the session's.
-    dev.receive(b"status\n");
-    let (status, _) = collect(&mut dev, 1, 0.1);
-    assert!(status.contains("coeffs=flash:1"), "{status}");
+    let status = exchange(&mut dev, b"status\n");
+    assert_eq!(field(&status, "coeffs"), "flash:1", "{status}");
 }

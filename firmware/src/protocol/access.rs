@@ -99,10 +99,10 @@ fn window_wait(config: &AccessConfig, from_ms: u64, now_ms: u64) -> Option<u64> 
     let period = u64::from(config.window_period_ms.max(1));
     let since = now_ms.saturating_sub(from_ms);
     if since < period {
-        return Some(period - since);
+        return Some(period.saturating_sub(since));
     }
-    let into = since % period;
-    (into >= u64::from(config.window_open_ms)).then(|| period - into)
+    let into = since.checked_rem(period).unwrap_or(0);
+    (into >= u64::from(config.window_open_ms)).then(|| period.saturating_sub(into))
 }
 
 impl Access {

@@ -79,11 +79,22 @@ impl StreamRecord {
     }
 
     fn from_bytes(b: &[u8; FRAME_PAYLOAD]) -> Self {
-        let u32_at = |i: usize| u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
+        // The fields' offsets lie inside the payload (a fixed layout): `get` never misses.
+        let u32_at = |i: usize| {
+            u32::from_le_bytes(
+                b.get(i..)
+                    .and_then(|r| r.first_chunk::<4>())
+                    .copied()
+                    .unwrap_or_default(),
+            )
+        };
         let i64_at = |i: usize| {
-            let mut w = [0u8; 8];
-            w.copy_from_slice(&b[i..i + 8]);
-            i64::from_le_bytes(w)
+            i64::from_le_bytes(
+                b.get(i..)
+                    .and_then(|r| r.first_chunk::<8>())
+                    .copied()
+                    .unwrap_or_default(),
+            )
         };
         Self {
             sequence: u32_at(0),
@@ -137,12 +148,14 @@ impl GapCounter {
     pub fn observe(&mut self, sequence: u32) {
         if let Some(last) = self.last {
             match sequence_step(last, sequence) {
-                Some(step) => self.lost += u64::from(step - 1),
-                None => self.out_of_order += 1,
+                Some(step) => {
+                    self.lost = self.lost.saturating_add(u64::from(step).saturating_sub(1))
+                }
+                None => self.out_of_order = self.out_of_order.saturating_add(1),
             }
         }
         self.last = Some(sequence);
-        self.received += 1;
+        self.received = self.received.saturating_add(1);
     }
 }
 

@@ -20,6 +20,22 @@
 //! Sans-IO: nothing here blocks except [`ports::SerialTx::send`] waiting for queue room, and
 //! nothing touches a register. It builds and is tested on the host.
 
+// No panics on the product path: no unwrap, expect, panic or slice indexing here; integer
+// arithmetic is checked, wrapping or saturating where an input could overflow it (each
+// exception is allowed where it stands, with its reason).
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::panic,
+        clippy::indexing_slicing,
+        clippy::unreachable,
+        clippy::todo,
+        clippy::arithmetic_side_effects
+    )
+)]
+
 pub mod ports;
 pub mod power_up;
 pub mod record_queue;
@@ -192,7 +208,7 @@ impl<F: NorFlash> Service<F> {
                 break;
             };
             busy = true;
-            lines += usize::from(self.on_byte(byte, ports));
+            lines = lines.saturating_add(usize::from(self.on_byte(byte, ports)));
         }
         for _ in 0..OUTPUTS_PER_PASS {
             let Some(record) = next_output() else {
@@ -283,7 +299,7 @@ impl<F: NorFlash> Service<F> {
         if let Some(frame) = actions.frame {
             let mut buf = [0u8; MAX_FRAME];
             let n = encode_frame(&frame, &mut buf);
-            if !ports.try_send_frame(&buf[..n]) {
+            if !ports.try_send_frame(buf.get(..n).unwrap_or(&buf)) {
                 self.frames_dropped = self.frames_dropped.saturating_add(1);
             }
         }
@@ -296,7 +312,7 @@ impl<F: NorFlash> Service<F> {
         if let Some(record) = self.executor.on_output(record) {
             let mut buf = [0u8; MAX_OUTPUT_FRAME];
             let n = encode_output_frame(&record, &mut buf);
-            if !ports.try_send_frame(&buf[..n]) {
+            if !ports.try_send_frame(buf.get(..n).unwrap_or(&buf)) {
                 self.frames_dropped = self.frames_dropped.saturating_add(1);
             }
         }
