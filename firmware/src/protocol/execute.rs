@@ -85,7 +85,7 @@ impl Executor {
         }
     }
 
-    /// After a reset: the wrong-key count the platform kept, its penalty restarted at `now_ms`.
+    /// After a reset: the wrong-key count the platform kept, its windows counted from `now_ms`.
     pub fn restore_wrong_keys(&mut self, wrong_keys: u32, now_ms: u64) {
         self.access.restore_wrong_keys(wrong_keys, now_ms);
     }

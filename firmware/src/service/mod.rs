@@ -173,7 +173,7 @@ impl<F: NorFlash> Service<F> {
     }
 
     /// Right after boot: the wrong-key count the platform kept across the reset (0 when its
-    /// memory was lost); past the free attempts, the penalty restarts at `now_ms`.
+    /// memory was lost); past the free attempts, the unlock windows are counted from `now_ms`.
     pub fn restore_wrong_keys(&mut self, wrong_keys: u32, now_ms: u64) {
         self.executor.restore_wrong_keys(wrong_keys, now_ms);
         self.saved_wrong_keys = wrong_keys;
