@@ -11,12 +11,14 @@
 //! A forged frame, or a corrupt one whose CRC happens to pass, must not make the host write a
 //! row for every sequence number it skips (one far ahead would fill the disk). A step forward
 //! is written as lost rows only when both clocks allow it ([`OutputRows::push`]): the board's
-//! time advances, the board's time since the segment began is not ahead of the host's clock
-//! (by more than 1 % and 1 s: crystal tolerance, the link's buffering), and the missing
-//! records fit in the board time between the two records at up to twice the previous
-//! record's rate. Any other step is a restart (a board reset, or an error): counted
-//! ([`OutputGaps::jumps`], `out_of_order`), no rows, and the record starts a new segment whose
-//! times go on from the last row by the host time between them, so `t_s` never goes back.
+//! time advances, the board time of all believed steps together is not ahead of the host's
+//! clock since the first record (by more than 1 % and 1 s: crystal tolerance, the link's
+//! buffering), and the missing records fit in the board time between the two records at up to
+//! twice the previous record's rate and at most [`MAX_OUTPUT_RATE_HZ`]. So the file grows by at
+//! most that many rows per second of the host's clock, whatever arrives. Any other step is a
+//! restart (a board reset, or an error): counted ([`OutputGaps::jumps`], `out_of_order`), no
+//! rows, and the record starts a new segment whose times go on from the last row by the host
+//! time between them, so `t_s` never goes back.
 //!
 //! CSV columns: `t_s,delta_angle_arcsec,valid,sequence,status` (`t_s` from the first record;
 //! the increment in arcsec with the board's scale factor from `id`; `status` the record's bits
@@ -24,7 +26,7 @@
 //! `rlg-sim record`'s file, which carries the truth beside them instead.
 
 use crate::capture::RateScale;
-use firmware::protocol::output_frame::{decode_output_frame, OutputGaps};
+use firmware::protocol::output_frame::{decode_output_frame, OutputGaps, MAX_OUTPUT_RATE_HZ};
 use firmware::signal::output::record::OutputRecord;
 use std::io::{self, Write};
 use std::time::{Duration, Instant};
@@ -41,6 +43,10 @@ pub struct OutputRows<W: Write> {
     segment: Option<Segment>,
     /// The last record: its time ticks, sequence, period, row time (s) and host clock.
     last: Option<Last>,
+    /// The host's clock at the first record.
+    first_received: Duration,
+    /// Board time of all believed steps, s (compared with the host's clock).
+    board_span_s: f64,
     /// Chunks that were not valid frames.
     pub bad_frames: u64,
     /// Invalid records received.
@@ -48,12 +54,10 @@ pub struct OutputRows<W: Write> {
     last_flush: Instant,
 }
 
-/// A run of records with one time base: the first record's ticks and host clock, and its row
-/// time.
+/// A run of records with one time base: the first record's ticks and its row time.
 #[derive(Clone, Copy)]
 struct Segment {
     t0_ticks: u64,
-    received0: Duration,
     base_s: f64,
 }
 
@@ -82,6 +86,8 @@ impl<W: Write> OutputRows<W> {
             gaps: OutputGaps::default(),
             segment: None,
             last: None,
+            first_received: Duration::ZERO,
+            board_span_s: 0.0,
             bad_frames: 0,
             invalid: 0,
             last_flush: Instant::now(),
@@ -114,23 +120,26 @@ impl<W: Write> OutputRows<W> {
             .map(|d| d as f64 / self.scale.timer_hz)
     }
 
-    /// The records missing before `record` when its step from `last` is believed (see the
-    /// module docs), else `None` (a restart or an error).
-    fn believed_gap(&self, last: &Last, record: &OutputRecord, received: Duration) -> Option<u64> {
-        let segment = self.segment?;
+    /// The records missing before `record`, and the board time between the two, when its step
+    /// from `last` is believed (see the module docs); else `None` (a restart or an error).
+    fn believed_gap(
+        &self,
+        last: &Last,
+        record: &OutputRecord,
+        received: Duration,
+    ) -> Option<(u64, f64)> {
         if record.sequence <= last.sequence {
             return None;
         }
         let missing = record.sequence - last.sequence - 1;
         let between_s = self.board_s(last.ticks, record.time_ticks)?;
-        let board_since_s = self.board_s(segment.t0_ticks, record.time_ticks)?;
-        let host_since_s = received.saturating_sub(segment.received0).as_secs_f64();
-        if board_since_s > host_since_s * (1.0 + CLOCK_AHEAD_REL) + CLOCK_AHEAD_S {
+        let host_since_s = received.saturating_sub(self.first_received).as_secs_f64();
+        if self.board_span_s + between_s > host_since_s * (1.0 + CLOCK_AHEAD_REL) + CLOCK_AHEAD_S {
             return None;
         }
         let period_s = f64::from(last.period_ticks.max(1)) / self.scale.timer_hz;
-        let allowed = 2.0 * between_s / period_s + 1.0;
-        (missing as f64 + 1.0 <= allowed).then_some(missing)
+        let allowed = (2.0 * between_s / period_s).min(between_s * MAX_OUTPUT_RATE_HZ) + 1.0;
+        (missing as f64 + 1.0 <= allowed).then_some((missing, between_s))
     }
 
     /// One record, received at `received` on the link's clock: rows for any records lost
@@ -142,16 +151,16 @@ impl<W: Write> OutputRows<W> {
         match (self.last, gap) {
             (None, _) => {
                 self.gaps.observe(record.sequence);
+                self.first_received = received;
                 self.segment = Some(Segment {
                     t0_ticks: record.time_ticks,
-                    received0: received,
                     base_s: 0.0,
                 });
             }
-            (Some(_), Some((last, missing))) => {
+            (Some(_), Some((last, (missing, between_s)))) => {
                 self.gaps.observe(record.sequence);
-                let step_s = self.board_s(last.ticks, record.time_ticks).unwrap_or(0.0)
-                    / (missing + 1) as f64;
+                self.board_span_s += between_s;
+                let step_s = between_s / (missing + 1) as f64;
                 for k in 1..=missing {
                     let t = last.t_s + k as f64 * step_s;
                     writeln!(self.out, "{t:.6},,0,{},lost", last.sequence + k)?;
@@ -167,7 +176,6 @@ impl<W: Write> OutputRows<W> {
                 let host_s = received.saturating_sub(last.received).as_secs_f64();
                 self.segment = Some(Segment {
                     t0_ticks: record.time_ticks,
-                    received0: received,
                     base_s: last.t_s + host_s,
                 });
             }
@@ -342,5 +350,21 @@ mod tests {
         let gaps = rows.finish().unwrap();
         assert_eq!((gaps.lost, gaps.jumps), (5_000, 1));
         assert_eq!(String::from_utf8(buf).unwrap().lines().count(), 1 + 5_003);
+        // A period of one tick claimed, then 100 000 records in one second on both clocks:
+        // more than MAX_OUTPUT_RATE_HZ allows, a jump.
+        let mut buf = Vec::new();
+        let mut rows = OutputRows::new(&mut buf, scale).unwrap();
+        let fast = OutputRecord {
+            period_ticks: 1,
+            ..record(0)
+        };
+        rows.push(&fast, at(0)).unwrap();
+        let far = OutputRecord {
+            time_ticks: fast.time_ticks + 84_000_000,
+            ..record(100_001)
+        };
+        rows.push(&far, Duration::from_secs(1)).unwrap();
+        let gaps = rows.finish().unwrap();
+        assert_eq!((gaps.lost, gaps.jumps), (0, 1));
     }
 }

@@ -21,6 +21,10 @@ use crate::signal::output::record::{OutputRecord, OutputStatus};
 
 /// Payload bytes.
 pub const OUTPUT_PAYLOAD: usize = 38;
+/// The most output records a board makes per second: five times the fastest sync it is
+/// documented for (2 kHz, which already needs 1 Mbaud). A receiver believes no gap that would
+/// need records faster than this.
+pub const MAX_OUTPUT_RATE_HZ: f64 = 10_000.0;
 /// Largest encoded frame, delimiter included.
 pub const MAX_OUTPUT_FRAME: usize = OUTPUT_PAYLOAD + 6;
 
