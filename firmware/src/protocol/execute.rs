@@ -182,6 +182,11 @@ impl Executor {
         self.pending = None;
     }
 
+    /// The command echoed for confirmation, waiting for `yes`.
+    pub fn pending(&self) -> Option<Command> {
+        self.pending
+    }
+
     /// Executes one command.
     pub fn execute<D: DeviceLink>(
         &mut self,
