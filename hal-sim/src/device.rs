@@ -319,7 +319,7 @@ impl Secrets for SimPorts<'_> {
 
     /// The simulated board has no backup domain: a power cycle ([`SimDevice::power_off`],
     /// then [`SimDevice::boot`]) is a cold start, as a board without VBAT (the service's
-    /// tests check that a reset keeping the count keeps the penalty).
+    /// tests check that a reset keeping the count keeps the unlock windows).
     fn save_wrong_keys(&mut self, _count: u32) {}
 }
 
