@@ -13,8 +13,10 @@ QEMU's stdout is the defmt stream: kept in a temporary file and decoded with def
 installed) when something fails. Every wait has a timeout; the whole run is bounded to 90 s.
 With `--board`, the ELF is the complete board image (`board::app::run`: clocks, watchdog, ADC,
 timers, DMA, the internal-flash driver): a smoke test that it comes up in QEMU and serves the
-protocol; `store` must fail cleanly with ERR 13 (QEMU does not model flash programming), and QEMU
-is killed at the end (that image has no quit hook).
+protocol; `store` must fail cleanly with ERR 13 (QEMU does not model flash programming). Then
+three wrong keys, a reset through QEMU's monitor (`system_reset`), and the wrong-key count must
+have survived it: after the reset the right key is refused until the first unlock window
+(ERR 14, wait_ms up to 10000). QEMU is killed at the end (that image has no quit hook).
 Closing line: `qemu-serial: N passed, M failed`; exit status 0 when M == 0, else 1.
 Standard library only.
 """
@@ -176,14 +178,52 @@ def board_checks(exchange):
     exchange("alive after the store", b"get a", lambda a: a == "OK a=12.5")
 
 
+def monitor_command(port: int, command: bytes) -> None:
+    """One command to QEMU's human monitor on a TCP port (its banner and echo are ignored)."""
+    with socket.create_connection(("127.0.0.1", port), timeout=5.0) as m:
+        m.settimeout(2.0)
+        try:
+            m.recv(4096)  # the banner and the first prompt
+        except socket.timeout:
+            pass
+        m.sendall(command + b"\n")
+        time.sleep(0.2)
+
+
+def reset_keeps_the_wrong_keys(exchange, link, check, monitor_port):
+    """Three wrong keys use the free attempts; the count is kept in backup RAM (`.uninit` RAM in
+    the QEMU build) across a reset, so afterwards the right key waits for the first window."""
+    for i in range(3):
+        exchange(f"wrong key {i + 1}", b"unlock " + b"12345678" * 4,
+                 lambda a: a.startswith("ERR 15 "))
+    monitor_command(monitor_port, b"system_reset")
+    try:
+        banner = link.read_line(timeout=10.0)
+        check("reset", banner == BANNER, banner.decode("ascii", "replace"))
+    except (TimeoutError, ConnectionError) as e:
+        check("reset", False, str(e))
+        return
+    # The QEMU build models OTP in RAM: blank again after the reset, provisioned again.
+    exchange("key provision after the reset", f"key provision {KEY}".encode(),
+             lambda a: a == "OK key=provisioned")
+
+    def refused_until_a_window(answer):
+        prefix = "ERR 14 too many attempts, wait wait_ms="
+        return answer.startswith(prefix) and 0 < int(answer[len(prefix):]) <= 10_000
+
+    exchange("wrong keys survive the reset", f"unlock {KEY}".encode(), refused_until_a_window)
+
+
 def main(elf: str, board: bool) -> int:
     signal.signal(signal.SIGALRM, lambda *_: (_ for _ in ()).throw(TimeoutError("overall timeout")))
     signal.alarm(OVERALL_TIMEOUT_S)
     port = free_port()
+    monitor_port = free_port()
     log = tempfile.NamedTemporaryFile(prefix="qemu-serial-", suffix=".defmt", delete=False)
     cmd = ["qemu-system-arm", "-machine", "netduinoplus2", "-display", "none",
            "-semihosting-config", "enable=on,target=native", "-kernel", elf,
-           "-serial", f"tcp:127.0.0.1:{port},server=on,wait=on"]
+           "-serial", f"tcp:127.0.0.1:{port},server=on,wait=on",
+           "-monitor", f"tcp:127.0.0.1:{monitor_port},server=on,wait=off"]
     qemu = subprocess.Popen(cmd, stdout=log, stderr=subprocess.PIPE)
     passed, failed = 0, 0
 
@@ -215,6 +255,7 @@ def main(elf: str, board: bool) -> int:
 
         if board:
             board_checks(exchange)
+            reset_keeps_the_wrong_keys(exchange, link, check, monitor_port)
         else:
             protocol_checks(exchange, link, check, qemu)
     except Exception as e:  # noqa: BLE001 - any failure is a test failure, reported below

@@ -12,6 +12,7 @@
 # covers them (host-tool/tests). Bounded: QEMU is killed after 60 s at the latest.
 # Closing line: `qemu-rlg-cal: N passed, M failed`; exit status 0 when M == 0, else 1.
 set -uo pipefail
+unset RLG_KEY   # each check that needs the key sets it
 rlg_cal=$1
 elf=$2
 port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
@@ -23,7 +24,8 @@ trap 'kill "$qemu" 2>/dev/null; wait "$qemu" 2>/dev/null' EXIT
 
 passed=0
 failed=0
-# check NAME EXIT_STATUS STDOUT_SUBSTRING RLG_CAL_ARGS...
+# check NAME EXIT_STATUS STDOUT_SUBSTRING RLG_CAL_ARGS...   (a key comes from RLG_KEY, set
+# for one check as `RLG_KEY=... check ...`: no key on a command line)
 check() {
     local name=$1 want_status=$2 want_out=$3
     shift 3
@@ -48,20 +50,21 @@ done
 key=$(python3 -c 'import secrets; print(secrets.token_hex(16))')
 check "id"                          0 "board=netduinoplus2" id
 check "unprovisioned status"        0 "key=unprovisioned" status
-check "unprovisioned unlock ERR 16" 1 "ERR 16 no key provisioned" unlock "$key"
-check "key provision"               0 "key=provisioned" send key provision "$key"
-check "second provision ERR 11"     1 "ERR 11" send key provision 11111111111111111111111111111111
-check "status"                      0 "coeffs=defaults:erased" status
-check "locked set is ERR 9"         1 "ERR 9 locked" set a 1
-check "wrong key is ERR 15"         1 "ERR 15 wrong key" unlock 12341234123412341234123412341234
-check "set with the key"            0 "a=344.12344" --key "$key" set a 344.123456
-check "get applied value"           0 "a=344.12344" get a
-check "comp on"                     0 "comp=on" --key "$key" comp on
-check "store"                       0 "result=stored" --key "$key" store
-check "defaults"                    0 "comp=off" --key "$key" defaults
-check "reload"                      0 "coeffs=flash:1" --key "$key" reload
-check "reloaded value"              0 "a=344.12344" get a
-check "NaN is ERR 4"                1 "ERR 4" --key "$key" set b NaN
+other=11111111111111111111111111111111
+RLG_KEY=$key check "unprovisioned unlock ERR 16" 1 "ERR 16 no key provisioned" unlock
+RLG_KEY=$key check "key provision"          0 "key=provisioned" key-provision
+RLG_KEY=$other check "second provision ERR 11" 1 "ERR 11" key-provision
+check "status"                              0 "coeffs=defaults:erased" status
+check "locked set is ERR 9"                 1 "ERR 9 locked" set a 1
+RLG_KEY=12341234123412341234123412341234 check "wrong key is ERR 15" 1 "ERR 15 wrong key" unlock
+RLG_KEY=$key check "set with the key"       0 "a=344.12344" set a 344.123456
+check "get applied value"                   0 "a=344.12344" get a
+RLG_KEY=$key check "comp on"                0 "comp=on" comp on
+RLG_KEY=$key check "store"                  0 "result=stored" store
+RLG_KEY=$key check "defaults"               0 "comp=off" defaults
+RLG_KEY=$key check "reload"                 0 "coeffs=flash:1" reload
+check "reloaded value"                      0 "a=344.12344" get a
+RLG_KEY=$key check "NaN is ERR 4"           1 "ERR 4" set b NaN
 check "cal result without a run"    1 "ERR 11" send cal result
 check "help"                        0 "commands=id status" send help
 check "lock"                        0 "result=locked" lock

@@ -7,7 +7,7 @@
 //! half-done wrap: the retry loop runs at most twice. (This relies on a single core, where the
 //! writer preempts readers; it is not a lock-free clock for threads running in parallel.) No critical section, so the
 //! tick never waits for a reader. Never wraps (584 million years), so every deadline derived
-//! from it (the protocol's unlock and wrong-key penalty, `protocol::access`) compares plainly.
+//! from it (the protocol's unlock and its wrong-key windows, `protocol::access`) compares plainly.
 
 use core::sync::atomic::{AtomicU32, Ordering};
 

@@ -50,15 +50,21 @@ pub struct SimDevice {
     service: Service<CalibrationFlash>,
     /// Bytes sent to the host, not yet taken.
     output: Vec<u8>,
-    /// Simulated seconds the CPU is still stalled by a flash operation.
-    stall_s: f64,
+    /// The flash stall in progress, if any.
+    stall: Option<Stall>,
+    /// The simulated OTP key words: the identity's key at boot, or what `key provision` wrote.
+    otp_key: Option<Key>,
+}
+
+/// A flash stall: the CPU is stalled until `until_s` (simulated time), and what waits for it.
+/// An absolute deadline, so the time a step overshoots it is never carried into the next stall.
+struct Stall {
+    until_s: f64,
     /// The answer of the command that stalled, sent when the stall is over (as on the board,
     /// whose main loop sends it after the store returns).
     held_output: Vec<u8>,
     /// Bytes that arrived during the stall, taken when it is over.
     held_input: Vec<u8>,
-    /// The simulated OTP key words: the identity's key at boot, or what `key provision` wrote.
-    otp_key: Option<Key>,
 }
 
 /// An identity for simulated boards: unprovisioned. A simulated board with a key is
@@ -146,9 +152,7 @@ impl SimDevice {
             harness,
             service: booted.service,
             output: Vec::new(),
-            stall_s: 0.0,
-            held_output: Vec::new(),
-            held_input: Vec::new(),
+            stall: None,
             otp_key: identity.key,
         })
     }
@@ -186,17 +190,17 @@ impl SimDevice {
     /// One half dither cycle: the ADC stream and the turnaround interrupt (the harness), then
     /// the main loop's cycle work (the service).
     fn half_cycle(&mut self) {
-        if self.stall_s > 0.0 {
+        if let Some(stall) = &self.stall {
             // The CPU is stalled by the flash: the peripherals run on, the firmware sees nothing.
-            let before_s = self.harness.time_s();
             self.harness.step_with(Feed::Stalled);
-            self.stall_s -= self.harness.time_s() - before_s;
-            if self.stall_s <= 0.0 {
+            if self.harness.time_s() >= stall.until_s {
+                let Some(stall) = self.stall.take() else {
+                    return;
+                };
                 self.harness.readout_mut().resynchronise();
                 // The store returned: its answer goes out, then the bytes that waited.
-                self.output.append(&mut self.held_output);
-                let input = std::mem::take(&mut self.held_input);
-                self.receive(&input);
+                self.output.extend_from_slice(&stall.held_output);
+                self.receive(&stall.held_input);
             }
             return;
         }
@@ -217,9 +221,9 @@ impl SimDevice {
     /// the firmware's own command service.
     pub fn receive(&mut self, bytes: &[u8]) {
         for (i, &byte) in bytes.iter().enumerate() {
-            if self.stall_s > 0.0 {
+            if let Some(stall) = &mut self.stall {
                 // The CPU is stalled: the rest waits (a host waits for the answer anyway).
-                self.held_input.extend_from_slice(&bytes[i..]);
+                stall.held_input.extend_from_slice(&bytes[i..]);
                 return;
             }
             let output_before = self.output.len();
@@ -230,22 +234,29 @@ impl SimDevice {
                 // The stall: the readout misses what happens meanwhile and re-synchronises
                 // after it (`half_cycle`); the drive is paused for it as on the board.
                 let busy_s = self.service.flash().stats().busy_s - busy_before_s;
-                self.stall_s += busy_s.max(1e-3);
+                let until_s = self.harness.time_s() + busy_s.max(1e-3);
                 // The answer comes when the store is over, not before.
-                let answer = self.output.split_off(output_before);
-                self.held_output.extend_from_slice(&answer);
-                let until_s = self.harness.time_s() + self.stall_s;
+                self.stall = Some(Stall {
+                    until_s,
+                    held_output: self.output.split_off(output_before),
+                    held_input: Vec::new(),
+                });
                 self.harness.stall_drive(until_s);
             }
         }
     }
 
     /// A new client on the serial link (a served board's new connection): the firmware's
-    /// session starts afresh (locked, no stream, empty line buffer) and output not yet taken
-    /// is dropped, as it was meant for the previous client.
+    /// session starts afresh (locked, no stream, empty line buffer), and output not yet taken,
+    /// as well as the previous client's bytes and answers held by a flash stall, are dropped:
+    /// they were the previous client's. The stall itself goes on (the flash is the board's).
     pub fn new_session(&mut self) {
         self.service.new_session();
         self.output.clear();
+        if let Some(stall) = &mut self.stall {
+            stall.held_input.clear();
+            stall.held_output.clear();
+        }
     }
 
     /// Everything sent to the host since the last call.
@@ -307,7 +318,7 @@ impl Secrets for SimPorts<'_> {
 
     /// The simulated board has no backup domain: a power cycle ([`SimDevice::power_off`],
     /// then [`SimDevice::boot`]) is a cold start, as a board without VBAT (the service's
-    /// tests check that a reset keeping the count keeps the penalty).
+    /// tests check that a reset keeping the count keeps the unlock windows).
     fn save_wrong_keys(&mut self, _count: u32) {}
 }
 

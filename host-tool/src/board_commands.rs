@@ -86,12 +86,33 @@ pub fn prepare(command: &Command, have_key: bool) -> Result<Outputs, Failure> {
             })
         }
         Command::Calibrate(_) if !have_key => Err(Failure::Usage(
-            "calibrate needs the unlock key (--key, --key-file or RLG_KEY): `cal start` takes \
-             the board's time and is protected"
+            "calibrate needs the unlock key (--key-file or RLG_KEY): `cal start` takes the \
+             board's time and is protected"
+                .into(),
+        )),
+        Command::Unlock { key: Some(_) } => Err(Failure::Usage(crate::cli::key_on_command_line(
+            "unlock",
+            "--key-file PATH or RLG_KEY",
+        ))),
+        Command::Unlock { .. } | Command::KeyProvision if !have_key => Err(Failure::Usage(
+            "the key comes from --key-file PATH or RLG_KEY (never from the command line)".into(),
+        )),
+        Command::Send { words } if carries_a_key(words) => Err(Failure::Usage(
+            "`send` does not take `unlock` or `key provision`: their key would stand on the \
+             command line; use `rlg-cal unlock` or `rlg-cal key-provision` with --key-file or \
+             RLG_KEY"
                 .into(),
         )),
         _ => Ok(Outputs::default()),
     }
+}
+
+/// Whether a `send` line is `unlock ...` or `key ...`: lines whose key would stand on the
+/// command line.
+fn carries_a_key(words: &[String]) -> bool {
+    let line = words.join(" ");
+    let first = line.split_whitespace().next().unwrap_or("");
+    first.eq_ignore_ascii_case("unlock") || first.eq_ignore_ascii_case("key")
 }
 
 /// What a session with a board carries besides the client.
@@ -171,7 +192,13 @@ impl<'a, L: Link> Device<'a, L> {
                 .ask(&format!("set {} {value}", value_name(which))),
             Command::Comp { state } => self.unlocked()?.ask(&format!("comp {}", on_off(*state))),
             Command::Track { state } => self.unlocked()?.ask(&format!("track {}", on_off(*state))),
-            Command::Unlock { key } => self.ask(&format!("unlock {key}")),
+            Command::Unlock { .. } => {
+                let key = self.session.key.clone().unwrap_or_default();
+                let answer = ops::unlock(self.client, &key)?;
+                self.print(&answer.fields(), &[]);
+                Ok(())
+            }
+            Command::KeyProvision => self.provision(),
             Command::Lock => self.ask("lock"),
             Command::Store => self.unlocked()?.ask("store"),
             Command::Reload => self.unlocked()?.ask("reload"),
@@ -188,6 +215,19 @@ impl<'a, L: Link> Device<'a, L> {
             }
             Command::Sweep(_) | Command::ServeSim(_) => unreachable!("handled before connecting"),
         }
+    }
+
+    /// `key provision` with the session's key, checked here first: a key the board would
+    /// refuse as a number (not 32 hex digits, or all ones) is a usage error, never sent.
+    fn provision(&mut self) -> Result<(), Failure> {
+        let text = self.session.key.clone().unwrap_or_default();
+        let key = firmware::protocol::key::Key::parse_hex(&text).ok_or_else(|| {
+            Failure::Usage("the key is 32 hex digits (128 bits), not all f".into())
+        })?;
+        let hex = rlg_cal::sim::key_hex(&key);
+        let answer = self.client.command(&format!("key provision {hex}"))?;
+        self.print(&answer.fields(), &[]);
+        Ok(())
     }
 
     fn calibrate(&mut self, args: &CalibrateArgs) -> Result<(), Failure> {
@@ -257,8 +297,8 @@ impl<'a, L: Link> Device<'a, L> {
             self.client,
             Duration::from_secs_f64(args.seconds),
             &mut |fraction| bar.set_position((fraction * 1000.0) as u64),
-            &mut |chunk| {
-                if let Err(e) = rows.push_chunk(chunk) {
+            &mut |chunk, received| {
+                if let Err(e) = rows.push_chunk(chunk, received) {
                     row_error.get_or_insert(e);
                 }
             },
@@ -277,6 +317,7 @@ impl<'a, L: Link> Device<'a, L> {
             ("lost", gaps.lost.to_string()),
             ("bad", bad.to_string()),
             ("invalid", invalid.to_string()),
+            ("restarts", (gaps.jumps + gaps.out_of_order).to_string()),
             ("span_s", format!("{span_s:.3}")),
             (
                 "interrupted",
@@ -290,6 +331,13 @@ impl<'a, L: Link> Device<'a, L> {
                 "rlg-cal: {} records lost (sequence gaps, marked in the CSV): the link is slower \
                  than the output (44 bytes per record)",
                 gaps.lost
+            );
+        }
+        if gaps.jumps + gaps.out_of_order > 0 {
+            eprintln!(
+                "rlg-cal: the sequence restarted {} times (a board reset, or a frame whose \
+                 sequence or time the elapsed time does not allow): no rows for those steps",
+                gaps.jumps + gaps.out_of_order
             );
         }
         if interrupted {

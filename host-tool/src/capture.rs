@@ -11,7 +11,7 @@
 //! Rates: a cycle's increment in Q32 fringes times the scale factor (arcsec per fringe) over
 //! its duration (capture-timer ticks over the timer frequency) is arcsec/s, which is deg/h.
 
-use firmware::protocol::stream::{decode_frame, GapCounter, StreamRecord};
+use firmware::protocol::stream::{decode_frame, sequence_step, GapCounter, StreamRecord};
 use firmware::units::Q32_PER_FRINGE;
 use rlg_sim::plot::{Figure, Panel, Series, Style};
 use std::io::{self, Write};
@@ -206,10 +206,12 @@ impl FrameClock {
         }
     }
 
-    /// The next record's time, s from the first record.
+    /// The next record's time, s from the first record. A frame whose sequence does not step
+    /// forward (a board restart, a repeat) is taken as the next one, so the time goes on.
     pub fn time_s(&mut self, record: &StreamRecord) -> f64 {
         if let Some(last) = self.last_sequence {
-            self.frames_since_first += record.sequence.wrapping_sub(last) as u64;
+            let step = sequence_step(last, record.sequence).unwrap_or(1);
+            self.frames_since_first += u64::from(step);
         }
         self.last_sequence = Some(record.sequence);
         self.ticks += record.duration_ticks as f64;

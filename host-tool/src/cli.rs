@@ -23,21 +23,23 @@ Connections (one of, before or after the subcommand):
 
 Environment (used when the command line does not say):
   RLG_PORT, RLG_TCP, RLG_BAUD          the connection
-  RLG_KEY                              the unlock key, 32 hex digits (or --key-file FILE; a
-                                       --key shows in the process list)
+  RLG_KEY                              the unlock key, 32 hex digits (or --key-file FILE; no
+                                       key is taken on the command line, where the process
+                                       list and the shell history would show it)
   RLG_SIM_STATE                        the --sim board's state file
-  RLG_SIM_BOARD_KEY                    the key of a simulated board (--sim, serve-sim)
+  RLG_SIM_BOARD_KEY                    the key of a simulated board (--sim, serve-sim; or
+                                       serve-sim --board-key-file FILE)
 
 Examples:
   rlg-cal --tcp 127.0.0.1:7878 status
   RLG_TCP=127.0.0.1:7878 RLG_KEY=$KEY rlg-cal set a 344.25
   rlg-cal console --tcp 127.0.0.1:7878
   rlg-cal --port /dev/ttyUSB0 --key-file key.txt calibrate --cycles 4000 --warmup 400 --accept --store
-  rlg-cal --port /dev/ttyUSB0 send key provision $KEY   (production, once per board)
-  rlg-cal serve-sim --tcp 127.0.0.1:7878 --board-key $KEY
+  rlg-cal --port /dev/ttyUSB0 --key-file key.txt key-provision   (production, once per board)
+  rlg-cal serve-sim --tcp 127.0.0.1:7878 --board-key-file key.txt
   rlg-cal --port /dev/ttyUSB0 stream --seconds 10 --csv run.csv --svg run.svg
   rlg-cal --port /dev/ttyUSB0 record --seconds 600 --csv output.csv
-  rlg-cal --sim --sim-state board.state --key $KEY store
+  rlg-cal --sim --sim-state board.state --key-file key.txt store
   rlg-cal sweep --calibrate --svg sweep.svg
   rlg-cal serve-sim --pty
 
@@ -64,12 +66,12 @@ Exit status:
 pub struct Cli {
     #[command(flatten)]
     pub connection: ConnectionArgs,
-    /// Unlock key (32 hex digits) sent before protected commands (set, comp, track, store,
-    /// reload, defaults, calibrate). Also from --key-file or RLG_KEY.
-    #[arg(long, value_name = "KEY", global = true)]
+    /// Refused: a key on the command line shows in the process list and the shell history.
+    #[arg(long, value_name = "KEY", global = true, hide = true)]
     pub key: Option<String>,
-    /// A file holding the unlock key (first line; keeps it out of the process list).
-    #[arg(long, value_name = "PATH", global = true, conflicts_with = "key")]
+    /// A file holding the unlock key, 32 hex digits on its first line (or RLG_KEY). The key is
+    /// sent before protected commands (set, comp, track, store, reload, defaults, calibrate).
+    #[arg(long, value_name = "PATH", global = true)]
     pub key_file: Option<PathBuf>,
     /// How long to wait for an answer, ms.
     #[arg(
@@ -192,24 +194,37 @@ impl ConnectionArgs {
     }
 }
 
+/// The usage error for a key given on the command line (`flag`); the key is not repeated.
+pub fn key_on_command_line(flag: &str, instead: &str) -> String {
+    format!(
+        "{flag} takes no key: a key on the command line shows in the process list and the \
+         shell history; give it with {instead}"
+    )
+}
+
+/// The key on the first line of the file at `path` (surrounding blanks dropped).
+pub fn read_key_file(path: &std::path::Path) -> Result<String, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("cannot read the key file {}: {e}", path.display()))?;
+    let key = text.lines().next().unwrap_or("").trim();
+    if key.is_empty() {
+        return Err(format!("the key file {} is empty", path.display()));
+    }
+    Ok(key.to_owned())
+}
+
 impl Cli {
-    /// The unlock key: `--key`, else the first line of `--key-file`, else `RLG_KEY`. The error
-    /// is a usage message.
+    /// The unlock key: the first line of `--key-file`, else `RLG_KEY`; `--key` is refused.
+    /// The error is a usage message.
     pub fn resolve_key(
         &self,
         env: &dyn Fn(&str) -> Option<String>,
     ) -> Result<Option<String>, String> {
-        if let Some(key) = &self.key {
-            return Ok(Some(key.clone()));
+        if self.key.is_some() {
+            return Err(key_on_command_line("--key", "--key-file PATH or RLG_KEY"));
         }
         if let Some(path) = &self.key_file {
-            let text = std::fs::read_to_string(path)
-                .map_err(|e| format!("cannot read the key file {}: {e}", path.display()))?;
-            let key = text.lines().next().unwrap_or("").trim();
-            if key.is_empty() {
-                return Err(format!("the key file {} is empty", path.display()));
-            }
-            return Ok(Some(key.to_owned()));
+            return read_key_file(path).map(Some);
         }
         Ok(env("RLG_KEY")
             .filter(|k| !k.trim().is_empty())
@@ -270,8 +285,16 @@ pub enum Command {
         #[arg(value_enum)]
         state: OnOff,
     },
-    /// Unlocks protected commands (the board locks again after 5 minutes idle and at reset).
-    Unlock { key: String },
+    /// Unlocks protected commands with the key of --key-file or RLG_KEY (the board locks
+    /// again after 5 minutes idle, at reset, and when a served board gets a new client).
+    Unlock {
+        /// Refused: a key on the command line shows in the process list.
+        #[arg(hide = true)]
+        key: Option<String>,
+    },
+    /// Production, once per board: writes the key of --key-file or RLG_KEY to the board's
+    /// one-time-programmable memory (`key provision`; refused on a board that has a key).
+    KeyProvision,
     /// Locks at once.
     Lock,
     /// Writes the coefficients in force to flash (pauses the readout). Protected.
@@ -290,7 +313,9 @@ pub enum Command {
     /// An interactive console: line editing, history, completion of command names (Tab); the
     /// CRC is added to each line and every answer shown, an error with its code in words.
     Console,
-    /// Sends any protocol line (e.g. `cal abort`, `help`) and prints the answer.
+    /// Sends any protocol line (e.g. `cal abort`, `help`) and prints the answer; not `unlock`
+    /// or `key provision`, whose key would stand on the command line (`rlg-cal unlock`,
+    /// `rlg-cal key-provision` take it from --key-file or RLG_KEY).
     Send {
         #[arg(required = true, num_args = 1.., allow_hyphen_values = true)]
         words: Vec<String>,
@@ -424,9 +449,12 @@ pub struct ServeArgs {
     /// Stop after this many wall-clock seconds (default: run until killed).
     #[arg(long, value_parser = ranges::seconds, allow_negative_numbers = true)]
     pub seconds: Option<f64>,
-    /// The simulated board's key, 32 hex digits (default: $RLG_SIM_BOARD_KEY; neither: the
-    /// board starts unprovisioned, as a new board).
-    #[arg(long, value_name = "KEY")]
+    /// A file holding the simulated board's key, 32 hex digits on its first line (default:
+    /// $RLG_SIM_BOARD_KEY; neither: the board starts unprovisioned, as a new board).
+    #[arg(long, value_name = "PATH")]
+    pub board_key_file: Option<PathBuf>,
+    /// Refused: a key on the command line shows in the process list.
+    #[arg(long, value_name = "KEY", hide = true)]
     pub board_key: Option<String>,
 }
 
@@ -502,20 +530,31 @@ mod tests {
         assert!(cli.connection.resolve(&env_of(&[])).is_err());
     }
 
+    /// The key from a file or the environment; one on the command line is refused, and the
+    /// refusal does not repeat it.
     #[test]
-    fn the_key_from_the_line_a_file_or_the_environment() {
+    fn the_key_from_a_file_or_the_environment_never_the_command_line() {
         let env = env_of(&[("RLG_KEY", " 3a7c5e91b2d4f60819e3c5a7b9d1f2e4 ")]);
         assert_eq!(
             parse(&["status"]).resolve_key(&env),
             Ok(Some("3a7c5e91b2d4f60819e3c5a7b9d1f2e4".into()))
         );
-        assert_eq!(
-            parse(&["status", "--key", "ab"]).resolve_key(&env),
-            Ok(Some("ab".into()))
+        let refused = parse(&["status", "--key", "ab12"]).resolve_key(&env);
+        assert!(
+            refused.as_ref().is_err_and(|e| !e.contains("ab12")),
+            "{refused:?}"
         );
         assert_eq!(parse(&["status"]).resolve_key(&env_of(&[])), Ok(None));
         assert!(parse(&["status", "--key-file", "/nonexistent"])
             .resolve_key(&env)
             .is_err());
+        let file = std::env::temp_dir().join(format!("rlg-cal-key-{}", std::process::id()));
+        std::fs::write(&file, "  00112233445566778899aabbccddeeff \nrest\n").unwrap();
+        let from_file = parse(&["status", "--key-file", file.to_str().unwrap()]).resolve_key(&env);
+        std::fs::remove_file(&file).unwrap();
+        assert_eq!(
+            from_file,
+            Ok(Some("00112233445566778899aabbccddeeff".into()))
+        );
     }
 }

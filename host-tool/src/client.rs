@@ -7,9 +7,10 @@
 //! - `OK <fields>` becomes an [`Answer`]; `ERR <code> <text>` becomes
 //!   [`ClientError::Device`] with the code and text; no complete answer within the timeout is
 //!   [`ClientError::Timeout`].
-//! - Text mode: bytes that arrived before a command are dropped (after a timeout, the late
-//!   answer is awaited for one more timeout and dropped), so no answer passes for the next
-//!   command's. An answer is the bytes up to `\r\n`. Leftovers of a binary stream (from an
+//! - Bytes that arrived before a command are not its answer: in text mode they are dropped,
+//!   in stream mode the answers among them are (the frames are kept); after a timeout, the
+//!   late answer is awaited for one more timeout and dropped, so no answer passes for the
+//!   next command's. An answer is the bytes up to `\r\n`. Leftovers of a binary stream (from an
 //!   earlier session) before it are skipped: anything up to a 0x00, and lines that are neither
 //!   printable nor start with `OK`/`ERR`; so are notice lines starting with `#` (the board's
 //!   start-up banner `# rlg-readout ready`).
@@ -17,6 +18,9 @@
 //!   with answers wrapped in 0x00 delimiters; the client splits at 0x00 and keeps the frames
 //!   for [`Client::take_frames`]. A frame never starts with `O` or `E` (its first COBS code is
 //!   at most 46), so the two cannot be confused. `OK stream=off` returns to text mode.
+//! - The key is sent, never shown: answers and errors carry the command as [`shown_command`]
+//!   gives it (`unlock <key>`), so no message on stderr, no `--json` object and no log holds
+//!   the key.
 
 use crate::link::Link;
 use firmware::protocol::line::MAX_LINE;
@@ -254,9 +258,25 @@ fn parse_body(body: &str) -> Result<Reply, &'static str> {
     })
 }
 
+/// A command as answers and errors show it: the key of `unlock` and `key provision` replaced
+/// by `<key>` (the rest of such a line is the key).
+pub fn shown_command(text: &str) -> String {
+    let mut words = text.split_whitespace();
+    let is = |word: Option<&str>, name: &str| word.is_some_and(|w| w.eq_ignore_ascii_case(name));
+    let first = words.next();
+    if is(first, "unlock") {
+        "unlock <key>".to_owned()
+    } else if is(first, "key") {
+        "key provision <key>".to_owned()
+    } else {
+        text.to_owned()
+    }
+}
+
 /// `<text>*XXXX\n`, or why the text cannot be a command.
 pub fn frame_command(text: &str) -> Result<Vec<u8>, ClientError> {
-    let bad = |why: &str| Err(ClientError::BadCommand(format!("{why}: {text:?}")));
+    let shown = shown_command(text);
+    let bad = |why: &str| Err(ClientError::BadCommand(format!("{why}: {shown:?}")));
     if !text
         .bytes()
         .all(|b| b == b'\t' || (0x20..0x7f).contains(&b))
@@ -372,11 +392,12 @@ impl<L: Link> Client<L> {
     /// Sends one command and waits for its one answer.
     pub fn command(&mut self, text: &str) -> Result<Answer, ClientError> {
         let wire = frame_command(text)?;
+        let shown = shown_command(text);
         self.drop_stale_input()?;
         self.link.send(&wire)?;
-        let line = self.read_answer_line(text)?;
+        let line = self.read_answer_line(&shown)?;
         let reply = check_answer(&line).map_err(|reason| ClientError::Corrupt {
-            command: text.to_owned(),
+            command: shown.clone(),
             line: String::from_utf8_lossy(&line).into_owned(),
             reason,
         })?;
@@ -391,13 +412,13 @@ impl<L: Link> Client<L> {
                     self.streaming = false;
                 }
                 Ok(Answer {
-                    command: text.to_owned(),
+                    command: shown,
                     text: fields,
                     truncated,
                 })
             }
             Reply::Err { code, text: detail } => Err(ClientError::Device(DeviceError {
-                command: text.to_owned(),
+                command: shown,
                 code,
                 kind: error_code(code),
                 text: detail,
@@ -436,6 +457,7 @@ impl<L: Link> Client<L> {
         self.link.elapsed()
     }
 
+    /// The answer line to `command` (as shown; its first word sets the timeout).
     fn read_answer_line(&mut self, command: &str) -> Result<Vec<u8>, ClientError> {
         let timeout = answer_timeout(command, self.timeout);
         let deadline = self.link.elapsed() + timeout;
@@ -460,26 +482,49 @@ impl<L: Link> Client<L> {
         }
     }
 
-    /// Text mode: whatever arrived unasked before a command is not its answer. After a timeout,
-    /// the late answer is awaited (one more timeout at most) and dropped too.
+    /// Whatever arrived unasked before a command is not its answer: text mode drops it all,
+    /// stream mode drops the answers and keeps the frames (an unfinished chunk waits for its
+    /// delimiter). After a timeout, the late answer is awaited (one more timeout at most) and
+    /// dropped too.
     fn drop_stale_input(&mut self) -> Result<(), ClientError> {
-        if self.streaming {
-            return Ok(());
-        }
         if std::mem::take(&mut self.answer_overdue) {
             let end = self.link.elapsed() + self.timeout;
             loop {
+                if self.drop_answers() {
+                    break;
+                }
                 let now = self.link.elapsed();
-                if now >= end || self.inbox.windows(2).any(|w| w == b"\r\n") {
+                if now >= end {
                     break;
                 }
                 self.link.receive(&mut self.inbox, end - now)?;
             }
         }
         self.link.receive(&mut self.inbox, Duration::ZERO)?;
-        self.skipped_bytes += self.inbox.len();
-        self.inbox.clear();
+        self.drop_answers();
         Ok(())
+    }
+
+    /// Drops the answers received so far (text mode: all complete lines and the bytes after
+    /// them; stream mode: the wrapped answers, the frames kept); returns whether one was
+    /// dropped.
+    fn drop_answers(&mut self) -> bool {
+        if !self.streaming {
+            let answered = self.inbox.windows(2).any(|w| w == b"\r\n");
+            self.skipped_bytes += self.inbox.len();
+            self.inbox.clear();
+            return answered;
+        }
+        let mut dropped = false;
+        while let Some(chunk) = self.next_chunk() {
+            if starts_like_answer(&chunk) {
+                self.skipped_bytes += chunk.len();
+                dropped = true;
+            } else {
+                self.frames.push(chunk);
+            }
+        }
+        dropped
     }
 
     /// Text mode: the next line that can be an answer (stream leftovers and `#` notices

@@ -120,7 +120,19 @@ pub fn serve(args: &ServeArgs, connection: &ConnectionArgs) -> Result<(), Failur
             rate_deg_per_h: args.rate,
         },
     };
-    let board_key = sim::board_key(args.board_key.as_deref()).map_err(Failure::Usage)?;
+    if args.board_key.is_some() {
+        return Err(Failure::Usage(crate::cli::key_on_command_line(
+            "--board-key",
+            "--board-key-file PATH or RLG_SIM_BOARD_KEY",
+        )));
+    }
+    let from_file = args
+        .board_key_file
+        .as_deref()
+        .map(crate::cli::read_key_file)
+        .transpose()
+        .map_err(Failure::Usage)?;
+    let board_key = sim::board_key(from_file.as_deref()).map_err(Failure::Usage)?;
     let device = sim::boot(input, args.seed, CalibrationFlash::default(), 0, board_key)
         .map_err(|e| Failure::Run(e.to_string()))?;
     let options = ServeOptions {
@@ -137,7 +149,7 @@ pub fn serve(args: &ServeArgs, connection: &ConnectionArgs) -> Result<(), Failur
             describe(&input),
             args.speed,
             if board_key.is_some() {
-                "its key is the one given (--board-key or RLG_SIM_BOARD_KEY)"
+                "its key is the one given (--board-key-file or RLG_SIM_BOARD_KEY)"
             } else {
                 "it has no key yet: `key provision <32 hex digits>` sets one, once"
             }

@@ -193,7 +193,7 @@ fn save_state(path: &Path, mut client: Client<SimLink>, boot_count: u32) -> Resu
     let settings = sim_state::read_settings(&mut client).map_err(|e| fail(e.to_string()))?;
     let flash = client.into_link().into_device().power_off();
     let state = SimState {
-        boot_count: boot_count + 1,
+        boot_count: sim_state::next_boot(boot_count),
         settings,
         flash: flash.snapshot(),
     };

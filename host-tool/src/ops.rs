@@ -10,9 +10,35 @@ use std::time::Duration;
 /// A stop flag that is never set, for runs nobody interrupts.
 pub static NEVER: AtomicBool = AtomicBool::new(false);
 
-/// Unlocks protected commands with `key` (hex, as the board expects it).
+/// Longest wait for an unlock window the client accepts from an `ERR 14` (the board's window
+/// period, `AccessConfig::DEFAULT.window_period_ms`, plus a margin for the link).
+pub const UNLOCK_WINDOW_WAIT_MAX: Duration = Duration::from_millis(
+    firmware::protocol::access::AccessConfig::DEFAULT.window_period_ms as u64 + 1_000,
+);
+
+/// Unlocks protected commands with `key` (hex, as the board expects it). After wrong keys the
+/// board checks attempts only in its windows: on an `ERR 14` the client waits the time it names
+/// (at most [`UNLOCK_WINDOW_WAIT_MAX`]) and tries again, three times at most, so the key holder
+/// is in at the next window whatever wrong keys others sent.
 pub fn unlock<L: Link>(client: &mut Client<L>, key: &str) -> Result<Answer, ClientError> {
-    client.command(&format!("unlock {key}"))
+    let mut tries = 0;
+    loop {
+        let refused = match client.command(&format!("unlock {key}")) {
+            Err(ClientError::Device(e)) if e.code == 14 && tries < 3 => e,
+            other => return other,
+        };
+        let wait_ms = crate::output::fields(&refused.text)
+            .into_iter()
+            .find(|(k, _)| k == "wait_ms")
+            .and_then(|(_, v)| v.parse::<u64>().ok())
+            .map(Duration::from_millis)
+            .filter(|wait| *wait <= UNLOCK_WINDOW_WAIT_MAX);
+        let Some(wait) = wait_ms else {
+            return Err(ClientError::Device(refused));
+        };
+        client.pause(wait)?;
+        tries += 1;
+    }
 }
 
 /// The board's scale factor and capture-timer frequency from `id`, for rates in deg/h.
@@ -181,7 +207,7 @@ pub fn stream_until<L: Link>(
     stop: &AtomicBool,
 ) -> Result<Capture, ClientError> {
     let mut capture = Capture::new(divider);
-    let on_chunk = &mut |chunk: &[u8]| {
+    let on_chunk = &mut |chunk: &[u8], _received: Duration| {
         if let Some(record) = capture.push_chunk(chunk) {
             on_record(record);
         }
@@ -192,26 +218,26 @@ pub fn stream_until<L: Link>(
 }
 
 /// The board's fixed-rate output for `duration` (`stream output`): every chunk to `on_chunk`
-/// as it arrives, ending early when `stop` is set.
+/// as it arrives, with the link's clock then, ending early when `stop` is set.
 pub fn record_until<L: Link>(
     client: &mut Client<L>,
     duration: Duration,
     progress: &mut dyn FnMut(f64),
-    on_chunk: &mut dyn FnMut(&[u8]),
+    on_chunk: &mut dyn FnMut(&[u8], Duration),
     stop: &AtomicBool,
 ) -> Result<(), ClientError> {
     chunks_until(client, "stream output", duration, progress, on_chunk, stop)
 }
 
 /// One binary stream (`command` switches it on) for `duration` or until `stop`: every
-/// 0x00-delimited chunk to `on_chunk` as it arrives; the stream is switched off and the frames
-/// in flight handed over before it returns.
+/// 0x00-delimited chunk to `on_chunk` as it arrives, with the link's clock then; the stream is
+/// switched off and the frames in flight handed over before it returns.
 fn chunks_until<L: Link>(
     client: &mut Client<L>,
     command: &str,
     duration: Duration,
     progress: &mut dyn FnMut(f64),
-    on_chunk: &mut dyn FnMut(&[u8]),
+    on_chunk: &mut dyn FnMut(&[u8], Duration),
     stop: &AtomicBool,
 ) -> Result<(), ClientError> {
     client.command(command)?;
@@ -224,14 +250,16 @@ fn chunks_until<L: Link>(
             }
             progress(elapsed.as_secs_f64() / duration.as_secs_f64());
             client.poll((duration - elapsed).min(Duration::from_millis(100)))?;
+            let received = client.elapsed();
             for chunk in client.take_frames() {
-                on_chunk(&chunk);
+                on_chunk(&chunk, received);
             }
         }
     })();
     let stopped = client.command("stream off");
+    let received = client.elapsed();
     for chunk in client.take_frames() {
-        on_chunk(&chunk);
+        on_chunk(&chunk, received);
     }
     result?;
     stopped?;

@@ -13,7 +13,13 @@
 //!   client's output ([`SimDevice::new_session`]). Nobody inherits another client's unlock.
 //! - pty: the server owns the master side and prints the slave's path; the slave is in raw mode
 //!   (no echo, no line editing, no CR/LF translation, 8-bit clean for the stream). A client
-//!   opens the path as a serial port (any baud rate). While no one has the slave open, reading
+//!   opens the path as a serial port (any baud rate). Every open of the path starts a session
+//!   of its own, as a TCP connection does: the server watches the path with inotify
+//!   (`IN_OPEN`, `IN_CLOSE`), so a client that reopens the pty between two polls is still seen,
+//!   and its session starts before any byte read in that poll. One buffer holds the bytes of
+//!   both clients, so a line the previous client left unfinished, unread when it closed, would
+//!   join the new client's first line; that line then runs in the new, locked session (with
+//!   the host tool's CRC it is refused as corrupted). While no one has the slave open, reading
 //!   the master fails with `EIO`: that is "nobody attached".
 //!
 //! If the simulation cannot keep up with `speed`, it runs as fast as it can (a warning says
@@ -234,6 +240,17 @@ pub struct PtyEndpoint {
     path: PathBuf,
     attached: bool,
     new_client: bool,
+    /// The inotify instance watching the slave's path for opens and closes.
+    watch: OwnedFd,
+    /// Descriptors of the slave open now, as the watch counted them.
+    openers: u64,
+}
+
+/// Opens and closes of the slave's path seen since the last look.
+#[derive(Clone, Copy, Default)]
+struct PathEvents {
+    opened: u64,
+    closed: u64,
 }
 
 fn os_result(ret: libc::c_int) -> io::Result<libc::c_int> {
@@ -273,17 +290,48 @@ impl PtyEndpoint {
             ))?;
         }
         drop(slave);
+        let watch = watch_opens(&path)?;
         Ok(Self {
             master: File::from(master),
             path,
             attached: false,
             new_client: false,
+            watch,
+            openers: 0,
         })
     }
 
-    fn attach(&mut self) {
-        self.new_client |= !self.attached;
-        self.attached = true;
+    /// The opens and closes of the slave's path since the last call.
+    fn path_events(&mut self) -> io::Result<PathEvents> {
+        let mut events = PathEvents::default();
+        let mut buf = [0u8; 1024];
+        loop {
+            // SAFETY: the buffer and its length are passed together; the descriptor is ours.
+            let n =
+                unsafe { libc::read(self.watch.as_raw_fd(), buf.as_mut_ptr().cast(), buf.len()) };
+            if n < 0 {
+                let e = io::Error::last_os_error();
+                return match e.kind() {
+                    io::ErrorKind::WouldBlock => Ok(events),
+                    _ => Err(e),
+                };
+            }
+            let n = usize::try_from(n).unwrap_or(0);
+            if n == 0 {
+                return Ok(events);
+            }
+            let header = std::mem::size_of::<libc::inotify_event>();
+            let mut at = 0;
+            while at + header <= n {
+                // SAFETY: a whole event header lies at `at` (the kernel writes whole events);
+                // read unaligned from the byte buffer.
+                let event: libc::inotify_event =
+                    unsafe { std::ptr::read_unaligned(buf.as_ptr().add(at).cast()) };
+                events.opened += u64::from(event.mask & libc::IN_OPEN != 0);
+                events.closed += u64::from(event.mask & libc::IN_CLOSE != 0);
+                at += header + event.len as usize;
+            }
+        }
     }
 
     /// The slave's path, for the client.
@@ -304,6 +352,26 @@ fn make_raw(fd: &OwnedFd) -> io::Result<()> {
     Ok(())
 }
 
+/// An inotify instance (non-blocking) watching `path` for opens and closes.
+fn watch_opens(path: &std::path::Path) -> io::Result<OwnedFd> {
+    use std::os::unix::ffi::OsStrExt;
+    // SAFETY: plain system call; the descriptor is owned below.
+    let fd = os_result(unsafe { libc::inotify_init1(libc::IN_NONBLOCK | libc::IN_CLOEXEC) })?;
+    // SAFETY: just opened, owned here alone.
+    let watch = unsafe { OwnedFd::from_raw_fd(fd) };
+    let name = std::ffi::CString::new(path.as_os_str().as_bytes())
+        .map_err(|_| io::Error::new(io::ErrorKind::InvalidInput, "NUL in the pty path"))?;
+    // SAFETY: a valid descriptor and a NUL-terminated path.
+    os_result(unsafe {
+        libc::inotify_add_watch(
+            watch.as_raw_fd(),
+            name.as_ptr(),
+            libc::IN_OPEN | libc::IN_CLOSE,
+        )
+    })?;
+    Ok(watch)
+}
+
 fn slave_path(master: &OwnedFd) -> io::Result<PathBuf> {
     let mut name = [0 as libc::c_char; 128];
     // SAFETY: the buffer and its length are passed together.
@@ -318,22 +386,23 @@ fn slave_path(master: &OwnedFd) -> io::Result<PathBuf> {
 
 impl Endpoint for PtyEndpoint {
     fn read(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>> {
-        match self.master.read(buf) {
-            Ok(0) => Ok(None),
-            Ok(n) => {
-                self.attach();
-                Ok(Some(n))
-            }
-            Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
-                self.attach();
-                Ok(None)
-            }
+        let events = self.path_events()?;
+        self.openers = (self.openers + events.opened).saturating_sub(events.closed);
+        // Every open is a new client, however soon after the previous one closed.
+        self.new_client |= events.opened > 0;
+        let read = match self.master.read(buf) {
+            Ok(0) => None,
+            Ok(n) => Some(n),
+            Err(e) if e.kind() == io::ErrorKind::WouldBlock => None,
             Err(e) if e.raw_os_error() == Some(libc::EIO) => {
                 self.attached = false;
-                Ok(None)
+                self.openers = 0;
+                return Ok(None);
             }
-            Err(e) => Err(e),
-        }
+            Err(e) => return Err(e),
+        };
+        self.attached = self.openers > 0 || read.is_some();
+        Ok(read)
     }
 
     fn write(&mut self, bytes: &[u8]) -> io::Result<usize> {
@@ -355,7 +424,7 @@ impl Endpoint for PtyEndpoint {
         self.attached
     }
 
-    /// A client that opened the slave after nobody had it open.
+    /// A client that opened the slave since the last call.
     fn take_new_client(&mut self) -> bool {
         std::mem::take(&mut self.new_client)
     }

@@ -2,8 +2,8 @@
 //! [`SimDevice`] (the firmware's protocol, readout and store against the simulated gyro) with
 //! the docs/physics.md gyro (noise off) and the simulated board's identity.
 //!
-//! The simulated board has no fixed key: it boots with the key given on its command line
-//! (`serve-sim --board-key`, or the environment variable [`BOARD_KEY_ENV`]), or unprovisioned
+//! The simulated board has no fixed key: it boots with the key given in a file
+//! (`serve-sim --board-key-file`) or the environment variable [`BOARD_KEY_ENV`], or unprovisioned
 //! like a new board (then `key provision <key>` sets one). Runs that talk only to a board inside
 //! this process (the sweep) give it a fresh random key ([`fresh_key`]).
 
@@ -17,11 +17,12 @@ use std::io;
 /// The environment variable with the simulated board's key (32 hex digits).
 pub const BOARD_KEY_ENV: &str = "RLG_SIM_BOARD_KEY";
 
-/// The simulated board's key: `given` (a command-line flag), else [`BOARD_KEY_ENV`], else none
-/// (unprovisioned). A value that is no 128-bit key is an error naming where it came from.
+/// The simulated board's key: `given` (read from `--board-key-file`), else [`BOARD_KEY_ENV`],
+/// else none (unprovisioned). A value that is no 128-bit key is an error naming where it came
+/// from (not the value).
 pub fn board_key(given: Option<&str>) -> Result<Option<Key>, String> {
     let (text, from) = match given {
-        Some(text) => (text.to_owned(), "--board-key"),
+        Some(text) => (text.to_owned(), "--board-key-file"),
         None => match std::env::var(BOARD_KEY_ENV) {
             Ok(text) => (text, BOARD_KEY_ENV),
             Err(_) => return Ok(None),

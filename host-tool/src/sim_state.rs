@@ -14,7 +14,9 @@
 //! (`coeffs=flash:...`) stays what the flash says when nothing was changed.
 //!
 //! Format: a text header of `key=value` lines, a blank line, then the raw flash image. Written
-//! to a temporary file and renamed, so an interrupted write leaves the old state.
+//! to a new temporary file beside it and renamed over it, so an interrupted write leaves the
+//! old state. The temporary file is created exclusively (`O_EXCL`: never through a file or a
+//! symlink someone planted) under a name with the process id and the clock in it, mode 0600.
 
 use crate::client::{Client, ClientError};
 use crate::link::Link;
@@ -74,13 +76,37 @@ pub fn load(path: &Path) -> io::Result<Option<SimState>> {
     Ok(Some(state))
 }
 
-/// Writes a state file (atomically: a temporary file renamed over it).
+/// A new file beside `path`, created exclusively (it did not exist: no planted file or symlink
+/// is followed), and its name.
+fn create_temporary(path: &Path) -> io::Result<(std::fs::File, std::path::PathBuf)> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let stamp = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    let mut last = io::Error::new(io::ErrorKind::AlreadyExists, "no free temporary name");
+    for attempt in 0..16u32 {
+        let mut name = path.as_os_str().to_owned();
+        name.push(format!(".{}.{stamp:x}.{attempt}.tmp", std::process::id()));
+        let tmp = std::path::PathBuf::from(name);
+        match std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .mode(0o600)
+            .open(&tmp)
+        {
+            Ok(file) => return Ok((file, tmp)),
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last = e,
+            Err(e) => return Err(e),
+        }
+    }
+    Err(last)
+}
+
+/// Writes a state file (atomically: a new temporary file renamed over it).
 pub fn save(path: &Path, state: &SimState) -> io::Result<()> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    let tmp = std::path::PathBuf::from(tmp);
-    {
-        let mut f = io::BufWriter::new(std::fs::File::create(&tmp)?);
+    let (file, tmp) = create_temporary(path)?;
+    let written = (|| {
+        let mut f = io::BufWriter::new(file);
         writeln!(f, "{MAGIC}")?;
         writeln!(f, "boot_count={}", state.boot_count)?;
         for (k, v) in &state.settings {
@@ -89,8 +115,17 @@ pub fn save(path: &Path, state: &SimState) -> io::Result<()> {
         writeln!(f)?;
         f.write_all(&state.flash)?;
         f.into_inner().map_err(|e| e.into_error())?.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
     }
-    std::fs::rename(&tmp, path)
+    written
+}
+
+/// The boot count after one more boot: saturating, a counter that never wraps.
+pub fn next_boot(boot_count: u32) -> u32 {
+    boot_count.saturating_add(1)
 }
 
 /// The settings kept, each: (name in the state file, the command that reads it, its field, the
@@ -189,5 +224,28 @@ mod tests {
         );
         assert_eq!(std::fs::read(&path).unwrap(), b"something else\n\nbytes");
         std::fs::remove_file(&path).unwrap();
+    }
+
+    /// Saving never writes through a file planted at a predictable name: a symlink at
+    /// `<path>.tmp` to another file leaves that file as it was.
+    #[test]
+    fn saving_does_not_follow_a_planted_symlink() {
+        let path = scratch("planted");
+        let victim = scratch("victim");
+        std::fs::write(&victim, b"precious").unwrap();
+        let planted = std::path::PathBuf::from(format!("{}.tmp", path.display()));
+        let _ = std::fs::remove_file(&planted);
+        std::os::unix::fs::symlink(&victim, &planted).unwrap();
+        let state = SimState {
+            boot_count: 1,
+            settings: Vec::new(),
+            flash: vec![0xFF; 64],
+        };
+        save(&path, &state).unwrap();
+        assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
+        assert_eq!(load(&path).unwrap(), Some(state));
+        for p in [&path, &victim, &planted] {
+            let _ = std::fs::remove_file(p);
+        }
     }
 }

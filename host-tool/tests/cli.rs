@@ -6,8 +6,8 @@ use std::net::TcpListener;
 use std::path::PathBuf;
 use std::process::{Child, Command, Output, Stdio};
 
-/// The key the `--sim` and served boards of these tests are given (`--key` provisions the
-/// `--sim` board; `--board-key` the served one).
+/// The key the `--sim` and served boards of these tests are given (the client's key
+/// provisions the `--sim` board; `--board-key-file` the served one).
 const TEST_KEY: &str = "3a7c5e91b2d4f60819e3c5a7b9d1f2e4";
 
 fn rlg_cal(args: &[&str]) -> Output {
@@ -36,6 +36,13 @@ fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("rlg-cal-test-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     dir.join(name)
+}
+
+/// A file holding [`TEST_KEY`] (`--key-file`, `--board-key-file`).
+fn key_file() -> String {
+    let path = scratch("key");
+    std::fs::write(&path, format!("{TEST_KEY}\n")).unwrap();
+    path.to_str().unwrap().to_owned()
 }
 
 #[test]
@@ -80,10 +87,11 @@ fn the_board_refusing_exits_1_and_says_why() {
     let (code, _, err) = run(&["--sim", "set", "a", "1"]);
     assert_eq!(code, 1);
     assert!(err.contains("ERR 9 locked"), "{err}");
-    let (code, _, err) = run(&["--sim", "--key", TEST_KEY, "set", "a", "NaN"]);
+    let kf = key_file();
+    let (code, _, err) = run(&["--sim", "--key-file", &kf, "set", "a", "NaN"]);
     assert_eq!(code, 1);
     assert!(err.contains("ERR 4"), "{err}");
-    let (code, out, _) = run(&["--sim", "--key", TEST_KEY, "set", "b", "-344.123456"]);
+    let (code, out, _) = run(&["--sim", "--key-file", &kf, "set", "b", "-344.123456"]);
     assert_eq!((code, out.trim()), (0, "b=-344.12344"));
 }
 
@@ -102,10 +110,11 @@ fn no_board_exits_3() {
 
 #[test]
 fn calibrate_with_accept_and_store() {
+    let kf = key_file();
     let (code, out, err) = run(&[
         "--sim",
-        "--key",
-        TEST_KEY,
+        "--key-file",
+        &kf,
         "calibrate",
         "--cycles",
         "3000",
@@ -196,11 +205,12 @@ fn serve_sim(args: &[&str]) -> (Child, String) {
 
 #[test]
 fn a_served_board_talks_to_a_second_process() {
-    let (mut tcp_server, address) = serve_sim(&["--tcp", "127.0.0.1:0", "--board-key", TEST_KEY]);
+    let kf = key_file();
+    let (mut tcp_server, address) = serve_sim(&["--tcp", "127.0.0.1:0", "--board-key-file", &kf]);
     let (mut pty_server, path) = serve_sim(&["--pty"]);
     assert!(address.starts_with("127.0.0.1:"), "{address}");
     assert!(path.starts_with("/dev/pts/"), "{path}");
-    let over_tcp = run(&["--tcp", &address, "--key", TEST_KEY, "set", "a", "12.5"]);
+    let over_tcp = run(&["--tcp", &address, "--key-file", &kf, "set", "a", "12.5"]);
     let again = run(&["--tcp", &address, "get", "a"]);
     let over_pty = run(&["--port", &path, "--baud", "460800", "id"]);
     tcp_server.kill().unwrap();
@@ -341,14 +351,116 @@ fn numeric_arguments_outside_their_range_are_usage_errors() {
             "{args:?}"
         );
     }
+    let kf = key_file();
     let (code, out, err) = run(&[
         "--sim",
         "--sim-rate",
         "-13.888",
-        "--key",
-        TEST_KEY,
+        "--key-file",
+        &kf,
         "get",
         "a",
     ]);
     assert_eq!((code, out.trim()), (0, "a=0"), "{err}");
+}
+
+/// No key is taken on the command line: `--key`, `unlock KEY`, `send unlock|key provision`
+/// and `serve-sim --board-key` are usage errors (exit 2) that do not repeat the key; the key
+/// comes from `--key-file` (or `RLG_KEY`), and `unlock` and `key-provision` use it.
+#[test]
+fn keys_are_never_taken_on_the_command_line() {
+    const TYPED: &str = "00112233445566778899aabbccddeeff";
+    for args in [
+        &["--sim", "--key", TYPED, "status"][..],
+        &["--sim", "unlock", TYPED],
+        &["--sim", "send", "unlock", TYPED],
+        &["--sim", "send", "KEY", "provision", TYPED],
+        &["serve-sim", "--tcp", "127.0.0.1:0", "--board-key", TYPED],
+    ] {
+        let (code, out, err) = run(args);
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert!(
+            !out.contains(TYPED) && !err.contains(TYPED),
+            "{args:?}: {err}"
+        );
+    }
+    let (_, help, _) = run(&["--help"]);
+    assert!(
+        !help.contains("provision $KEY") && !help.contains("--key $KEY"),
+        "{help}"
+    );
+    let kf = key_file();
+    let (code, out, err) = run(&["--sim", "--key-file", &kf, "unlock"]);
+    assert_eq!(
+        (code, out.trim()),
+        (0, "result=unlocked\nfor_s=300"),
+        "{err}"
+    );
+    let (code, _, err) = run(&["--sim", "unlock"]);
+    assert_eq!(code, 2, "no key: {err}");
+    // A served board without a key: `key-provision` writes the key file's key, once.
+    let (mut server, address) = serve_sim(&["--tcp", "127.0.0.1:0"]);
+    let first = run(&["--tcp", &address, "--key-file", &kf, "key-provision"]);
+    let second = run(&["--tcp", &address, "--key-file", &kf, "key-provision"]);
+    let unlocked = run(&["--tcp", &address, "--key-file", &kf, "unlock"]);
+    server.kill().unwrap();
+    let _ = server.wait();
+    assert_eq!(
+        (first.0, first.1.trim()),
+        (0, "key=provisioned"),
+        "{}",
+        first.2
+    );
+    assert_eq!(second.0, 1, "{}", second.2);
+    assert!(second.2.contains("ERR 11"), "{}", second.2);
+    assert!(!second.2.contains(TEST_KEY), "{}", second.2);
+    assert_eq!(unlocked.0, 0, "{}", unlocked.2);
+}
+
+/// A failed unlock does not print the key: not a wrong key (stderr, and the `--json` object on
+/// stdout), nor a board that does not answer.
+#[test]
+fn a_failed_unlock_does_not_print_the_key() {
+    const WRONG: &str = "0f0e0d0c0b0a09080706050403020100";
+    let wrong_file = scratch("wrong-key");
+    std::fs::write(&wrong_file, WRONG).unwrap();
+    let wrong_file = wrong_file.to_str().unwrap();
+    let kf = key_file();
+    let (mut server, address) = serve_sim(&["--tcp", "127.0.0.1:0", "--board-key-file", &kf]);
+    let refused = run(&[
+        "--tcp",
+        &address,
+        "--json",
+        "--key-file",
+        wrong_file,
+        "set",
+        "a",
+        "1",
+    ]);
+    server.kill().unwrap();
+    let _ = server.wait();
+    assert_eq!(refused.0, 1, "{}", refused.2);
+    assert!(refused.2.contains("ERR 15 wrong key"), "{}", refused.2);
+    assert!(refused.1.contains("\"error\":15"), "{}", refused.1);
+    for text in [&refused.1, &refused.2] {
+        assert!(!text.contains(WRONG), "{text}");
+        assert!(text.contains("unlock <key>"), "{text}");
+    }
+    let silent = TcpListener::bind("127.0.0.1:0").unwrap();
+    let address = silent.local_addr().unwrap().to_string();
+    let (code, out, err) = run(&[
+        "--tcp",
+        &address,
+        "--timeout-ms",
+        "200",
+        "--key-file",
+        wrong_file,
+        "set",
+        "a",
+        "1",
+    ]);
+    drop(silent);
+    assert_eq!(code, 3, "{err}");
+    assert!(err.contains("no answer to `unlock <key>`"), "{err}");
+    assert!(!out.contains(WRONG) && !err.contains(WRONG), "{err}");
 }

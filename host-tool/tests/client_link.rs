@@ -378,3 +378,125 @@ fn a_late_answer_is_not_taken_for_the_next_one() {
     assert_eq!(c.command("get b").unwrap().text, "b=2");
     assert_eq!(c.skipped_bytes(), with_crc("OK a=1").len());
 }
+
+/// A board whose answers come after a delay each: `reply` gives the delay and the bytes for
+/// each line sent.
+struct Delayed<F> {
+    reply: F,
+    queue: Vec<(Duration, Vec<u8>)>,
+    now: Duration,
+}
+
+impl<F: FnMut(&[u8]) -> (u64, Vec<u8>)> Link for Delayed<F> {
+    fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
+        let (delay_ms, answer) = (self.reply)(bytes);
+        self.queue
+            .push((self.now + Duration::from_millis(delay_ms), answer));
+        Ok(())
+    }
+    fn receive(&mut self, out: &mut Vec<u8>, timeout: Duration) -> io::Result<usize> {
+        let due = self
+            .queue
+            .iter()
+            .position(|(t, _)| *t <= self.now + timeout);
+        match due {
+            Some(i) => {
+                let (t, bytes) = self.queue.remove(i);
+                self.now = self.now.max(t);
+                out.extend_from_slice(&bytes);
+                Ok(bytes.len())
+            }
+            None => {
+                self.now += timeout;
+                Ok(0)
+            }
+        }
+    }
+    fn elapsed(&self) -> Duration {
+        self.now
+    }
+    fn pause(&mut self, d: Duration) {
+        self.now += d;
+    }
+}
+
+/// While streaming too, an answer that comes after its command timed out does not pass for
+/// the next command's; the frames around it are kept.
+#[test]
+fn a_late_answer_while_streaming_is_not_taken_for_the_next_one() {
+    use firmware::protocol::stream::{encode_frame, StreamRecord, MAX_FRAME};
+    let mut buf = [0u8; MAX_FRAME];
+    let record = StreamRecord {
+        sequence: 1,
+        end_phase_q32: 0,
+        raw_increment_q32: 7,
+        compensated_increment_q32: 7,
+        p1_s: 0.0,
+        p2_s: 0.0,
+        duration_ticks: 215_938,
+        flags: 0,
+    };
+    let n = encode_frame(&record, &mut buf);
+    let frame = buf[..n].to_vec();
+    let wrapped = |body: &str| {
+        let mut r = frame.clone();
+        r.push(0);
+        r.extend_from_slice(&with_crc(body));
+        r.push(0);
+        r.extend_from_slice(&frame);
+        r
+    };
+    let link = Delayed {
+        reply: move |sent: &[u8]| {
+            if sent.starts_with(b"stream on") {
+                (0, with_crc("OK stream=on divider=1 frame_bytes=47"))
+            } else if sent.starts_with(b"cal status") {
+                (1500, wrapped("OK cal=idle"))
+            } else {
+                (0, wrapped("OK fw=1"))
+            }
+        },
+        queue: Vec::new(),
+        now: Duration::ZERO,
+    };
+    let mut c = Client::new(link).with_timeout(Duration::from_secs(1));
+    c.command("stream on 1").unwrap();
+    assert!(matches!(
+        c.command("cal status"),
+        Err(ClientError::Timeout { .. })
+    ));
+    assert_eq!(c.command("id").unwrap().text, "fw=1");
+    c.poll(Duration::ZERO).unwrap();
+    assert_eq!(c.take_frames().len(), 4, "the frames around both answers");
+}
+
+/// The key never appears in what the client reports: not in a refusal (wrong key, penalty,
+/// no key), a timeout, a corrupted answer, a command it cannot send, nor in an answer's
+/// `command` (which `--json` prints).
+#[test]
+fn the_key_is_in_no_error_or_answer() {
+    const KEY: &str = "0123456789abcdef0123456789abcdef";
+    let replies = [
+        with_crc("ERR 15 wrong key"),
+        with_crc("ERR 14 too many attempts, wait wait_ms=1000"),
+        with_crc("ERR 16 no key provisioned"),
+        Vec::new(),
+        b"OK unlocked for_s=300*0000\r\n".to_vec(),
+        with_crc("OK unlocked for_s=300"),
+    ];
+    for (i, reply) in replies.into_iter().enumerate() {
+        for line in [format!("unlock {KEY}"), format!("key provision {KEY}")] {
+            let reply = reply.clone();
+            let mut c = Client::new(Scripted::new(move |_: &[u8]| reply.clone()))
+                .with_timeout(Duration::from_millis(10));
+            let shown = match c.command(&line) {
+                Ok(answer) => answer.command,
+                Err(e) => format!("{e} {e:?}"),
+            };
+            assert!(!shown.contains(KEY), "case {i}: {shown}");
+            assert!(shown.contains("<key>"), "case {i}: {shown}");
+        }
+    }
+    let e = frame_command(&format!("unlock {KEY}*")).unwrap_err();
+    assert!(!format!("{e} {e:?}").contains(KEY), "{e}");
+}

@@ -6,7 +6,7 @@ use rlg_cal::capture::DEFAULT_TIMER_HZ;
 use rlg_cal::client::{Client, ClientError};
 use rlg_cal::link::{Link, SimLink};
 use rlg_cal::ops::{self, CalibrateOptions};
-use rlg_cal::sim::{self, SimInput};
+use rlg_cal::sim::{self, key_hex, test_key, SimInput};
 use std::time::Duration;
 
 fn board(rate_deg_per_h: f64, flash: CalibrationFlash, boot_count: u32) -> Client<SimLink> {
@@ -260,5 +260,25 @@ fn a_store_with_a_worst_case_erase_is_waited_for() {
     assert_eq!(
         rlg_cal::client::answer_timeout("get a", Duration::from_secs(2)),
         Duration::from_secs(2)
+    );
+}
+
+/// Wrong keys used the free attempts: `ops::unlock` with the right key is refused (ERR 14,
+/// outside the window), waits the time the board names and is in at the next window, within
+/// the window period (10 s) plus the exchanges.
+#[test]
+fn unlock_waits_for_the_next_window_and_gets_in() {
+    let mut c = board(5.0, CalibrationFlash::default(), 0);
+    for _ in 0..3 {
+        let wrong = ops::unlock(&mut c, &"12".repeat(16));
+        assert_eq!(wrong.unwrap_err().device_code(), Some(15));
+    }
+    let started = c.elapsed();
+    let answer = ops::unlock(&mut c, &key_hex(&test_key())).unwrap();
+    let took = c.elapsed() - started;
+    assert_eq!(answer.text, "unlocked for_s=300");
+    assert!(
+        took > Duration::from_secs(5) && took <= Duration::from_millis(10_100),
+        "{took:?}"
     );
 }

@@ -66,16 +66,8 @@ const KEY: &str = "3a7c5e91b2d4f60819e3c5a7b9d1f2e4";
 
 fn served() -> Served {
     let mut child = rlg_cal(
-        &[
-            "serve-sim",
-            "--tcp",
-            "127.0.0.1:0",
-            "--seconds",
-            "30",
-            "--board-key",
-            KEY,
-        ],
-        &[],
+        &["serve-sim", "--tcp", "127.0.0.1:0", "--seconds", "30"],
+        &[("RLG_SIM_BOARD_KEY", KEY)],
     )
     .stdout(Stdio::piped())
     .stderr(Stdio::piped())
@@ -188,16 +180,8 @@ fn sigint_keeps_every_streamed_frame() {
 fn sigint_during_calibrate_aborts_the_run_on_the_board() {
     let board = served();
     let mut child = rlg_cal(
-        &[
-            "--tcp",
-            &board.address,
-            "--key",
-            KEY,
-            "calibrate",
-            "--cycles",
-            "100000",
-        ],
-        &[],
+        &["--tcp", &board.address, "calibrate", "--cycles", "100000"],
+        &[("RLG_KEY", KEY)],
     )
     .stdout(Stdio::piped())
     .stderr(Stdio::piped())
@@ -324,9 +308,9 @@ fn the_sim_board_keeps_its_state_file() {
     let _ = std::fs::remove_file(&state);
     let s = state.to_str().unwrap();
     let sim = |args: &[&str]| {
-        let mut all = vec!["--sim", "--sim-state", s, "--key", KEY];
+        let mut all = vec!["--sim", "--sim-state", s];
         all.extend_from_slice(args);
-        run(&all, &[])
+        run(&all, &[("RLG_KEY", KEY)])
     };
     let (code, out, err, _) = sim(&["set", "a", "12.5"]);
     assert_eq!((code, out.trim()), (0, "a=12.5"), "{err}");
@@ -359,7 +343,7 @@ fn the_sim_board_keeps_its_state_file() {
 /// `key=value`.
 #[test]
 fn results_for_scripts() {
-    let (code, out, err, _) = run(&["--sim", "--json", "--key", KEY, "store"], &[]);
+    let (code, out, err, _) = run(&["--sim", "--json", "store"], &[("RLG_KEY", KEY)]);
     assert_eq!(code, 0, "{err}");
     assert_eq!(out.lines().count(), 1, "{out}");
     let line = out.trim();
@@ -441,9 +425,9 @@ fn a_silent_board_fails_before_the_run() {
             "--csv",
             "/dev/null",
         ][..],
-        &["--tcp", address.as_str(), "--key", KEY, "calibrate"][..],
+        &["--tcp", address.as_str(), "calibrate"][..],
     ] {
-        let (code, _, err, took) = run(args, &[]);
+        let (code, _, err, took) = run(args, &[("RLG_KEY", KEY)]);
         assert_eq!(code, 3, "{args:?}: {err}");
         assert!(err.contains("no answer to `id`"), "{err}");
         assert!(took < Duration::from_millis(1500), "{args:?}: {took:?}");
@@ -467,4 +451,33 @@ fn serve_sim_starts_with_an_address_alone_and_stops_on_ctrl_c() {
     assert!(address.trim().starts_with("127.0.0.1:"), "{address}");
     interrupt(&child);
     assert_eq!(child.wait().unwrap().code(), Some(130));
+}
+
+/// A state file at the last boot count: the next call boots and saves it again, the count
+/// saturated (it never wraps, and adding one does not panic).
+#[test]
+fn a_state_file_at_the_last_boot_count_does_not_overflow() {
+    let state = scratch("last-boot.state");
+    let _ = std::fs::remove_file(&state);
+    let s = state.to_str().unwrap();
+    let (code, _, err, _) = run(&["--sim", "--sim-state", s, "id"], &[]);
+    assert_eq!(code, 0, "{err}");
+    let bytes = std::fs::read(&state).unwrap();
+    let text = String::from_utf8_lossy(&bytes);
+    assert!(text.contains("\nboot_count=1\n"), "{text}");
+    let header_end = bytes.windows(2).position(|w| w == b"\n\n").unwrap();
+    let header = String::from_utf8(bytes[..header_end].to_vec()).unwrap();
+    let mut edited = header
+        .replace("boot_count=1", &format!("boot_count={}", u32::MAX))
+        .into_bytes();
+    edited.extend_from_slice(&bytes[header_end..]);
+    std::fs::write(&state, edited).unwrap();
+    let (code, _, err, _) = run(&["--sim", "--sim-state", s, "id"], &[]);
+    assert_eq!(code, 0, "{err}");
+    let text = String::from_utf8_lossy(&std::fs::read(&state).unwrap()).into_owned();
+    assert!(
+        text.contains(&format!("\nboot_count={}\n", u32::MAX)),
+        "{text}"
+    );
+    std::fs::remove_file(&state).unwrap();
 }

@@ -1,9 +1,9 @@
-//! Seeded, bounded random fuzzing of the firmware's protocol (line assembler, checksum, parser,
-//! executor) in every `cargo test`: the harness of the coverage-guided `cargo fuzz` target
-//! (`fuzz/src/lib.rs`, included here by path) over mutations of its seed corpus
-//! (`fuzz/seeds/`) with its dictionary (`fuzz/protocol.dict`). Deterministic: a failure names
-//! the iteration, and the same seed reproduces it. CI also runs the coverage-guided target for
-//! a bounded time (`fuzz/run.sh`).
+//! Seeded, bounded random fuzzing in every `cargo test`: the harnesses of the coverage-guided
+//! `cargo fuzz` targets (`fuzz/src/`, included here by path: protocol, service, device,
+//! decoders, host) over mutations of each target's seed corpus (`fuzz/seeds/<target>/`) with
+//! the dictionary (`fuzz/protocol.dict`). Deterministic: a failure names the target and the
+//! iteration, and the same seed reproduces it. CI also runs the coverage-guided targets for a
+//! bounded time each (`fuzz/run.sh`).
 
 #[path = "../../fuzz/src/lib.rs"]
 mod harness;
@@ -15,13 +15,13 @@ fn fuzz_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fuzz")
 }
 
-fn seeds() -> Vec<Vec<u8>> {
-    let mut files: Vec<_> = std::fs::read_dir(fuzz_dir().join("seeds"))
+fn seeds(target: &str) -> Vec<Vec<u8>> {
+    let mut files: Vec<_> = std::fs::read_dir(fuzz_dir().join("seeds").join(target))
         .unwrap()
         .map(|e| e.unwrap().path())
         .collect();
     files.sort();
-    assert!(files.len() >= 5, "the seed corpus");
+    assert!(files.len() >= 3, "the seed corpus of {target}");
     files.iter().map(|p| std::fs::read(p).unwrap()).collect()
 }
 
@@ -70,7 +70,7 @@ fn interesting_byte(rng: &mut Rng) -> u8 {
         0 => b'\n',
         1 => b'\r',
         2 => *b" *0123456789abcdefABCDEF.-+eE".get(rng.below(29)).unwrap(),
-        3 => [harness::TICK, harness::CYCLES, harness::FAIL_STORE][rng.below(3)],
+        3 => 1 + rng.below(8) as u8, // the event bytes (harness::events)
         4 => (rng.next() >> 8) as u8,
         _ => b' ' + rng.below(95) as u8,
     }
@@ -107,30 +107,54 @@ fn mutate(rng: &mut Rng, seeds: &[Vec<u8>], words: &[Vec<u8>]) -> Vec<u8> {
     input
 }
 
-#[test]
-fn the_seed_corpus_keeps_the_promises() {
-    for seed in seeds() {
-        harness::check(&seed);
+/// Every target's seeds, then seeded mutations of them, bounded in count and in time
+/// (whichever ends first); `min_runs` asserts the bound left room for real work.
+fn fuzz(target: &str, check: fn(&[u8]), seconds: f64, min_runs: usize) {
+    let (seeds, words) = (seeds(target), dictionary());
+    for seed in &seeds {
+        check(seed);
     }
-}
-
-/// Seeded mutations, bounded in count and in time (whichever ends first).
-#[test]
-fn seeded_mutations_keep_the_promises() {
-    let (seeds, words) = (seeds(), dictionary());
     assert!(words.len() > 20, "the dictionary");
     let mut rng = Rng(0x5EED_2026_C0FF_EE42);
     let start = Instant::now();
     let mut runs = 0;
-    while runs < 20_000 && start.elapsed() < Duration::from_secs(6) {
+    while runs < 20_000 && start.elapsed() < Duration::from_secs_f64(seconds) {
         let input = mutate(&mut rng, &seeds, &words);
-        let outcome = std::panic::catch_unwind(|| harness::check(&input));
+        let outcome = std::panic::catch_unwind(|| check(&input));
         assert!(
             outcome.is_ok(),
-            "iteration {runs} broke a promise; input: {:?}",
+            "{target}: iteration {runs} broke a promise; input: {:?}",
             String::from_utf8_lossy(&input)
         );
         runs += 1;
     }
-    assert!(runs >= 200, "only {runs} inputs in the time bound");
+    assert!(
+        runs >= min_runs,
+        "{target}: only {runs} inputs in the time bound"
+    );
+}
+
+#[test]
+fn protocol_keeps_the_promises() {
+    fuzz("protocol", harness::protocol::check, 5.0, 200);
+}
+
+#[test]
+fn service_keeps_the_promises() {
+    fuzz("service", harness::service::check, 3.0, 100);
+}
+
+#[test]
+fn device_keeps_the_promises() {
+    fuzz("device", harness::device::check, 6.0, 10);
+}
+
+#[test]
+fn decoders_keep_the_promises() {
+    fuzz("decoders", harness::decoders::check, 2.0, 200);
+}
+
+#[test]
+fn host_keeps_the_promises() {
+    fuzz("host", harness::host::check, 2.0, 200);
 }

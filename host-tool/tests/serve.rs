@@ -182,3 +182,70 @@ fn pty_server_answers_the_slave_device() {
     stop.store(true, Ordering::Relaxed);
     server.join().unwrap();
 }
+
+/// One pass of the server's loop, as `serve` does it: bytes in (a new client first starts its
+/// session), the board run a little, its output out.
+fn serve_once(endpoint: &mut PtyEndpoint, dev: &mut SimDevice) {
+    let mut buf = [0u8; 4096];
+    let read = endpoint.read(&mut buf).unwrap();
+    if endpoint.take_new_client() {
+        dev.new_session();
+    }
+    if let Some(n) = read {
+        dev.receive(&buf[..n]);
+    }
+    dev.run_for(0.005);
+    let out = dev.take_output();
+    if endpoint.attached() {
+        endpoint.write(&out).unwrap();
+    }
+}
+
+/// Reads one answer line from the pty, serving meanwhile.
+fn answer(tty: &mut std::fs::File, endpoint: &mut PtyEndpoint, dev: &mut SimDevice) -> String {
+    let mut line = Vec::new();
+    let mut byte = [0u8];
+    let started = Instant::now();
+    while !line.ends_with(b"\r\n") {
+        assert!(
+            started.elapsed() < Duration::from_secs(5),
+            "no answer: {line:?}"
+        );
+        serve_once(endpoint, dev);
+        while let Ok(1) = tty.read(&mut byte) {
+            line.push(byte[0]);
+            if line.ends_with(b"\r\n") {
+                break;
+            }
+        }
+    }
+    String::from_utf8(line).unwrap()
+}
+
+/// A client that opens the pty right after the previous one closed it, before the server's
+/// next poll, starts a session of its own: the previous client's unlock does not carry over.
+#[test]
+fn a_pty_reopened_before_the_next_poll_is_a_new_session() {
+    use std::os::unix::fs::OpenOptionsExt;
+    let mut endpoint = PtyEndpoint::open().unwrap();
+    let path = endpoint.path().to_owned();
+    let mut dev = device();
+    let open = || {
+        std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .custom_flags(libc::O_NONBLOCK)
+            .open(&path)
+            .unwrap()
+    };
+    let mut first = open();
+    let unlock = format!("unlock {}\n", sim::key_hex(&sim::test_key()));
+    first.write_all(unlock.as_bytes()).unwrap();
+    let unlocked = answer(&mut first, &mut endpoint, &mut dev);
+    assert!(unlocked.starts_with("OK unlocked"), "{unlocked}");
+    drop(first);
+    let mut second = open();
+    second.write_all(b"status\n").unwrap();
+    let status = answer(&mut second, &mut endpoint, &mut dev);
+    assert!(status.contains(" locked=yes "), "{status}");
+}

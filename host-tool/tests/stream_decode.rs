@@ -264,3 +264,24 @@ fn random_bytes_are_bad_frames_not_records() {
     assert_eq!(capture.records.len(), 0);
     assert_eq!(capture.bad_frames, chunks);
 }
+
+/// A board that restarts mid-stream (its sequence starts again from 0) and a repeated frame
+/// are no lost frames, and the records' times go on instead of jumping by 2^32 frames.
+#[test]
+fn a_restart_and_a_repeat_are_neither_lost_frames_nor_a_time_jump() {
+    let scale = RateScale {
+        scale_factor_arcsec: 1.8655,
+        timer_hz: DEFAULT_TIMER_HZ,
+    };
+    let mut capture = Capture::new(1);
+    for s in [10, 11, 11, 0, 1] {
+        let f = frame(&record(s, 5.0));
+        capture.push_chunk(&f[..f.len() - 1]);
+    }
+    assert_eq!((capture.lost(), capture.gaps.out_of_order), (0, 2));
+    let times = capture.times_s(&scale);
+    let cycle_s = 215_938.0 / DEFAULT_TIMER_HZ;
+    for (i, t) in times.iter().enumerate() {
+        assert!((t - i as f64 * cycle_s).abs() < 1e-9, "{times:?}");
+    }
+}

@@ -23,7 +23,7 @@ use super::{
 use crate::dither::DitherConfig;
 use crate::profile::BoardProfile;
 use crate::protocol::execute::Identity;
-use crate::readout::Readout;
+use crate::service::power_up::power_up;
 use crate::service::{Service, ServiceConfig};
 use crate::storage::{DitherSetpoints, Geometry};
 
@@ -105,32 +105,28 @@ fn identity(profile: &BoardProfile) -> Identity {
     }
 }
 
-/// Boots the service on `flash` and creates the readout with the settings it loaded; returns
-/// the service, the main loop's ends of the cycle and output record queues and the dither
-/// drive's stored setpoints (for [`start_dither`]). The wrong-key count comes back from backup
-/// RAM ([`backup`]). The readout's interrupts are the caller's to unmask.
+/// Boots the service on `flash` and creates the readout with the settings it loaded
+/// (`crate::service::power_up`, host-tested: calibration, the wrong-key count from backup RAM
+/// ([`backup`]), the readout); returns the service, the main loop's ends of the cycle and
+/// output record queues and the dither drive's stored setpoints (for [`start_dither`]). The
+/// readout's interrupts are the caller's to unmask.
 pub fn boot<F: NorFlash>(
     config: ServiceConfig,
     flash: F,
 ) -> (Service<F>, ReadoutQueues, Option<DitherSetpoints>) {
-    let mut booted = Service::boot(config, flash, None)
-        .unwrap_or_else(|e| defmt::panic!("calibration store geometry: {}", e));
-    // The wrong-key back-off goes on where it was before the reset.
-    let wrong_keys = backup::load_wrong_keys();
-    booted
-        .service
-        .restore_wrong_keys(wrong_keys, resources::now_ms());
-    if wrong_keys > 0 {
-        defmt::warn!("wrong keys before the reset: {}", wrong_keys);
+    let up = power_up(
+        config,
+        flash,
+        backup::load_wrong_keys(),
+        resources::now_ms(),
+    )
+    .unwrap_or_else(|e| defmt::panic!("calibration store geometry: {}", e));
+    if up.wrong_keys > 0 {
+        defmt::warn!("wrong keys before the reset: {}", up.wrong_keys);
     }
-    defmt::info!("calibration: {}", booted.report);
-    let mut readout = Readout::new(&config.readout, booted.settings);
-    if let Some(strip) = booted.strip {
-        // The stripping starts from the stored K (its fit learns on from there).
-        readout.restart_strip_from(&config.readout, strip.k(), strip.k_quadrature());
-    }
-    let queues = resources::init_readout(config.readout, readout);
-    (booted.service, queues, booted.dither)
+    defmt::info!("calibration: {}", up.report);
+    let queues = resources::init_readout(config.readout, up.readout);
+    (up.service, queues, up.dither)
 }
 
 /// Brings the board up and runs it: clocks, watchdog, serial link, calibration from flash,
@@ -205,16 +201,8 @@ pub fn serve<F: NorFlash>(
     let mut health = Health::default();
     let mut health_logged_ms = resources::now_ms();
     let mut dither_state = None;
-    let mut records_dropped = 0;
     loop {
         ports.refresh_watchdog();
-        // Records the readout task could not queue (the queue was full): counted and shown
-        // as a stream gap before the records after them.
-        let dropped = resources::RECORDS_DROPPED.load(core::sync::atomic::Ordering::Relaxed);
-        if dropped != records_dropped {
-            service.on_cycles_lost(dropped.wrapping_sub(records_dropped));
-            records_dropped = dropped;
-        }
         // Bounded: one command line and one queue of records of each kind, then the watchdog
         // again.
         let ReadoutQueues { cycles, outputs } = &mut queues;

@@ -6,7 +6,7 @@
 //! ([`super::app::boot`]). Backup SRAM rather than flash: it has no wear and no erase stall,
 //! keeps its contents across every reset (watchdog, software, pin) and, with the backup
 //! regulator on and a VBAT supply, across power loss. Without VBAT a power cycle clears it, as it
-//! clears the penalty: an attacker who can power-cycle the board gains at most the 3 free
+//! clears the count: an attacker who can power-cycle the board gains at most the 3 free
 //! attempts per cycle, a few seconds each (the board takes about 1.1 s to start).
 //!
 //! Record: three words, `MAGIC`, the count, and its complement; anything else (a cold start,

@@ -108,7 +108,7 @@ pub fn readout_task() {
         while let Some(sample) = task.samples.dequeue() {
             if let Some(record) = task.readout.on_turnaround(&task.config, sample) {
                 turnaround::publish_rate_shift(&record);
-                if task.records.enqueue(record).is_err() {
+                if !task.records.push(record) {
                     RECORDS_DROPPED.fetch_add(1, Ordering::Relaxed);
                 }
             }

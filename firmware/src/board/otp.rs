@@ -34,11 +34,10 @@ fn words() -> [u32; 5] {
     cortex_m::interrupt::free(|cs| MODEL.borrow(cs).get())
 }
 
-/// The serial number (0 when unprogrammed) and the key (`None`: unprovisioned).
+/// The serial number (0 when unprogrammed) and the key (`None`: unprovisioned), decoded by
+/// the host-tested `service::power_up::otp_identity`.
 pub fn read() -> (u32, Option<Key>) {
-    let w = words();
-    let serial = if w[0] == u32::MAX { 0 } else { w[0] };
-    (serial, Key::from_otp_words([w[1], w[2], w[3], w[4]]))
+    crate::service::power_up::otp_identity(words())
 }
 
 /// Writes `key` to words 1..=4 and locks block 0; refused unless those words are blank. The

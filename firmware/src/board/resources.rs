@@ -67,6 +67,7 @@ use super::{adc, pac, turnaround, Owned};
 use crate::dither::{DitherConfig, DitherController};
 use crate::readout::{Readout, ReadoutConfig};
 use crate::sample::{OutputSample, TurnaroundSample};
+use crate::service::record_queue::{LossyProducer, Tagged};
 use crate::signal::lockin::CycleRecord;
 use crate::signal::output::record::OutputRecord;
 use crate::storage::DitherSetpoints;
@@ -159,8 +160,9 @@ pub struct ReadoutTask {
     pub readout: Readout,
     /// The task's end of the turnaround sample queue (16 entries), filled by the latch.
     pub samples: Consumer<'static, TurnaroundSample>,
-    /// The task's end of the cycle record queue (32 entries), emptied by the main loop.
-    pub records: Producer<'static, CycleRecord>,
+    /// The task's end of the cycle record queue (32 entries), emptied by the main loop; a
+    /// record dropped on a full queue is counted by the next one queued.
+    pub records: LossyProducer<'static, CycleRecord>,
     /// The task's end of the output latch queue (8 entries), filled by the latch.
     pub output_samples: Consumer<'static, OutputSample>,
     /// The task's end of the output record queue (64 entries), emptied by the main loop.
@@ -171,8 +173,8 @@ pub struct ReadoutTask {
 
 /// The main loop's ends of the readout task's queues.
 pub struct ReadoutQueues {
-    /// Closed dither cycles.
-    pub cycles: Consumer<'static, CycleRecord>,
+    /// Closed dither cycles, each with the count dropped right before it.
+    pub cycles: Consumer<'static, Tagged<CycleRecord>>,
     /// Output records.
     pub outputs: Consumer<'static, OutputRecord>,
 }
@@ -201,7 +203,8 @@ pub static SCHEDULER: Owned<turnaround::Scheduler> = Owned::new();
 pub fn init_readout(config: ReadoutConfig, readout: Readout) -> ReadoutQueues {
     let samples =
         cortex_m::singleton!(: Queue<TurnaroundSample, TURNAROUND_QUEUE> = Queue::new()).unwrap();
-    let records = cortex_m::singleton!(: Queue<CycleRecord, RECORD_QUEUE> = Queue::new()).unwrap();
+    let records =
+        cortex_m::singleton!(: Queue<Tagged<CycleRecord>, RECORD_QUEUE> = Queue::new()).unwrap();
     let output_samples =
         cortex_m::singleton!(: Queue<OutputSample, OUTPUT_LATCH_QUEUE> = Queue::new()).unwrap();
     let outputs =
@@ -216,7 +219,7 @@ pub fn init_readout(config: ReadoutConfig, readout: Readout) -> ReadoutQueues {
         config,
         readout,
         samples: sample_out,
-        records: record_in,
+        records: LossyProducer::new(record_in),
         output_samples: output_sample_out,
         outputs: output_in,
         output_latches_dropped_seen: 0,

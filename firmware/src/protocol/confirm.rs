@@ -17,7 +17,8 @@ use core::fmt;
 use super::parse::{Coefficient, Command, DitherCommand};
 
 /// Commands that change the board's state, its work or its flash: without a CRC they wait for
-/// `yes`.
+/// `yes`. `cal result` is listed as a read: the executor adds it while it would close pooled
+/// runs (solving ends pooling), when it changes the session.
 pub fn needs_confirmation(command: &Command) -> bool {
     !matches!(
         command,

@@ -24,8 +24,8 @@ const POW10: [f64; 23] = [
 /// `text` as an `f32`, or `None` if it is not a decimal number.
 pub fn parse_f32(text: &str) -> Option<f32> {
     let (negative, body) = match text.as_bytes().first()? {
-        b'-' => (true, &text[1..]),
-        b'+' => (false, &text[1..]),
+        b'-' => (true, text.get(1..)?),
+        b'+' => (false, text.get(1..)?),
         _ => (false, text),
     };
     let special = if body.eq_ignore_ascii_case("nan") {
@@ -42,41 +42,56 @@ pub fn parse_f32(text: &str) -> Option<f32> {
     Some(if negative { -magnitude } else { magnitude })
 }
 
+/// The exact power of ten `10^e` for `0 <= e <= 22` (`POW10`), else 1 (callers keep `e` in
+/// that range).
+fn pow10(e: i32) -> f64 {
+    usize::try_from(e)
+        .ok()
+        .and_then(|i| POW10.get(i))
+        .copied()
+        .unwrap_or(1.0)
+}
+
+/// The largest exact power of ten, 10^22.
+const POW10_MAX: f64 = 1e22;
+
 fn magnitude(bytes: &[u8]) -> Option<f32> {
     let mut mantissa: u64 = 0;
     let mut significant = 0u32;
     let mut exp10: i32 = 0;
     let mut digits = 0u32;
-    let mut i = 0;
     let mut seen_point = false;
-    while i < bytes.len() {
-        match bytes[i] {
+    let mut rest = bytes;
+    // Counts stay far from their types' limits: `digits` and `exp10` grow by one per byte of
+    // a line of at most 96 bytes, `mantissa` holds at most 19 digits (< 10^19 < 2^64).
+    while let Some((&byte, after)) = rest.split_first() {
+        match byte {
             b'0'..=b'9' => {
-                digits += 1;
-                let d = (bytes[i] - b'0') as u64;
+                digits = digits.saturating_add(1);
+                let d = u64::from(byte.wrapping_sub(b'0'));
                 if significant < 19 {
                     if mantissa != 0 || d != 0 {
-                        significant += 1;
+                        significant = significant.saturating_add(1);
                     }
-                    mantissa = mantissa * 10 + d;
+                    mantissa = mantissa.saturating_mul(10).saturating_add(d);
                     if seen_point {
-                        exp10 -= 1;
+                        exp10 = exp10.saturating_sub(1);
                     }
                 } else if !seen_point {
-                    exp10 += 1; // a dropped integer digit still counts
+                    exp10 = exp10.saturating_add(1); // a dropped integer digit still counts
                 }
             }
             b'.' if !seen_point => seen_point = true,
             b'e' | b'E' => break,
             _ => return None,
         }
-        i += 1;
+        rest = after;
     }
     if digits == 0 {
         return None;
     }
-    if i < bytes.len() {
-        exp10 = exp10.saturating_add(exponent(&bytes[i + 1..])?);
+    if let Some((_, exponent_text)) = rest.split_first() {
+        exp10 = exp10.saturating_add(exponent(exponent_text)?);
     }
     let mut value = mantissa as f64;
     if value == 0.0 {
@@ -88,29 +103,29 @@ fn magnitude(bytes: &[u8]) -> Option<f32> {
         if !value.is_finite() {
             return Some(f32::INFINITY);
         }
-        value *= POW10[22];
-        exp10 -= 22;
+        value *= POW10_MAX;
+        exp10 = exp10.saturating_sub(22);
     }
     while exp10 < -22 {
         if value == 0.0 {
             return Some(0.0);
         }
-        value /= POW10[22];
-        exp10 += 22;
+        value /= POW10_MAX;
+        exp10 = exp10.saturating_add(22);
     }
     value = if exp10 >= 0 {
-        value * POW10[exp10 as usize]
+        value * pow10(exp10)
     } else {
-        value / POW10[(-exp10) as usize]
+        value / pow10(exp10.saturating_neg())
     };
     Some(value as f32)
 }
 
 /// The exponent after `e`: optional sign and at least one digit (saturating at +-99 999).
 fn exponent(bytes: &[u8]) -> Option<i32> {
-    let (negative, digits) = match bytes.first()? {
-        b'-' => (true, &bytes[1..]),
-        b'+' => (false, &bytes[1..]),
+    let (negative, digits) = match bytes.split_first()? {
+        (b'-', rest) => (true, rest),
+        (b'+', rest) => (false, rest),
         _ => (false, bytes),
     };
     if digits.is_empty() {
@@ -121,9 +136,12 @@ fn exponent(bytes: &[u8]) -> Option<i32> {
         if !b.is_ascii_digit() {
             return None;
         }
-        e = (e * 10 + (b - b'0') as i32).min(99_999);
+        e = e
+            .saturating_mul(10)
+            .saturating_add(i32::from(b.wrapping_sub(b'0')))
+            .min(99_999);
     }
-    Some(if negative { -e } else { e })
+    Some(if negative { e.saturating_neg() } else { e })
 }
 
 #[cfg(test)]

@@ -85,7 +85,7 @@ impl Executor {
         }
     }
 
-    /// After a reset: the wrong-key count the platform kept, its penalty restarted at `now_ms`.
+    /// After a reset: the wrong-key count the platform kept, its windows counted from `now_ms`.
     pub fn restore_wrong_keys(&mut self, wrong_keys: u32, now_ms: u64) {
         self.access.restore_wrong_keys(wrong_keys, now_ms);
     }
@@ -167,7 +167,8 @@ impl Executor {
                 None => Response::err(ErrorCode::WrongState),
             };
         }
-        if !with_crc && needs_confirmation(&command) {
+        // `cal result` is a read once solved, a state change while it would close the runs.
+        if !with_crc && (needs_confirmation(&command) || self.takes_time_or_work(&command)) {
             self.pending = Some(command);
             let mut r = Response::err(ErrorCode::Confirm);
             r.field(format_args!("cmd={}", Canonical(&command)));
@@ -179,6 +180,11 @@ impl Executor {
     /// A line that was no command (bad CRC, parse error, garbage): a pending confirmation ends.
     pub fn drop_pending(&mut self) {
         self.pending = None;
+    }
+
+    /// The command echoed for confirmation, waiting for `yes`.
+    pub fn pending(&self) -> Option<Command> {
+        self.pending
     }
 
     /// Executes one command.
@@ -484,6 +490,51 @@ mod tests {
             line(&mut e, &mut d, "yes", false),
             "ERR 11 not possible now"
         );
+    }
+
+    /// `cal result` that would close the pooled runs changes the session (and needs the
+    /// unlock), so without a CRC it waits for `yes` like every state change: echoed, nothing
+    /// solved, and `cal status` still `run_done`; `yes` solves it. Reading a solved fit is a
+    /// read: no confirmation.
+    #[test]
+    fn cal_result_that_closes_the_runs_waits_for_a_confirmation() {
+        use crate::protocol::commands::calibration::tests::cycle;
+        let loaded = report(LoadOutcome::Defaults {
+            reason: DefaultsReason::Erased,
+        });
+        let mut e = Executor::new(&loaded, None, 1, AcceptanceLimits::DEFAULT);
+        let mut d = MemDevice::default();
+        let line = |e: &mut Executor, d: &mut MemDevice, text: &str| {
+            e.execute_line(&ID, d, parse(text).unwrap(), false)
+                .finish(false)
+                .as_str()
+                .trim_end()
+                .to_owned()
+        };
+        assert!(line(&mut e, &mut d, &unlock_line()).starts_with("OK unlocked"));
+        assert!(line(&mut e, &mut d, "cal start 3000").starts_with("ERR 18 "));
+        assert!(line(&mut e, &mut d, "yes").starts_with("OK cal=running"));
+        for i in 0..3000 {
+            e.on_cycle(
+                &cycle(i, core::f64::consts::TAU * 13.888 / 1.8655),
+                1.0 / 389.0,
+            );
+        }
+        assert_eq!(
+            line(&mut e, &mut d, "cal result"),
+            "ERR 18 confirm (send yes) cmd=cal result"
+        );
+        assert_eq!(
+            line(&mut e, &mut d, "cal status"),
+            "OK cal=run_done cycles=3000"
+        );
+        assert_eq!(
+            line(&mut e, &mut d, "cal result"),
+            "ERR 18 confirm (send yes) cmd=cal result"
+        );
+        let solved = line(&mut e, &mut d, "yes");
+        assert!(solved.starts_with("OK a="), "{solved}");
+        assert_eq!(line(&mut e, &mut d, "cal result"), solved, "a read now");
     }
 
     /// `stream output` hands every record over, with the tracking bit set while the tracker

@@ -47,10 +47,13 @@ impl Key {
             return None;
         }
         let mut bytes = [0u8; 16];
-        for (i, pair) in digits.chunks_exact(2).enumerate() {
-            let hi = (pair[0] as char).to_digit(16)?;
-            let lo = (pair[1] as char).to_digit(16)?;
-            bytes[i] = (hi << 4 | lo) as u8;
+        for (byte, pair) in bytes.iter_mut().zip(digits.chunks_exact(2)) {
+            let [hi, lo] = pair else {
+                return None;
+            };
+            let hi = (*hi as char).to_digit(16)?;
+            let lo = (*lo as char).to_digit(16)?;
+            *byte = (hi << 4 | lo) as u8;
         }
         let key = Self(bytes);
         (!key.is_erased()).then_some(key)
@@ -70,8 +73,8 @@ impl Key {
     /// The four OTP words that [`Self::from_otp_words`] reads back as this key.
     pub fn to_otp_words(&self) -> [u32; 4] {
         let mut words = [0u32; 4];
-        for (word, chunk) in words.iter_mut().zip(self.0.chunks_exact(4)) {
-            *word = u32::from_be_bytes([chunk[0], chunk[1], chunk[2], chunk[3]]);
+        for (word, chunk) in words.iter_mut().zip(self.0.as_chunks::<4>().0) {
+            *word = u32::from_be_bytes(*chunk);
         }
         words
     }

@@ -21,6 +21,10 @@ use crate::signal::output::record::{OutputRecord, OutputStatus};
 
 /// Payload bytes.
 pub const OUTPUT_PAYLOAD: usize = 38;
+/// The most output records a board makes per second: five times the fastest sync it is
+/// documented for (2 kHz, which already needs 1 Mbaud). A receiver believes no gap that would
+/// need records faster than this.
+pub const MAX_OUTPUT_RATE_HZ: f64 = 10_000.0;
 /// Largest encoded frame, delimiter included.
 pub const MAX_OUTPUT_FRAME: usize = OUTPUT_PAYLOAD + 6;
 
@@ -37,16 +41,23 @@ fn to_bytes(r: &OutputRecord) -> [u8; OUTPUT_PAYLOAD] {
 }
 
 fn from_bytes(b: &[u8; OUTPUT_PAYLOAD]) -> OutputRecord {
-    let mut w8 = [0u8; 8];
-    let mut w4 = [0u8; 4];
-    let mut u64_at = |i: usize| {
-        w8.copy_from_slice(&b[i..i + 8]);
-        u64::from_le_bytes(w8)
+    // The fields' offsets lie inside the payload (a fixed layout): `get` never misses.
+    let u64_at = |i: usize| {
+        u64::from_le_bytes(
+            b.get(i..)
+                .and_then(|r| r.first_chunk::<8>())
+                .copied()
+                .unwrap_or_default(),
+        )
     };
     let (sequence, time_ticks, angle) = (u64_at(0), u64_at(8), u64_at(24));
-    let mut u32_at = |i: usize| {
-        w4.copy_from_slice(&b[i..i + 4]);
-        u32::from_le_bytes(w4)
+    let u32_at = |i: usize| {
+        u32::from_le_bytes(
+            b.get(i..)
+                .and_then(|r| r.first_chunk::<4>())
+                .copied()
+                .unwrap_or_default(),
+        )
     };
     let (period_ticks, delta, rate) = (u32_at(16), u32_at(20), u32_at(32));
     OutputRecord {
@@ -83,18 +94,33 @@ pub struct OutputGaps {
     /// Frames whose sequence did not advance (a repeat or a board restart): counted, not
     /// taken as a gap.
     pub out_of_order: u64,
+    /// Frames whose step forward the receiver could not believe ([`OutputGaps::observe_jump`]:
+    /// further than the elapsed time allows): a restart or a corrupt frame, not a gap.
+    pub jumps: u64,
 }
 
 impl OutputGaps {
     /// One record received with `sequence`: counts it and any gap before it.
     pub fn observe(&mut self, sequence: u64) {
         match self.last {
-            Some(last) if sequence > last => self.lost += sequence - last - 1,
-            Some(_) => self.out_of_order += 1,
+            Some(last) if sequence > last => {
+                self.lost = self
+                    .lost
+                    .saturating_add(sequence.abs_diff(last).saturating_sub(1));
+            }
+            Some(_) => self.out_of_order = self.out_of_order.saturating_add(1),
             None => {}
         }
         self.last = Some(sequence);
-        self.received += 1;
+        self.received = self.received.saturating_add(1);
+    }
+
+    /// One record received with `sequence`, whose step from the last one is not believed (the
+    /// receiver's clocks do not allow it): counted as a jump, not as lost records.
+    pub fn observe_jump(&mut self, sequence: u64) {
+        self.last = Some(sequence);
+        self.received = self.received.saturating_add(1);
+        self.jumps = self.jumps.saturating_add(1);
     }
 }
 

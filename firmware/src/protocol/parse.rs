@@ -114,7 +114,8 @@ pub fn strip_checksum(line: &str) -> Result<(&str, bool), ErrorCode> {
     let Some(star) = line.rfind('*') else {
         return Ok((line, false));
     };
-    let (body, suffix) = (&line[..star], line[star + 1..].trim_end());
+    let (body, suffix) = line.split_at(star);
+    let suffix = suffix.get(1..).unwrap_or("").trim_end(); // after the '*' (one byte)
     if suffix.len() != 4 || !suffix.bytes().all(|b| b.is_ascii_hexdigit()) {
         return Err(ErrorCode::BadChecksum);
     }

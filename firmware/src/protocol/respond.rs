@@ -89,7 +89,7 @@ struct Bounded<'a> {
 impl Write for Bounded<'_> {
     fn write_str(&mut self, s: &str) -> core::fmt::Result {
         for c in s.chars() {
-            if self.out.len() + c.len_utf8() > MAX_RESPONSE - TAIL {
+            if self.out.len().saturating_add(c.len_utf8()) > MAX_RESPONSE.saturating_sub(TAIL) {
                 self.cut = true;
                 return Ok(());
             }

@@ -79,11 +79,22 @@ impl StreamRecord {
     }
 
     fn from_bytes(b: &[u8; FRAME_PAYLOAD]) -> Self {
-        let u32_at = |i: usize| u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
+        // The fields' offsets lie inside the payload (a fixed layout): `get` never misses.
+        let u32_at = |i: usize| {
+            u32::from_le_bytes(
+                b.get(i..)
+                    .and_then(|r| r.first_chunk::<4>())
+                    .copied()
+                    .unwrap_or_default(),
+            )
+        };
         let i64_at = |i: usize| {
-            let mut w = [0u8; 8];
-            w.copy_from_slice(&b[i..i + 8]);
-            i64::from_le_bytes(w)
+            i64::from_le_bytes(
+                b.get(i..)
+                    .and_then(|r| r.first_chunk::<8>())
+                    .copied()
+                    .unwrap_or_default(),
+            )
         };
         Self {
             sequence: u32_at(0),
@@ -110,6 +121,15 @@ pub fn decode_frame(encoded: &[u8]) -> Result<StreamRecord, FrameError> {
     Ok(StreamRecord::from_bytes(&payload))
 }
 
+/// The frames from `last` to `sequence` (1 = the next one), when `sequence` lies ahead of
+/// `last` in the wrapping sequence, by at most 2^31 (a wrap after 2^32 frames, 128 days at
+/// 389 Hz, is a step forward); `None` for a repeat or a step back: a board restart (its
+/// sequence starts again from 0) or a duplicated frame, neither a gap.
+pub fn sequence_step(last: u32, sequence: u32) -> Option<u32> {
+    let step = sequence.wrapping_sub(last);
+    (1..=1 << 31).contains(&step).then_some(step)
+}
+
 /// Counts lost frames from the sequence numbers a host receives.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct GapCounter {
@@ -118,16 +138,24 @@ pub struct GapCounter {
     pub lost: u64,
     /// Frames received.
     pub received: u64,
+    /// Frames whose sequence did not step forward ([`sequence_step`]: a repeat or a board
+    /// restart): counted, not taken as a gap.
+    pub out_of_order: u64,
 }
 
 impl GapCounter {
     /// One frame received with `sequence`: counts it and any gap before it.
     pub fn observe(&mut self, sequence: u32) {
         if let Some(last) = self.last {
-            self.lost += sequence.wrapping_sub(last).wrapping_sub(1) as u64;
+            match sequence_step(last, sequence) {
+                Some(step) => {
+                    self.lost = self.lost.saturating_add(u64::from(step).saturating_sub(1))
+                }
+                None => self.out_of_order = self.out_of_order.saturating_add(1),
+            }
         }
         self.last = Some(sequence);
-        self.received += 1;
+        self.received = self.received.saturating_add(1);
     }
 }
 
@@ -177,6 +205,21 @@ mod tests {
         }
         assert_eq!(decode_frame(&buf[..n - 2]), Err(FrameError::Malformed));
         assert_eq!(decode_frame(&[]), Err(FrameError::Malformed));
+    }
+
+    /// A board restart (the sequence starts again from 0) and a repeated frame are counted as
+    /// out of order, not as about 4.29e9 lost frames; a forward step of up to 2^31 is a gap.
+    #[test]
+    fn a_restart_or_a_repeat_is_no_gap() {
+        let mut g = GapCounter::default();
+        for s in [100, 101, 101, 0, 1, 5, 3] {
+            g.observe(s);
+        }
+        assert_eq!((g.received, g.lost, g.out_of_order), (7, 3, 3));
+        assert_eq!(sequence_step(u32::MAX, 2), Some(3));
+        assert_eq!(sequence_step(0, 1 << 31), Some(1 << 31));
+        assert_eq!(sequence_step(0, (1 << 31) + 1), None);
+        assert_eq!(sequence_step(7, 7), None);
     }
 
     #[test]

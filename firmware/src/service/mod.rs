@@ -20,7 +20,25 @@
 //! Sans-IO: nothing here blocks except [`ports::SerialTx::send`] waiting for queue room, and
 //! nothing touches a register. It builds and is tested on the host.
 
+// No panics on the product path: no unwrap, expect, panic or slice indexing here; integer
+// arithmetic is checked, wrapping or saturating where an input could overflow it (each
+// exception is allowed where it stands, with its reason).
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::panic,
+        clippy::indexing_slicing,
+        clippy::unreachable,
+        clippy::todo,
+        clippy::arithmetic_side_effects
+    )
+)]
+
 pub mod ports;
+pub mod power_up;
+pub mod record_queue;
 
 use embedded_storage::nor_flash::NorFlash;
 use heapless::String;
@@ -132,7 +150,8 @@ impl<F: NorFlash> Service<F> {
     ) -> Result<Booted<F>, GeometryError> {
         let store = CalibrationStore::new(&flash, config.geometry)?;
         let (record, report) = store.load_for_serial(&mut flash, config.identity.serial_number);
-        let boots = boot_count.unwrap_or(record.boot_count.wrapping_add(1));
+        // Saturating: a counter never wraps in the field.
+        let boots = boot_count.unwrap_or(record.boot_count.saturating_add(1));
         let service = Self {
             executor: Executor::new(&report, record.fit, boots, AcceptanceLimits::DEFAULT),
             line: LineAssembler::new(),
@@ -154,7 +173,7 @@ impl<F: NorFlash> Service<F> {
     }
 
     /// Right after boot: the wrong-key count the platform kept across the reset (0 when its
-    /// memory was lost); past the free attempts, the penalty restarts at `now_ms`.
+    /// memory was lost); past the free attempts, the unlock windows are counted from `now_ms`.
     pub fn restore_wrong_keys(&mut self, wrong_keys: u32, now_ms: u64) {
         self.executor.restore_wrong_keys(wrong_keys, now_ms);
         self.saved_wrong_keys = wrong_keys;
@@ -169,15 +188,17 @@ impl<F: NorFlash> Service<F> {
 
     /// One main-loop pass with bounded work: bytes from `read_byte` until at most
     /// [`LINES_PER_PASS`] lines were executed, then at most [`OUTPUTS_PER_PASS`] output records
-    /// from `next_output` and [`RECORDS_PER_PASS`] cycle records from `next_record`. Returns whether anything was done (more may be waiting: the caller
-    /// runs another pass before it sleeps). The bound keeps a pass short whatever the host
+    /// from `next_output` and [`RECORDS_PER_PASS`] cycle records from `next_record`, each after
+    /// the cycles lost right before it ([`record_queue`]: the stream's gap stands where they
+    /// were). Returns whether anything was done (more may be waiting: the caller runs another
+    /// pass before it sleeps). The bound keeps a pass short whatever the host
     /// sends, so the board's main loop refreshes its watchdog between any two commands (a
     /// flood of `reload`, each a scan of both flash sectors, cannot starve it).
     pub fn pass<P: Clock + SerialTx + ReadoutAccess + DitherAccess + Secrets>(
         &mut self,
         ports: &mut P,
         mut read_byte: impl FnMut(&mut P) -> Option<u8>,
-        mut next_record: impl FnMut() -> Option<CycleRecord>,
+        mut next_record: impl FnMut() -> Option<record_queue::Tagged<CycleRecord>>,
         mut next_output: impl FnMut() -> Option<OutputRecord>,
     ) -> bool {
         let mut busy = false;
@@ -187,7 +208,7 @@ impl<F: NorFlash> Service<F> {
                 break;
             };
             busy = true;
-            lines += usize::from(self.on_byte(byte, ports));
+            lines = lines.saturating_add(usize::from(self.on_byte(byte, ports)));
         }
         for _ in 0..OUTPUTS_PER_PASS {
             let Some(record) = next_output() else {
@@ -197,10 +218,13 @@ impl<F: NorFlash> Service<F> {
             busy = true;
         }
         for _ in 0..RECORDS_PER_PASS {
-            let Some(record) = next_record() else {
+            let Some(tagged) = next_record() else {
                 break;
             };
-            self.on_cycle(&record, ports);
+            if tagged.lost_before > 0 {
+                self.on_cycles_lost(tagged.lost_before);
+            }
+            self.on_cycle(&tagged.record, ports);
             busy = true;
         }
         busy
@@ -275,7 +299,7 @@ impl<F: NorFlash> Service<F> {
         if let Some(frame) = actions.frame {
             let mut buf = [0u8; MAX_FRAME];
             let n = encode_frame(&frame, &mut buf);
-            if !ports.try_send_frame(&buf[..n]) {
+            if !ports.try_send_frame(buf.get(..n).unwrap_or(&buf)) {
                 self.frames_dropped = self.frames_dropped.saturating_add(1);
             }
         }
@@ -288,7 +312,7 @@ impl<F: NorFlash> Service<F> {
         if let Some(record) = self.executor.on_output(record) {
             let mut buf = [0u8; MAX_OUTPUT_FRAME];
             let n = encode_output_frame(&record, &mut buf);
-            if !ports.try_send_frame(&buf[..n]) {
+            if !ports.try_send_frame(buf.get(..n).unwrap_or(&buf)) {
                 self.frames_dropped = self.frames_dropped.saturating_add(1);
             }
         }

@@ -22,7 +22,7 @@ use crate::storage::ReadoutPaused;
 /// A millisecond clock.
 pub trait Clock {
     /// Milliseconds since start: monotonic, 64 bits, never wraps (the protocol's unlock and
-    /// penalty deadlines compare plainly).
+    /// window times compare plainly).
     fn now_ms(&self) -> u64;
 }
 
@@ -66,7 +66,7 @@ pub trait Secrets {
     fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError>;
     /// Keeps the wrong-key count across resets (backup RAM on the board: no wear). Called only
     /// when the count changed, so at most once per `unlock` attempt, and attempts are
-    /// throttled by the penalty. The platform reads it back at boot for
+    /// throttled by the unlock windows. The platform reads it back at boot for
     /// `Service::restore_wrong_keys`.
     fn save_wrong_keys(&mut self, count: u32);
 }

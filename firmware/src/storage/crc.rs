@@ -8,6 +8,10 @@
 const POLYNOMIAL: u32 = 0xEDB8_8320;
 
 /// CRC of each half-byte value, for the reflected (LSB-first) register.
+#[allow(
+    clippy::indexing_slicing,
+    reason = "evaluated at compile time: an index out of range would fail the build"
+)]
 const NIBBLE_TABLE: [u32; 16] = {
     let mut table = [0u32; 16];
     let mut nibble = 0;
@@ -49,6 +53,10 @@ impl Crc32 {
     }
 
     /// Feeds `bytes` (in order).
+    #[allow(
+        clippy::indexing_slicing,
+        reason = "the index is masked to 0..=15, the table has 16 entries"
+    )]
     pub fn update(&mut self, bytes: &[u8]) {
         let mut crc = self.register;
         for &byte in bytes {

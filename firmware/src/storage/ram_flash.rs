@@ -50,13 +50,13 @@ impl<const SECTORS: usize, const SECTOR_BYTES: usize> RamFlash<SECTORS, SECTOR_B
         self.sectors.as_flattened_mut()
     }
 
-    fn range(offset: u32, len: usize) -> Result<core::ops::Range<usize>, RamFlashError> {
+    /// The bytes from `offset`, `len` long, or `OutOfBounds`.
+    fn cells(&mut self, offset: u32, len: usize) -> Result<&mut [u8], RamFlashError> {
         let start = offset as usize;
         let end = start.checked_add(len).ok_or(RamFlashError::OutOfBounds)?;
-        if end > SECTORS * SECTOR_BYTES {
-            return Err(RamFlashError::OutOfBounds);
-        }
-        Ok(start..end)
+        self.bytes_mut()
+            .get_mut(start..end)
+            .ok_or(RamFlashError::OutOfBounds)
     }
 }
 
@@ -78,13 +78,13 @@ impl<const SECTORS: usize, const SECTOR_BYTES: usize> ReadNorFlash
     const READ_SIZE: usize = 1;
 
     fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), RamFlashError> {
-        let range = Self::range(offset, bytes.len())?;
-        bytes.copy_from_slice(&self.bytes()[range]);
+        let cells = self.cells(offset, bytes.len())?;
+        bytes.copy_from_slice(cells);
         Ok(())
     }
 
     fn capacity(&self) -> usize {
-        SECTORS * SECTOR_BYTES
+        self.bytes().len()
     }
 }
 
@@ -99,8 +99,8 @@ impl<const SECTORS: usize, const SECTOR_BYTES: usize> NorFlash for RamFlash<SECT
         {
             return Err(RamFlashError::NotAligned);
         }
-        let range = Self::range(from, (to - from) as usize)?;
-        self.bytes_mut()[range].fill(0xFF);
+        let len = to.checked_sub(from).ok_or(RamFlashError::NotAligned)?;
+        self.cells(from, len as usize)?.fill(0xFF);
         Ok(())
     }
 
@@ -108,8 +108,7 @@ impl<const SECTORS: usize, const SECTOR_BYTES: usize> NorFlash for RamFlash<SECT
         if !offset.is_multiple_of(4) || !bytes.len().is_multiple_of(4) {
             return Err(RamFlashError::NotAligned);
         }
-        let range = Self::range(offset, bytes.len())?;
-        for (cell, &b) in self.bytes_mut()[range].iter_mut().zip(bytes) {
+        for (cell, &b) in self.cells(offset, bytes.len())?.iter_mut().zip(bytes) {
             *cell &= b;
         }
         Ok(())

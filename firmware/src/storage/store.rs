@@ -40,8 +40,11 @@ impl Geometry {
         sector_bytes: 128 * 1024,
     };
 
+    /// Offset of `sector` (0 or 1): inside the flash, `CalibrationStore::new` checked
+    /// base + 2 sectors against its capacity.
     fn sector_start(&self, sector: usize) -> u32 {
-        self.base_offset + sector as u32 * self.sector_bytes
+        let sectors_before = if sector == 0 { 0 } else { self.sector_bytes };
+        self.base_offset.saturating_add(sectors_before)
     }
 }
 
@@ -177,19 +180,33 @@ struct SectorScan {
 /// Both sectors.
 struct Scan([SectorScan; SECTORS]);
 
+/// The other one of the two sectors.
+fn other(sector: usize) -> usize {
+    if sector == 0 {
+        1
+    } else {
+        0
+    }
+}
+
 impl Scan {
     /// The sector and contents of the newest loadable record.
     fn newest(&self) -> Option<(usize, u32, CalibrationRecord)> {
-        (0..SECTORS)
-            .filter_map(|s| self.0[s].newest.map(|(seq, record)| (s, seq, record)))
+        self.0
+            .iter()
+            .enumerate()
+            .filter_map(|(s, scan)| scan.newest.map(|(seq, record)| (s, seq, record)))
             .max_by_key(|&(_, seq, _)| seq)
     }
 
     /// The sector holding the highest sequence number of any valid frame: the one written last.
     fn head(&self) -> Option<usize> {
-        (0..SECTORS)
-            .filter(|&s| self.0[s].max_sequence.is_some())
-            .max_by_key(|&s| self.0[s].max_sequence)
+        self.0
+            .iter()
+            .enumerate()
+            .filter(|(_, scan)| scan.max_sequence.is_some())
+            .max_by_key(|(_, scan)| scan.max_sequence)
+            .map(|(s, _)| s)
     }
 
     fn max_sequence(&self) -> Option<u32> {
@@ -204,8 +221,14 @@ impl Scan {
                 .iter()
                 .filter_map(|s| s.newer_format)
                 .max_by_key(|f| f.sequence),
-            rejected_records: self.0.iter().map(|s| s.rejected_records).sum(),
-            damaged_bytes: self.0.iter().map(|s| s.damaged_bytes).sum(),
+            rejected_records: self
+                .0
+                .iter()
+                .fold(0, |n, s| n.saturating_add(s.rejected_records)),
+            damaged_bytes: self
+                .0
+                .iter()
+                .fold(0, |n, s| n.saturating_add(s.damaged_bytes)),
         }
     }
 }
@@ -231,7 +254,9 @@ impl CalibrationStore {
         if (geometry.sector_bytes as usize) < RECORD_BYTES {
             return Err(GeometryError::TooSmall);
         }
-        let end = geometry.base_offset as u64 + SECTORS as u64 * geometry.sector_bytes as u64;
+        // In u64: two u32 terms and a factor 2 cannot overflow it.
+        let end = u64::from(geometry.base_offset)
+            .saturating_add((SECTORS as u64).saturating_mul(u64::from(geometry.sector_bytes)));
         if end > flash.capacity() as u64 {
             return Err(GeometryError::OutOfBounds);
         }
@@ -322,7 +347,7 @@ impl CalibrationStore {
                 (sector, 0)
             }
         };
-        let address = self.geometry.sector_start(sector) + at;
+        let address = self.geometry.sector_start(sector).saturating_add(at);
         program(flash, address, &record::encode(record, sequence))?;
         Ok(sequence)
     }
@@ -353,12 +378,13 @@ impl CalibrationStore {
     /// the first sector is used as it is.
     fn append_position(&self, scan: &Scan) -> Option<(usize, u32)> {
         let first = scan.head().unwrap_or(0);
-        let other_used = |sector: usize| scan.0[1 - sector].used_bytes > 0;
-        [first, 1 - first].into_iter().find_map(|sector| {
-            let used = scan.0[sector].used_bytes;
-            let fits = used as usize + RECORD_BYTES <= self.geometry.sector_bytes as usize;
-            let suspect = used == 0 && other_used(sector);
-            (fits && !suspect).then_some((sector, used))
+        let used = |sector: usize| scan.0.get(sector).map_or(0, |s| s.used_bytes);
+        [first, other(first)].into_iter().find_map(|sector| {
+            let used_here = used(sector);
+            let fits = (used_here as usize).saturating_add(RECORD_BYTES)
+                <= self.geometry.sector_bytes as usize;
+            let suspect = used_here == 0 && used(other(sector)) > 0;
+            (fits && !suspect).then_some((sector, used_here))
         })
     }
 
@@ -369,12 +395,12 @@ impl CalibrationStore {
             Some((sector, _, _)) => sector,
             None => scan.head().unwrap_or(0),
         };
-        1 - keep
+        other(keep)
     }
 
     fn erase<F: NorFlash>(&self, flash: &mut F, sector: usize) -> Result<(), StoreError<F::Error>> {
         let start = self.geometry.sector_start(sector);
-        let end = start + self.geometry.sector_bytes;
+        let end = start.saturating_add(self.geometry.sector_bytes);
         flash.erase(start, end).map_err(StoreError::Flash)?;
         expect_erased(flash, start, end)
     }
@@ -396,27 +422,31 @@ impl CalibrationStore {
         let start = self.geometry.sector_start(sector);
         let sector_bytes = self.geometry.sector_bytes;
         let mut scan = SectorScan::default();
-        let mut at = 0;
+        // `at` stays below the sector's size (a frame is taken only when it ends inside the
+        // sector), and every address below the geometry's end: the additions cannot saturate.
+        let unit_bytes = ALIGN_BYTES as u32;
+        let mut at: u32 = 0;
         while at < sector_bytes {
-            let unit = read_unit(flash, start + at)?;
+            let address = start.saturating_add(at);
+            let unit = read_unit(flash, address)?;
             if unit == ERASED_UNIT {
-                at += ALIGN_BYTES as u32;
+                at = at.saturating_add(unit_bytes);
                 continue;
             }
             let header = record::parse_header(&unit)
-                .filter(|h| at as usize + h.length_bytes <= sector_bytes as usize);
+                .filter(|h| (at as usize).saturating_add(h.length_bytes) <= sector_bytes as usize);
             let frame = match header {
-                Some(header) if frame_is_valid(flash, start + at, &header, &unit)? => Some(header),
+                Some(header) if frame_is_valid(flash, address, &header, &unit)? => Some(header),
                 _ => None,
             };
             match frame {
                 Some(header) => {
-                    take_frame(flash, start + at, &header, &mut scan)?;
-                    at += header.length_bytes as u32;
+                    take_frame(flash, address, &header, &mut scan)?;
+                    at = at.saturating_add(header.length_bytes as u32);
                 }
                 None => {
-                    scan.damaged_bytes += ALIGN_BYTES as u32;
-                    at += ALIGN_BYTES as u32;
+                    scan.damaged_bytes = scan.damaged_bytes.saturating_add(unit_bytes);
+                    at = at.saturating_add(unit_bytes);
                 }
             }
             scan.used_bytes = at;
@@ -447,19 +477,21 @@ fn take_frame<F: ReadNorFlash>(
         }
         return Ok(());
     };
-    if header.length_bytes != length {
-        scan.rejected_records += 1;
+    let mut buffer = [0u8; RECORD_BYTES];
+    let Some(bytes) = buffer
+        .get_mut(..length)
+        .filter(|_| header.length_bytes == length)
+    else {
+        scan.rejected_records = scan.rejected_records.saturating_add(1);
         return Ok(());
-    }
-    let mut bytes = [0u8; RECORD_BYTES];
-    let bytes = &mut bytes[..length];
+    };
     flash.read(address, bytes)?;
     match record::decode(bytes) {
         Ok((sequence, record)) if scan.newest.is_none_or(|(seq, _)| seq < sequence) => {
             scan.newest = Some((sequence, record));
         }
         Ok(_) => {}
-        Err(_) => scan.rejected_records += 1,
+        Err(_) => scan.rejected_records = scan.rejected_records.saturating_add(1),
     }
     Ok(())
 }
@@ -471,19 +503,20 @@ fn frame_is_valid<F: ReadNorFlash>(
     header: &FrameHeader,
     first: &Unit,
 ) -> Result<bool, F::Error> {
-    let last = address + (header.length_bytes - ALIGN_BYTES) as u32;
+    // The frame lies inside its sector (checked by the caller): no address saturates.
+    let last = address.saturating_add(header.length_bytes.saturating_sub(ALIGN_BYTES) as u32);
     let mut crc = Crc32::new();
     let mut unit = *first;
     let mut at = address;
     while at < last {
         crc.update(&unit);
-        at += ALIGN_BYTES as u32;
+        at = at.saturating_add(ALIGN_BYTES as u32);
         unit = read_unit(flash, at)?;
     }
-    let crc_at = ALIGN_BYTES - 8;
-    crc.update(&unit[..crc_at]);
-    let committed = get_u32(&unit, crc_at + 4) == COMMIT_MARKER;
-    Ok(committed && get_u32(&unit, crc_at) == crc.finish())
+    let (body, closing) = unit.split_last_chunk::<8>().unwrap_or((&[], &[0; 8]));
+    crc.update(body);
+    let committed = get_u32(closing, 4) == COMMIT_MARKER;
+    Ok(committed && get_u32(closing, 0) == crc.finish())
 }
 
 /// Programs a record: blank check, body, read-back, then the commit marker, read-back again.
@@ -492,11 +525,11 @@ fn program<F: NorFlash>(
     address: u32,
     bytes: &[u8; RECORD_BYTES],
 ) -> Result<(), StoreError<F::Error>> {
-    expect_erased(flash, address, address + RECORD_BYTES as u32)?;
+    expect_erased(flash, address, address.saturating_add(RECORD_BYTES as u32))?;
     let (body, marker) = bytes.split_at(record::offset::COMMIT);
     flash.write(address, body).map_err(StoreError::Flash)?;
     verify(flash, address, body)?;
-    let marker_address = address + body.len() as u32;
+    let marker_address = address.saturating_add(body.len() as u32);
     flash
         .write(marker_address, marker)
         .map_err(StoreError::Flash)?;
@@ -511,13 +544,13 @@ fn verify<F: ReadNorFlash>(
 ) -> Result<(), StoreError<F::Error>> {
     let mut at = address;
     for chunk in expected.chunks(ALIGN_BYTES) {
-        let mut actual = [0u8; ALIGN_BYTES];
-        let actual = &mut actual[..chunk.len()];
+        let mut buffer = [0u8; ALIGN_BYTES];
+        let actual = buffer.get_mut(..chunk.len()).unwrap_or_default();
         flash.read(at, actual).map_err(StoreError::Flash)?;
         if actual != chunk {
             return Err(StoreError::Verify { offset: at });
         }
-        at += chunk.len() as u32;
+        at = at.saturating_add(chunk.len() as u32);
     }
     Ok(())
 }

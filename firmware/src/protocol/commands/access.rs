@@ -40,7 +40,7 @@ impl AccessState {
         }
     }
 
-    /// After a reset: the wrong-key count kept in backup RAM, its penalty restarted at
+    /// After a reset: the wrong-key count kept in backup RAM, its windows counted from
     /// `now_ms` ([`Access::restored`]).
     pub fn restore_wrong_keys(&mut self, wrong_keys: u32, now_ms: u64) {
         self.access = Access::restored(&self.config, wrong_keys, now_ms);

@@ -62,23 +62,27 @@ impl StreamState {
             return;
         };
         // Frames due among the n cycles: the first when the countdown runs out, then every
-        // `divider` cycles.
-        let countdown = self.countdown as u32;
-        if n < countdown {
-            self.countdown = (countdown - n) as u16;
+        // `divider` cycles. Every new countdown lies in 1..=divider, so it fits a u16.
+        let divider = u32::from(divider.max(1));
+        let countdown = u32::from(self.countdown);
+        let Some(after_first) = n.checked_sub(countdown) else {
+            self.countdown = u16::try_from(countdown.saturating_sub(n)).unwrap_or(u16::MAX);
             return;
-        }
-        let after_first = n - countdown;
-        let due = 1 + after_first / divider as u32;
+        };
+        let due = after_first
+            .checked_div(divider)
+            .unwrap_or(0)
+            .saturating_add(1);
         self.sequence = self.sequence.wrapping_add(due);
-        self.countdown = (divider as u32 - after_first % divider as u32) as u16;
+        let into = after_first.checked_rem(divider).unwrap_or(0);
+        self.countdown = u16::try_from(divider.saturating_sub(into)).unwrap_or(u16::MAX);
     }
 
     /// One dither cycle: the frame to send, when one is due.
     pub fn on_cycle(&mut self, record: &CycleRecord) -> Option<StreamRecord> {
         let divider = self.divider?;
         if self.countdown > 1 {
-            self.countdown -= 1;
+            self.countdown = self.countdown.saturating_sub(1);
             return None;
         }
         self.countdown = divider;

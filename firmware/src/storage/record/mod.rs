@@ -313,10 +313,10 @@ pub struct FrameHeader {
 
 /// Reads a frame header: the magic and a length that is a whole number of units.
 pub fn parse_header(unit: &[u8; ALIGN_BYTES]) -> Option<FrameHeader> {
-    let length_bytes = unit[offset::LENGTH_WORDS] as usize * 4;
+    let length_bytes = usize::from(byte_at(unit, offset::LENGTH_WORDS)).saturating_mul(4);
     let whole = length_bytes >= ALIGN_BYTES && length_bytes.is_multiple_of(ALIGN_BYTES);
     (get_u16(unit, offset::MAGIC) == MAGIC && whole).then(|| FrameHeader {
-        version: unit[offset::VERSION],
+        version: byte_at(unit, offset::VERSION),
         length_bytes,
         sequence: get_u32(unit, offset::SEQUENCE),
     })
@@ -383,10 +383,16 @@ pub fn encode(record: &CalibrationRecord, sequence: u32) -> [u8; RECORD_BYTES] {
 /// Writes the CRC of `frame[..len - 8]` at `len - 8` and the commit marker at `len - 4`:
 /// the closing words of any frame.
 pub fn seal(frame: &mut [u8]) {
-    let crc_at = frame.len() - 8;
-    let crc = crc32(&frame[..crc_at]);
+    let Some(crc_at) = frame.len().checked_sub(8) else {
+        return;
+    };
+    let crc = crc32(frame.get(..crc_at).unwrap_or_default());
     put(frame, crc_at, &crc.to_le_bytes());
-    put(frame, crc_at + 4, &COMMIT_MARKER.to_le_bytes());
+    put(
+        frame,
+        crc_at.saturating_add(4),
+        &COMMIT_MARKER.to_le_bytes(),
+    );
 }
 
 fn encode_fit(bytes: &mut [u8], fit: &FitSummary) {
@@ -417,11 +423,13 @@ pub fn decode(bytes: &[u8]) -> Result<(u32, CalibrationRecord), RecordError> {
     if header.length_bytes != bytes.len() {
         return Err(RecordError::NotAFrame);
     }
-    let crc_at = bytes.len() - 8;
-    if get_u32(bytes, crc_at + 4) != COMMIT_MARKER {
+    let (body, closing) = bytes
+        .split_last_chunk::<8>()
+        .ok_or(RecordError::NotAFrame)?;
+    if get_u32(closing, 4) != COMMIT_MARKER {
         return Err(RecordError::NotCommitted);
     }
-    if get_u32(bytes, crc_at) != crc32(&bytes[..crc_at]) {
+    if get_u32(closing, 0) != crc32(body) {
         return Err(RecordError::Crc);
     }
     if readable_length(header.version) != Some(bytes.len()) {
@@ -435,8 +443,8 @@ pub fn decode(bytes: &[u8]) -> Result<(u32, CalibrationRecord), RecordError> {
 }
 
 fn decode_body(bytes: &[u8], version: u8) -> Result<CalibrationRecord, RecordError> {
-    let flags = bytes[offset::FLAGS];
-    let enabled = bytes[offset::ENABLED];
+    let flags = byte_at(bytes, offset::FLAGS);
+    let enabled = byte_at(bytes, offset::ENABLED);
     let known = match version {
         V1_FORMAT_VERSION => V1_KNOWN_FLAGS,
         V2_FORMAT_VERSION => V2_KNOWN_FLAGS,
@@ -447,10 +455,7 @@ fn decode_body(bytes: &[u8], version: u8) -> Result<CalibrationRecord, RecordErr
     }
     let fit = if flags & FLAG_FIT_PRESENT != 0 {
         Some(decode_fit(bytes))
-    } else if bytes[offset::FIT_RUNS..offset::V1_CRC]
-        .iter()
-        .any(|&b| b != 0)
-    {
+    } else if !all_zero(bytes, offset::FIT_RUNS..offset::V1_CRC) {
         return Err(RecordError::ImplausibleFit);
     } else {
         None
@@ -492,9 +497,7 @@ fn decode_strip(
     present: bool,
     quadrature: bool,
 ) -> Result<Option<StripCoefficients>, RecordError> {
-    let reserved_clear = bytes[offset::RESERVED_2..offset::CRC]
-        .iter()
-        .all(|&b| b == 0);
+    let reserved_clear = all_zero(bytes, offset::RESERVED_2..offset::CRC);
     let strip = StripCoefficients {
         k_q24: get_u32(bytes, offset::STRIP_K) as i32,
         k_quadrature_q24: get_u32(bytes, offset::STRIP_K_QUADRATURE) as i32,
@@ -515,17 +518,13 @@ fn decode_strip(
 /// The dither bytes (versions 2 and 3): setpoints when `present`, else all zero; reserved bytes
 /// zero.
 fn decode_dither(bytes: &[u8], present: bool) -> Result<Option<DitherSetpoints>, RecordError> {
-    let reserved_clear = bytes[offset::RESERVED..offset::V2_CRC]
-        .iter()
-        .all(|&b| b == 0);
-    let enabled = bytes[offset::DITHER_ENABLED];
+    let reserved_clear = all_zero(bytes, offset::RESERVED..offset::V2_CRC);
+    let enabled = byte_at(bytes, offset::DITHER_ENABLED);
     if !reserved_clear || enabled > 1 {
         return Err(RecordError::ImplausibleDither);
     }
     if !present {
-        let clear = bytes[offset::DITHER_AMPLITUDE..offset::RESERVED]
-            .iter()
-            .all(|&b| b == 0);
+        let clear = all_zero(bytes, offset::DITHER_AMPLITUDE..offset::RESERVED);
         return if clear {
             Ok(None)
         } else {
@@ -554,17 +553,34 @@ fn decode_fit(bytes: &[u8]) -> FitSummary {
     }
 }
 
+// The accessors below take offsets of the fixed layout, inside every frame they are used on
+// (`decode` checked the frame's length for its version first); an offset outside would read
+// as 0 (and fail the checks) or write nothing, never panic.
+
 fn put(bytes: &mut [u8], at: usize, value: &[u8]) {
-    bytes[at..at + value.len()].copy_from_slice(value);
+    if let Some(slot) = bytes.get_mut(at..).and_then(|r| r.get_mut(..value.len())) {
+        slot.copy_from_slice(value);
+    }
+}
+
+fn byte_at(bytes: &[u8], at: usize) -> u8 {
+    bytes.get(at).copied().unwrap_or(0)
+}
+
+/// Whether `bytes[range]` exists and is all zero.
+fn all_zero(bytes: &[u8], range: core::ops::Range<usize>) -> bool {
+    bytes.get(range).is_some_and(|r| r.iter().all(|&b| b == 0))
 }
 
 fn get_u16(bytes: &[u8], at: usize) -> u16 {
-    u16::from_le_bytes([bytes[at], bytes[at + 1]])
+    let word = bytes.get(at..).and_then(|r| r.first_chunk::<2>());
+    word.map_or(0, |w| u16::from_le_bytes(*w))
 }
 
-/// The little-endian word at `at`.
+/// The little-endian word at `at` (0 when the bytes end before it).
 pub fn get_u32(bytes: &[u8], at: usize) -> u32 {
-    u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap())
+    let word = bytes.get(at..).and_then(|r| r.first_chunk::<4>());
+    word.map_or(0, |w| u32::from_le_bytes(*w))
 }
 
 #[cfg(test)]

@@ -1,0 +1,6 @@
+//! The `device` target; its checks are in `src/device.rs`.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| rlg_protocol_fuzz::device::check(data));

@@ -1,0 +1,6 @@
+//! The `host` target; its checks are in `src/host.rs`.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| rlg_protocol_fuzz::host::check(data));
