@@ -14,6 +14,7 @@
 
 mod flags;
 
+pub mod board_timing;
 pub mod calibration;
 pub mod dither;
 pub mod math;

@@ -176,7 +176,6 @@ pub fn run() -> ! {
     sync::init(&dp.TIM2);
     let dither_config = DitherConfig::for_profile(&profile);
     dither::init(&dp.TIM4, &dp.DAC, &dp.ADC3, dither_config.dac_mid_code);
-    turnaround::measure_drive_tick_phase(&dp.TIM2, &dp.TIM4);
     start_dither(dither_config, dither_setpoints);
     unmask_readout(true);
     // SAFETY: the USART's queues were set up in `usart::init`.

@@ -320,7 +320,8 @@ pub fn pause_readout(hardware: bool) {
         turnaround::pause(unsafe { &*pac::TIM2::ptr() });
     }
     NVIC::pend(READOUT_TASK_IRQ);
-    // The pended task (priority 0x40 > thread) is taken before the next instruction completes.
+    // The pended task (priority 0x50, above thread mode) is taken before the next instruction
+    // completes.
     cortex_m::asm::dsb();
     cortex_m::asm::isb();
     NVIC::mask(READOUT_TASK_IRQ);
