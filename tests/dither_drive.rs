@@ -22,7 +22,7 @@ fn run(options: DitherRunOptions) -> (dither_run::DitherSummary, Vec<DitherRow>)
 }
 
 /// From rest at 389 Hz: within 1 % of the setpoint in <= 2 s, overshoot <= 5 % (measured:
-/// 0.60 s, 0.00 %; the drive at its limit, 0.93 of the DAC's half range, is 4x what 450 arcsec
+/// 0.60 s, 0.00 %; the drive at its limit, the DAC's linear range (0.88 of its half range), is 4x what 450 arcsec
 /// needs at Q = 1000); and it settles for Q = 5000 too (0.51 s: the ring-up at the limit is
 /// independent of Q, the loop measures the plant's gain).
 #[test]

@@ -176,7 +176,7 @@ pub fn run() -> ! {
     sync::init(&dp.TIM2);
     let dither_config = DitherConfig::for_profile(&profile);
     dither::init(&dp.TIM4, &dp.DAC, &dp.ADC3, dither_config.dac_mid_code);
-    start_dither(dither_config, dither_setpoints);
+    start_dither(dither_config, dither_setpoints, true);
     unmask_readout(true);
     // SAFETY: the USART's queues were set up in `usart::init`.
     unsafe { NVIC::unmask(pac::Interrupt::USART1) };

@@ -270,14 +270,23 @@ pub fn unmask_readout(hardware: bool) {
     }
 }
 
-/// Starts the dither controller with the stored setpoints (none stored, or refused: the
-/// defaults, enabled) and unmasks the drive tick; enabled, the start-up begins at the first
-/// tick. TIM4, the DAC and ADC3 must be set up (`dither::init`).
-pub fn start_dither(config: DitherConfig, stored: Option<DitherSetpoints>) {
+/// Starts the dither controller with the stored setpoints (`DitherController::apply_stored`:
+/// none stored, the defaults, enabled; a refused record keeps its `enabled`) and unmasks the
+/// drive tick. With the board's power-up checks passed the pick-off check runs first (the
+/// half-drive sweep, `crate::dither`'s `self_test`), then the start-up if the drive is wanted
+/// on; with a check failed the drive is inhibited. TIM4, the DAC and ADC3 must be set up
+/// (`dither::init`).
+pub fn start_dither(
+    config: DitherConfig,
+    stored: Option<DitherSetpoints>,
+    board_checks_passed: bool,
+) {
     let mut controller = DitherController::new(&config);
-    let applied = stored.is_some_and(|s| controller.apply_setpoints(&config, s).is_ok());
-    if !applied {
-        controller.enable();
+    controller.apply_stored(&config, stored);
+    if board_checks_passed {
+        controller.start_self_test();
+    } else {
+        controller.inhibit();
     }
     DITHER.init(DitherTask { config, controller });
     // SAFETY: the tick's state was initialised just above.

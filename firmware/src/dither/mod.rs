@@ -44,6 +44,7 @@
 //! | `amplitude` | PI (`idsp` clamped biquad) from the amplitude to the drive, gain normalised by the measured plant gain, clamped at the drive limit (guard and anti-windup) |
 //! | `startup` | listen (time a ring by its zero crossings), sweep (300 Hz/s, which rings any Q up at f0), ring-up, lock criteria |
 //! | `supervisor` | states, faults, limits, counters, back-off |
+//! | `self_test` | the power-up check that the pick-off answers the drive: a sweep at a low drive |
 //! | `noise` | random-noise dither: the drive's amplitude times 1 + depth r every half cycle (seeded xorshift32) |
 //! | `estimate` | the per-half-cycle [`DitherEstimate`] for the readout |
 //! | `controller` | [`DitherController`]: the tick, the half-cycle update, the commands, the status |
@@ -117,6 +118,7 @@ mod estimate;
 mod frequency;
 mod measure;
 mod noise;
+mod self_test;
 mod startup;
 mod supervisor;
 
@@ -124,12 +126,13 @@ mod supervisor;
 mod tests;
 
 pub use amplitude::{AmplitudeLoop, AmplitudeLoopConfig, PlantGainProbe};
-pub use config::DitherConfig;
+pub use config::{drive_limit_codes, DitherConfig};
 pub use controller::{CommandError, DitherController, DitherStatus, StartPhase, Tick};
 pub use dds::{cos_sin_q31, hz_to_step, step_to_hz, Drive};
 pub use estimate::DitherEstimate;
 pub use frequency::{phase_in, reference_shift, FrequencyLoop, FrequencyLoopConfig};
 pub use measure::{HalfCycle, SineFit, Window, MAX_WINDOW};
 pub use noise::{NoiseDither, MAX_DEPTH_PERCENT};
+pub use self_test::{PickoffCheck, PickoffFailure, SELF_TEST_DRIVE_FRACTION};
 pub use startup::{Ring, RingListener, StartupConfig};
 pub use supervisor::{Backoff, DitherState, FaultCounters, FaultKind, FaultLimits, Run};
