@@ -12,6 +12,9 @@ pub struct BoardHealth {
     pub selftest: SelfTestReport,
     /// The rate monitors' faults and the lost clock.
     pub timing: TimingFaults,
+    /// The board runs in QEMU, which cannot pass [`super::selftest::QEMU_UNMODELLED`]
+    /// (`selftest` says so).
+    pub emulated: bool,
 }
 
 /// `status`'s `board=` word.
@@ -45,6 +48,7 @@ impl BoardHealth {
     pub const UNTESTED: Self = Self {
         selftest: SelfTestReport::NOT_RUN,
         timing: TimingFaults(0),
+        emulated: false,
     };
 
     /// The one word `status` shows: a failed check first (it keeps the drive off), then a
