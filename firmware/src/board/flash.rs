@@ -14,7 +14,9 @@
 //!   store to the address. Both: wait while `SR.BSY`, then check `SR` (`OPERR`, `WRPERR`, `PGAERR`,
 //!   `PGPERR`, `PGSERR`) -> [`FlashError`], clear the flags (write 1).
 //! - After an erase or program, the ART data cache may hold the old contents of those addresses:
-//!   it is reset (`ACR.DCEN = 0`, `DCRST` pulse, `DCEN = 1`) before anything reads them back.
+//!   it is reset before anything reads them back, in four separate writes, because `DCRST` may
+//!   be written only while the data cache is disabled (RM0090 3.9.1, FLASH_ACR): `DCEN = 0`,
+//!   `DCRST = 1`, `DCRST = 0`, `DCEN = 1`.
 //!
 //! # The stall
 //! The F405 has a single flash bank. While `BSY` is set, every instruction fetch and data read
@@ -105,13 +107,12 @@ impl InternalFlash {
 
     fn lock(&mut self) {
         self.regs.cr().write(|w| unsafe { w.bits(CR_LOCK) });
-        let acr = self.regs.acr().read().bits();
-        self.regs
-            .acr()
-            .write(|w| unsafe { w.bits((acr & !ACR_DCEN) | ACR_DCRST) });
-        self.regs
-            .acr()
-            .write(|w| unsafe { w.bits(acr & !ACR_DCRST) });
+        // The data cache reset, DCRST written only with the cache disabled (module docs).
+        let acr = self.regs.acr().read().bits() & !ACR_DCRST;
+        let off = acr & !ACR_DCEN;
+        for step in [off, off | ACR_DCRST, off, acr] {
+            self.regs.acr().write(|w| unsafe { w.bits(step) });
+        }
     }
 
     /// Waits for the end of the operation (the CPU stalls here) and collects its errors.

@@ -64,6 +64,7 @@ use cortex_m::peripheral::{scb::SystemHandler, NVIC, SCB, SYST};
 use heapless::spsc::{Consumer, Producer, Queue};
 
 use super::{adc, pac, turnaround, Owned};
+use crate::board_timing::selftest::SelfTestReport;
 use crate::dither::{DitherConfig, DitherController};
 use crate::readout::{Readout, ReadoutConfig};
 use crate::sample::{OutputSample, TurnaroundSample};
@@ -272,21 +273,22 @@ pub fn unmask_readout(hardware: bool) {
 
 /// Starts the dither controller with the stored setpoints (`DitherController::apply_stored`:
 /// none stored, the defaults, enabled; a refused record keeps its `enabled`) and unmasks the
-/// drive tick. With the board's power-up checks passed the pick-off check runs first (the
-/// half-drive sweep, `crate::dither`'s `self_test`), then the start-up if the drive is wanted
-/// on; with a check failed the drive is inhibited. TIM4, the DAC and ADC3 must be set up
-/// (`dither::init`).
+/// drive tick. With the board's power-up checks (`selftest`) passed the pick-off check runs
+/// first (the half-drive sweep, `crate::dither`'s `self_test`), then the start-up if the drive
+/// is wanted on; with a check failed the drive is inhibited. `None`: no board (the QEMU serial
+/// example: the controller exists for the protocol, its tick never runs). TIM4, the DAC and
+/// ADC3 must be set up (`dither::init`).
 pub fn start_dither(
     config: DitherConfig,
     stored: Option<DitherSetpoints>,
-    board_checks_passed: bool,
+    selftest: Option<&SelfTestReport>,
 ) {
     let mut controller = DitherController::new(&config);
     controller.apply_stored(&config, stored);
-    if board_checks_passed {
-        controller.start_self_test();
-    } else {
-        controller.inhibit();
+    match selftest {
+        Some(report) if report.hardware_passed() => controller.start_self_test(),
+        Some(_) => controller.inhibit(),
+        None => {}
     }
     DITHER.init(DitherTask { config, controller });
     // SAFETY: the tick's state was initialised just above.

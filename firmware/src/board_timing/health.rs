@@ -63,7 +63,7 @@ impl BoardHealth {
         let outcomes = &self.selftest.0;
         if outcomes.iter().all(|&o| o == Outcome::NotRun) {
             HealthWord::Untested
-        } else if outcomes.iter().any(|&o| o == Outcome::Running) {
+        } else if outcomes.contains(&Outcome::Running) {
             HealthWord::Testing
         } else {
             HealthWord::Ok

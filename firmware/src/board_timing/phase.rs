@@ -121,7 +121,7 @@ mod tests {
         while t < end {
             let (t2, t4) = counters(t, tim4_start);
             plan.set_keep_out(keep_out_now(t2, t4, P, HALF, 2 * HALF));
-            if rng.next() % 3 == 0 {
+            if rng.next().is_multiple_of(3) {
                 let at = t2.wrapping_add(168 + (rng.next() % 1000) as u32);
                 plan.on_turnaround(TurnaroundKind::Plus, at);
             }
@@ -139,7 +139,7 @@ mod tests {
                 plan.on_fired();
             }
             t += 84_000 + rng.next() % 2000;
-            if rng.next() % 4096 == 0 {
+            if rng.next().is_multiple_of(4096) {
                 t += rng.next() % 500_000_000;
             }
         }

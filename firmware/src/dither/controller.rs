@@ -307,8 +307,9 @@ impl DitherController {
 
     /// Applies stored or commanded setpoints whole: the amplitude and the noise depth are
     /// range-checked first, so an error changes nothing; the drive is enabled or disabled only
-    /// if that differs from [`Self::enabled`] (a running start-up is not restarted). Switching
-    /// an inhibited drive on is refused ([`CommandError::Inhibited`]).
+    /// if that differs from [`Self::enabled`] (a running start-up is not restarted). Setpoints
+    /// with the drive on are refused while it is inhibited ([`CommandError::Inhibited`]): the
+    /// answer must not say `dither=on` for a drive that stays off.
     pub fn apply_setpoints(
         &mut self,
         config: &DitherConfig,
@@ -317,7 +318,7 @@ impl DitherController {
         let (lo, hi) = config.setpoint_range_arcsec;
         check_range(setpoints.amplitude_arcsec, lo, hi)?;
         check_range(setpoints.noise_percent, 0.0, MAX_DEPTH_PERCENT)?;
-        if self.inhibited && setpoints.enabled && !self.enabled() {
+        if self.inhibited && setpoints.enabled {
             return Err(CommandError::Inhibited);
         }
         if setpoints.amplitude_arcsec != self.setpoint_arcsec {

@@ -125,6 +125,16 @@ mod supervisor;
 #[cfg(test)]
 mod tests;
 
+/// The dither amplitude the fringe count measured over `record`'s cycle, arcsec of body angle
+/// (beat-phase rad x scale factor / 2 pi): what [`DitherController::check_count_amplitude`]
+/// takes, on the board (`board::app`) and the simulated board alike.
+pub fn count_amplitude_arcsec(
+    record: &crate::signal::lockin::CycleRecord,
+    scale_factor_arcsec: f32,
+) -> f32 {
+    record.dither_amplitude_rad * scale_factor_arcsec / core::f32::consts::TAU
+}
+
 pub use amplitude::{AmplitudeLoop, AmplitudeLoopConfig, PlantGainProbe};
 pub use config::{drive_limit_codes, DitherConfig};
 pub use controller::{CommandError, DitherController, DitherStatus, StartPhase, Tick};

@@ -648,7 +648,8 @@ fn b_limit() -> f32 {
 /// through the setpoints is refused, and what is wanted (`store`'s setpoints) is unchanged.
 #[test]
 fn self_test_fails_on_a_dead_pickoff_and_inhibits_the_drive() {
-    let cases: [(fn(&mut Resonator, u16) -> u16, PickoffFailure, f64); 3] = [
+    type Pickoff = fn(&mut Resonator, u16) -> u16;
+    let cases: [(Pickoff, PickoffFailure, f64); 3] = [
         (|_, _| 2051, PickoffFailure::Flat, 0.05),
         (|_, _| 4095, PickoffFailure::Rail, 0.01),
         (
