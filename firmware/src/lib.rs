@@ -19,6 +19,7 @@ pub mod calibration;
 pub mod dither;
 pub mod math;
 pub mod millis;
+pub mod otp_record;
 pub mod profile;
 pub mod protocol;
 pub mod readout;

@@ -157,29 +157,38 @@ impl InternalFlash {
         result
     }
 
-    /// Programs `words` into OTP block `block` (16 blocks of 32 bytes at 0x1FFF_7800) from word
-    /// `first`, then writes the block's lock byte (0x1FFF_7A00 + block) to 0x00, after which no
-    /// word of the block can be programmed again (RM0090 3.7.6). Each bit can only go from 1 to
-    /// 0, once: the caller checks the words are blank first (`super::otp`).
-    pub fn program_otp_and_lock(
+    /// Programs one word of OTP block `block` (16 blocks of 8 words at 0x1FFF_7800). Each bit
+    /// can only go from 1 to 0, once (RM0090 3.7.6); the caller (`crate::otp_record`) decides
+    /// what and in which order.
+    pub fn program_otp_word(
         &mut self,
         block: u32,
-        first: u32,
-        words: &[u32],
+        word: u32,
+        value: u32,
     ) -> Result<(), FlashError> {
-        if block >= OTP_BLOCKS || first as usize + words.len() > OTP_BLOCK_WORDS {
+        if block >= OTP_BLOCKS || word as usize >= OTP_BLOCK_WORDS {
             return Err(FlashError::OutOfBounds);
         }
-        let base = OTP_BASE + 32 * block + 4 * first;
+        let address = OTP_BASE + 32 * block + 4 * word;
         self.unlocked(|f| {
-            for (i, &word) in words.iter().enumerate() {
-                f.regs
-                    .cr()
-                    .write(|w| unsafe { w.bits(CR_PSIZE_X32 | CR_PG) });
-                // SAFETY: an aligned word of OTP block `block` (checked above), PG set.
-                unsafe { ((base + 4 * i as u32) as *mut u32).write_volatile(word) };
-                f.finish()?;
-            }
+            f.regs
+                .cr()
+                .write(|w| unsafe { w.bits(CR_PSIZE_X32 | CR_PG) });
+            // SAFETY: an aligned word of OTP block `block` (checked above), PG set.
+            unsafe { (address as *mut u32).write_volatile(value) };
+            let result = f.finish();
+            f.regs.cr().write(|w| unsafe { w.bits(0) });
+            result
+        })
+    }
+
+    /// Writes OTP block `block`'s lock byte (0x1FFF_7A00 + block) to 0x00: no word of the block
+    /// can be programmed again (RM0090 3.7.6).
+    pub fn lock_otp_block(&mut self, block: u32) -> Result<(), FlashError> {
+        if block >= OTP_BLOCKS {
+            return Err(FlashError::OutOfBounds);
+        }
+        self.unlocked(|f| {
             f.regs
                 .cr()
                 .write(|w| unsafe { w.bits(CR_PSIZE_X8 | CR_PG) });
@@ -193,8 +202,8 @@ impl InternalFlash {
 }
 
 /// The OTP area: 16 blocks of 32 bytes, then 16 lock bytes.
-const OTP_BASE: u32 = 0x1FFF_7800;
-const OTP_LOCK_BASE: u32 = 0x1FFF_7A00;
+pub(super) const OTP_BASE: u32 = 0x1FFF_7800;
+pub(super) const OTP_LOCK_BASE: u32 = 0x1FFF_7A00;
 const OTP_BLOCKS: u32 = 16;
 const OTP_BLOCK_WORDS: usize = 8;
 
