@@ -270,9 +270,13 @@ impl DitherController {
     }
 
     /// Starts again from listening (drive off at the next tick; not a fault): after the ticks
-    /// were interrupted (a flash store stalls the CPU). Does nothing while `Off` or in a fault.
+    /// were interrupted (a flash store stalls the CPU). Does nothing while `Off` or in a fault;
+    /// the self-test's sweep starts over. A request not yet taken (an enable, the self-test)
+    /// stays: it starts afresh anyway.
     pub fn restart(&mut self) {
-        self.request = Some(Request::Restart);
+        if self.request.is_none() {
+            self.request = Some(Request::Restart);
+        }
     }
 
     /// Sets the amplitude setpoint, arcsec (within `config.setpoint_range_arcsec`; an error
@@ -409,7 +413,9 @@ impl DitherController {
         match self.mode {
             // Asked to start, the first tick not yet run.
             _ if self.inhibited => DitherState::Inhibited,
-            Mode::Off if self.request == Some(Request::Enable) => DitherState::Starting,
+            Mode::Off if matches!(self.request, Some(Request::Enable | Request::SelfTest)) => {
+                DitherState::Starting
+            }
             Mode::Off => DitherState::Off,
             Mode::Locked { .. } => DitherState::Locked,
             Mode::Fault { kind, .. } => DitherState::Fault(kind),
@@ -558,16 +564,17 @@ impl DitherController {
                 self.listen(config, k, None);
                 true
             }
-            (Request::SelfTest, Mode::Off) => {
+            (Request::SelfTest, Mode::Off) | (Request::Restart, Mode::SelfTest { .. }) => {
                 self.window = Window::new();
                 self.flat.clear();
                 self.mode = Mode::SelfTest { up: true };
                 self.set_drive(
                     config.startup.self_test_drive_q16 as i32,
                     config.startup.search_steps.0,
-                )
+                );
+                true
             }
-            (Request::Restart, Mode::Off | Mode::Fault { .. } | Mode::SelfTest { .. })
+            (Request::Restart, Mode::Off | Mode::Fault { .. })
             | (Request::Enable | Request::SelfTest, _) => false,
             (Request::Restart, _) => {
                 self.listen(config, k, None);

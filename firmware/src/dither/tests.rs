@@ -797,6 +797,32 @@ fn a_refused_stored_record_keeps_its_enabled() {
     assert_eq!(ctrl.setpoints(), good);
 }
 
+/// A restart (the end of a store's pause) before the first tick keeps the pending start: an
+/// enable still starts the drive, a self-test still runs; a restart during the self-test's
+/// sweep starts the sweep over (the drive was at mid-scale during the pause).
+#[test]
+fn a_restart_keeps_a_pending_start_and_restarts_the_self_test() {
+    let mut b = Bench::new(389.0, 1000.0);
+    b.ctrl.enable();
+    b.ctrl.restart();
+    assert!(b.run_until(DitherState::Locked, 3.0).is_some());
+    let mut b = Bench::new(389.0, 1000.0);
+    b.ctrl.enable();
+    b.ctrl.start_self_test();
+    b.ctrl.restart();
+    b.run(0.1);
+    assert_eq!(
+        b.ctrl.status(&b.config).start_phase,
+        Some(StartPhase::SelfTest)
+    );
+    b.ctrl.restart();
+    let t = b.tick();
+    assert!(t.drive_changed, "the sweep starts over");
+    assert_eq!(b.ctrl.pickoff_check(), PickoffCheck::Running);
+    assert!(b.run_until(DitherState::Locked, 3.0).is_some());
+    assert_eq!(b.ctrl.pickoff_check(), PickoffCheck::Pass);
+}
+
 /// Random-noise dither, closed loop: depth 30 %, the drive's amplitude changes at every half
 /// cycle, the mechanical peak amplitude follows (measured spread printed), the loop holds the
 /// mean within 0.1 % and stays locked; the same seed gives the same DAC sequence.
