@@ -8,7 +8,7 @@
 //!
 //! | context | vector | prio | work | worst case |
 //! |---|---|---|---|---|
-//! | latch | `ADC` (JEOC) | 0x00 | copy ADC1/ADC2 JDR1, ADC3 DR, TIM5 CCR3, TIM2 CCR1 into a `TurnaroundSample` or an `OutputSample`, arm the next compare (`LatchPlan`), enqueue, pend the readout task | 129 instr, 1.3 us |
+//! | latch | `ADC` (JEOC, OVR) | 0x00 | an overrun restarts the photodiode stream; copy ADC1/ADC2 JDR1, ADC3 DR (after its EOC), TIM5 CCR3, TIM2 CCR1 into a `TurnaroundSample` or an `OutputSample`, arm the next compare (`LatchPlan`, re-anchored from TIM2/TIM4), enqueue, pend the readout task | ~150 instr, 1.6 us; 480 instr, 4.7 us with ADC3's full EOC poll |
 //! | dither drive tick | `TIM4` (CC1, 40 kHz) | 0x10 | ADC3 JDR1 (pick-off) -> `DitherController::on_tick` -> DAC DHR12R1 | 18 + 232 instr, 2.5 us; at the end of a half dither cycle 18 + 1243, 12.0 us |
 //! | pick-off and sync | `TIM2` (CC3/CC4, CC2) | 0x20 | edge time -> predicted turnaround -> `CCR1`; a sync edge (or the internal output period) -> the output latch's compare (`super::sync`) | 55 instr, 0.7 us (both edges pending: 1.1 us) |
 //! | serial | `USART1` | 0x30 | RX byte -> RX queue; TX queue -> DR | 35 + 20 per byte, 0.9 us |
@@ -27,7 +27,8 @@
 //! period minus 2 us (248 us at 1 kHz): the tick takes at most a few us of that. The USART
 //! must read each byte within one character time (21.7 us at 460 800 Bd): it is preempted
 //! only by the three handlers above (one tick at most per character; with the tick that
-//! closes a half cycle 0.7 + 11.7 + 1.1 = 13.5 us together). The
+//! closes a half cycle and a latch polling ADC3 to the end 4.7 + 12.2 + 1.1 = 18 us together).
+//! The NMI (the clock security system) records a flag and returns. The
 //! readout task has half a dither period per turnaround and 20.7 ms per Lissajous block; the
 //! main loop takes whatever is left.
 //!

@@ -116,9 +116,10 @@ const SR_CC4OF: u32 = 1 << 12;
 // ADC_SR: EOC 1 (the regular conversion, ADC3's pick-off at an output latch)
 const ADC_SR_EOC: u32 = 1 << 1;
 /// Polls of ADC3's EOC before a latch's pick-off counts as not converted: each is an APB2 read
-/// and a branch, at least 4 core cycles, so 96 polls last at least 2.3 us at 168 MHz, more
-/// than the 1.3 us one injected conversion adds to the regular one it meets.
-const EOC_POLLS: u32 = 96;
+/// and a branch, at least 4 core cycles, so 64 polls last at least 1.5 us at 168 MHz, more
+/// than the 1.3 us one injected conversion adds to the regular one it meets (the handler runs
+/// after ADC1's JEOC, when an undelayed ADC3 conversion has ended too: one poll).
+const EOC_POLLS: u32 = 64;
 
 /// Configures TIM2 (clocks for TIM2, GPIOA, GPIOB must be on) and starts it, compare parked.
 /// The pick-off interrupt is enabled in the peripheral; the NVIC line is the caller's.
