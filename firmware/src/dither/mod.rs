@@ -78,7 +78,8 @@
 //! - demodulator (`measure` tests, 2000 random half cycles, 280-620 Hz, 1125-code amplitude,
 //!   offsets to +-40 codes): amplitude 0.12 code rms (1e-4), phase 1e-4 rad rms; with 1 code
 //!   rms of noise 0.40 code and 3.6e-4 rad;
-//! - from rest at 389 Hz: within 1 % in 0.84 s (Q = 1000) and 0.75 s (Q = 5000), no overshoot;
+//! - from rest at 389 Hz: within 1 % in 0.84 s (Q = 1000) and 0.76 s (Q = 5000), 0.05 %
+//!   overshoot (the drive limited to the DAC's linear range: [`drive_limit_codes`]);
 //!   cold starts at 300 and 600 Hz lock in 1.54 and 1.60 s (locking waits for the amplitude
 //!   to hold within 0.2 % for 256 half cycles: the hand-over to the slow locked loop);
 //! - f0 drifting 0.5 Hz in 60 s: amplitude 0.0072 % rms off the setpoint, drive within

@@ -56,12 +56,13 @@ pub fn status<D: DeviceLink>(id: &Identity, device: &mut D, flags: StatusFlags) 
     let amplitude_arcsec = s.dither_amplitude_rad * id.scale_factor_arcsec / core::f32::consts::TAU;
     let drive = super::dither::state_word(device.dither_status().state);
     ok_with(format_args!(
-        "signal={} drive={} dither_hz={:.3} dither_amp_arcsec={:.2} rate_deg_h={:.4} turnarounds={} \
+        "signal={} drive={} board={} dither_hz={:.3} dither_amp_arcsec={:.2} rate_deg_h={:.4} turnarounds={} \
 cycles={} counter_glitches={} phase_glitches={} signal_lost={} missed={} dropped={} comp={} track={} \
 coeffs={} locked={} key={} strip_k={:.7} strip_k_prev={:.7} strip_k_std_rel={:.1e} strip={} \
-output_records={} board={}",
+output_records={}",
         if s.signal_ok { "ok" } else { "lost" },
         drive,
+        device.board_health().word(),
         s.dither_hz,
         amplitude_arcsec,
         s.rate_deg_per_h,
@@ -90,7 +91,6 @@ output_records={} board={}",
             "learning"
         },
         s.output_records,
-        device.board_health().word(),
     ))
 }
 
@@ -252,11 +252,10 @@ mod tests {
         };
         assert_eq!(
             text(status(&ID, &mut device, flags)).trim_end(),
-            "OK signal=ok drive=locked dither_hz=389.000 dither_amp_arcsec=200.00 rate_deg_h=15.0000 \
+            "OK signal=ok drive=locked board=untested dither_hz=389.000 dither_amp_arcsec=200.00 rate_deg_h=15.0000 \
 turnarounds=10 cycles=5 counter_glitches=1 phase_glitches=2 signal_lost=3 missed=4 dropped=6 \
 comp=off track=on coeffs=flash:3 locked=yes key=unprovisioned strip_k=0.2144199 \
-strip_k_prev=-0.0001234 strip_k_std_rel=2.1e-5 strip=converged output_records=12345 \
-board=untested"
+strip_k_prev=-0.0001234 strip_k_std_rel=2.1e-5 strip=converged output_records=12345"
         );
     }
 
