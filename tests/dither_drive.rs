@@ -22,9 +22,9 @@ fn run(options: DitherRunOptions) -> (dither_run::DitherSummary, Vec<DitherRow>)
 }
 
 /// From rest at 389 Hz: within 1 % of the setpoint in <= 2 s, overshoot <= 5 % (measured:
-/// 0.60 s, 0.00 %; the drive at its limit, 0.93 of the DAC's half range, is 4x what 450 arcsec
-/// needs at Q = 1000); and it settles for Q = 5000 too (0.51 s: the ring-up at the limit is
-/// independent of Q, the loop measures the plant's gain).
+/// 0.60 s, 0.40 %; the drive at its limit, the DAC's linear range, 0.88 of its half range, is
+/// 3.8x what 450 arcsec needs at Q = 1000); and it settles for Q = 5000 too (0.56 s: the
+/// ring-up at the limit is independent of Q, the loop measures the plant's gain).
 #[test]
 fn from_rest_it_settles_within_two_seconds_without_overshoot() {
     for (q, settle_regression_s) in [(1000.0, 1.0), (5000.0, 1.0)] {
@@ -55,9 +55,12 @@ fn from_rest_it_settles_within_two_seconds_without_overshoot() {
     }
 }
 
-/// f0 drifting 0.5 Hz in 60 s: amplitude rms error <= 0.05 % of the setpoint (measured 0.032 %,
-/// the settling included), |drive - resonance| <= 0.015 Hz while locked (measured 0.0021 Hz:
-/// the amplifier's lag compensated, the frequency loop's integral follows the ramp).
+/// f0 drifting 0.5 Hz in 60 s: amplitude rms error <= 0.05 % of the setpoint (measured 0.048 %,
+/// the settling included: the amplitude passes the setpoint by 0.3 % after the hand-over to the
+/// slow locked loop and takes 2 s back; 0.002 % rms from 10 s on), |drive - resonance|
+/// <= 0.015 Hz while locked (measured 0.0095 Hz at the lock itself, when the frequency loop is
+/// still pulling in; 0.0020 Hz from 5 s on: the amplifier's lag compensated, the frequency
+/// loop's integral follows the ramp).
 #[test]
 fn locked_through_a_resonance_drift() {
     let (s, rows) = run(DitherRunOptions {
@@ -85,7 +88,7 @@ fn locked_through_a_resonance_drift() {
         s.max_frequency_error_hz
     );
     assert!(
-        s.max_frequency_error_hz <= 0.006,
+        s.max_frequency_error_hz <= 0.011,
         "regression: {}",
         s.max_frequency_error_hz
     );

@@ -95,7 +95,7 @@ mod app {
             amplitude_arcsec: dither.default_setpoint_arcsec,
             noise_percent: 0.0,
         };
-        start_dither(dither, Some(off));
+        start_dither(dither, Some(off), None);
         defmt::info!(
             "serial_protocol: clocks {}, USART1 up, readout idle",
             source
@@ -103,11 +103,12 @@ mod app {
         unmask_readout(false);
         // SAFETY: the USART's queues are set up (usart::init).
         unsafe { cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART1) };
-        let ports = BoardPorts {
+        let ports = BoardPorts::new(
             serial,
-            watchdog: Some(watchdog),
-            hardware: false,
-        };
+            Some(watchdog),
+            false,
+            firmware::board_timing::selftest::SelfTestReport::NOT_RUN,
+        );
         serve(service, records, ports, Some("# rlg-readout ready"))
     }
 }

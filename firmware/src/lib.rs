@@ -14,10 +14,12 @@
 
 mod flags;
 
+pub mod board_timing;
 pub mod calibration;
 pub mod dither;
 pub mod math;
 pub mod millis;
+pub mod otp_record;
 pub mod profile;
 pub mod protocol;
 pub mod readout;

@@ -54,6 +54,10 @@ pub struct BoardProfile {
     pub pickoff_mid_code: u16,
     /// Full scale of the drive DAC, codes (12 bit: 4095); its mid-code is the zero drive.
     pub dac_full_scale: u16,
+    /// The codes the drive DAC's output follows linearly (inclusive): its output buffer, on for
+    /// the drive amplifier's input, swings from 0.2 V to VDDA - 0.2 V only (F405 datasheet,
+    /// DAC characteristics, buffer on, R_L >= 5 kOhm); beyond, the drive clips.
+    pub dac_linear_codes: (u16, u16),
     /// Frequencies the dither start-up searches for the resonance, Hz (inclusive).
     pub dither_search_hz: (f64, f64),
     /// Corner of the drive amplifier's output low-pass (its output resistance into the piezo's
@@ -68,7 +72,9 @@ impl BoardProfile {
     /// clocks at 21 MHz), 200-1500 Hz dither, 389 Hz nominal, 1.8655 arcsec per fringe; the
     /// dither drive ticks at 40 kHz (84 MHz / 2100), 0.4 arcsec per pick-off code (450 arcsec =
     /// 1125 codes, 700 arcsec before the rails), 12-bit DAC, resonance searched in 280-620 Hz, the
-    /// drive amplifier's output low-pass at 3 kHz.
+    /// drive amplifier's output low-pass at 3 kHz; the buffered DAC linear over codes 249-3846
+    /// (0.2 V to 3.1 V at VDDA = 3.3 V: 0.2 / 3.3 x 4095 = 248.2 rounded up, 3.1 / 3.3 x 4095
+    /// = 3846.8 rounded down).
     pub const F405: Self = Self {
         name: "rlg-readout-f405",
         timer_hz: 84_000_000,
@@ -83,6 +89,7 @@ impl BoardProfile {
         pickoff_arcsec_per_code: 0.4,
         pickoff_mid_code: 2048,
         dac_full_scale: 4095,
+        dac_linear_codes: (249, 3846),
         dither_search_hz: (280.0, 620.0),
         drive_lowpass_hz: 3000.0,
     };

@@ -327,6 +327,13 @@ impl Readout {
         self.output_faults = self.output_faults.union(OutputStatus::RESTART);
     }
 
+    /// Adds `bits` to the next output record's status (the board's timing watch marks every
+    /// output latch while a fault is raised: `OutputStatus::TIMING_FAULT`, which invalidates
+    /// the record and the chain after it).
+    pub fn mark_output(&mut self, bits: OutputStatus) {
+        self.output_faults = self.output_faults.union(bits);
+    }
+
     /// Output records made so far (the next record's sequence number).
     pub fn output_records(&self) -> u64 {
         self.recorder.records()

@@ -19,13 +19,28 @@
 //! answer to a line sent while streaming (`stream off` included) is wrapped in 0x00 delimiters,
 //! so a host splitting at 0x00 sees either a frame or a line starting with `OK`/`ERR` (text
 //! never contains 0x00); the answer to `stream on` is still plain text.
+//!
+//! The board watches itself as the real one does (`firmware::board_timing`): at power-up the
+//! self-test's clock, timer and trigger checks (measured on the simulated board,
+//! [`crate::board::BoardFaults::selftest`]) and the drive's pick-off check (the half-drive
+//! sweep, against the simulated resonator and pick-off); while it runs, the rate monitors on
+//! the events the simulated board counts ([`Harness::event_counts`]), once per half cycle as
+//! the board's main loop does once per pass, with the same reactions (output records marked
+//! `TIMING_FAULT`, the drive taken off for a stopped drive tick or a lost clock). Faults are
+//! injected at power-up ([`SimDevice::boot_with_faults`]) or while running
+//! ([`SimDevice::inject`]).
 
-use crate::board::{BoardConfig, BoardError, LatchTiming};
+use crate::board::{BoardConfig, BoardError, BoardFault, LatchTiming};
 use crate::dither::resonator::ResonatorParams;
 use crate::drive_loop::FirmwareDrive;
 use crate::flash::CalibrationFlash;
 use crate::harness::{DriveSource, Feed, Harness, HarnessError, HarnessOptions};
+use firmware::board_timing::health::BoardHealth;
+use firmware::board_timing::monitor::{Event, TimingFaults, TimingWatch};
+use firmware::board_timing::selftest::SelfTestReport;
+use firmware::dither::DitherState;
 use firmware::signal::output::record::OutputRecord;
+use firmware::signal::output::record::OutputStatus;
 
 /// The simulated board's output rate without an external sync: the board's internal output
 /// timer, Hz.
@@ -54,6 +69,12 @@ pub struct SimDevice {
     stall: Option<Stall>,
     /// The simulated OTP key words: the identity's key at boot, or what `key provision` wrote.
     otp_key: Option<Key>,
+    /// The power-up self-test's clock, timer and trigger checks.
+    selftest: SelfTestReport,
+    /// The rate monitors.
+    watch: TimingWatch,
+    /// The drive was taken off for a stopped drive tick or a lost clock.
+    drive_taken_off: bool,
 }
 
 /// A flash stall: the CPU is stalled until `until_s` (simulated time), and what waits for it.
@@ -89,8 +110,21 @@ impl SimDevice {
         params: GyroParams,
         input: InputProfile,
         identity: Identity,
+        flash: CalibrationFlash,
+        boot_count: u32,
+    ) -> Result<Self, BoardError> {
+        Self::boot_with_faults(params, input, identity, flash, boot_count, &[])
+    }
+
+    /// [`Self::boot`] on a board with `faults` from the start: the power-up self-test meets
+    /// them.
+    pub fn boot_with_faults(
+        params: GyroParams,
+        input: InputProfile,
+        identity: Identity,
         mut flash: CalibrationFlash,
         boot_count: u32,
+        faults: &[BoardFault],
     ) -> Result<Self, BoardError> {
         // A board drives its dither: a prescribed sine becomes the resonator it stands for
         // (at its frequency, in the steady state of its amplitude), and the firmware's drive
@@ -143,10 +177,14 @@ impl SimDevice {
                 .readout_mut()
                 .restart_strip_from(&config, strip.k(), strip.k_quadrature());
         }
-        if let (Some(stored), Some(drive)) = (booted.dither, harness.firmware_drive_mut()) {
-            // As `board::resources::start_dither`: refused values leave the defaults.
-            let (controller, config) = drive.controller_mut();
-            let _ = controller.apply_setpoints(config, stored);
+        for &fault in faults {
+            harness.board_mut().inject(fault);
+        }
+        // As `board::app::run`: the clock, timer and trigger checks, then the drive with its
+        // stored setpoints, its pick-off check first (or inhibited).
+        let selftest = harness.board().faults().selftest();
+        if let Some(drive) = harness.firmware_drive_mut() {
+            drive.power_up(booted.dither, Some(&selftest));
         }
         Ok(Self {
             harness,
@@ -154,6 +192,9 @@ impl SimDevice {
             output: Vec::new(),
             stall: None,
             otp_key: identity.key,
+            selftest,
+            watch: TimingWatch::new(),
+            drive_taken_off: false,
         })
     }
 
@@ -162,6 +203,21 @@ impl SimDevice {
         let mut flash = self.service.into_flash();
         flash.power_off();
         flash
+    }
+
+    /// Injects a fault while the board runs ([`BoardFault`]; at power-up:
+    /// [`Self::boot_with_faults`]).
+    pub fn inject(&mut self, fault: BoardFault) {
+        self.harness.board_mut().inject(fault);
+    }
+
+    /// The board's health as `status` and `selftest` report it.
+    pub fn board_health(&self) -> BoardHealth {
+        BoardHealth {
+            selftest: self.selftest,
+            timing: self.watch.faults(),
+            emulated: false,
+        }
     }
 
     /// The simulated flash (e.g. to arm a power cut).
@@ -198,6 +254,8 @@ impl SimDevice {
                     return;
                 };
                 self.harness.readout_mut().resynchronise();
+                // The events stopped on purpose: the monitors start afresh.
+                self.watch.restart();
                 // The store returned: its answer goes out, then the bytes that waited.
                 self.output.extend_from_slice(&stall.held_output);
                 self.receive(&stall.held_input);
@@ -205,15 +263,61 @@ impl SimDevice {
             return;
         }
         let record = self.harness.step().record;
+        self.watch_pass();
         // The output latches of the half cycle came first (the output latch's context), then
         // the cycle its closing turnaround made (the cycle task).
         let outputs: Vec<OutputRecord> = self.harness.outputs().iter().map(|(_, r)| *r).collect();
-        let mut ports = SimPorts::new(&mut self.harness, &mut self.output, &mut self.otp_key);
+        let health = self.board_health();
+        let mut ports = SimPorts::new(
+            &mut self.harness,
+            &mut self.output,
+            &mut self.otp_key,
+            health,
+        );
         for output in &outputs {
             self.service.on_output(output, &mut ports);
         }
         if let Some(record) = record {
             self.service.on_cycle(&record, &mut ports);
+        }
+    }
+
+    /// The rate monitors' pass after a half cycle (`board::watch::Watch::pass`): the events'
+    /// counts and the rates expected now; a raised fault marks the output records from the
+    /// next half cycle on, and a stopped drive tick or a lost clock takes the drive off.
+    fn watch_pass(&mut self) {
+        let now_ms = (self.harness.time_s() * 1000.0) as u64;
+        let config = self.harness.board().config();
+        let sync_hz = config.sync_hz.map(|hz| hz as f32);
+        let lissajous_hz = (config.lissajous_rate_hz / 256.0) as f32;
+        let locked_hz = self.harness.firmware_drive().and_then(|d| {
+            (d.controller().state() == DitherState::Locked)
+                .then(|| d.controller().estimate().frequency_hz)
+        });
+        let expected = [
+            Some(lissajous_hz),
+            Some(BoardProfile::F405.drive_tick_hz as f32),
+            locked_hz.map(|hz| 2.0 * hz),
+            sync_hz,
+            sync_hz,
+        ];
+        let counts = self.harness.event_counts();
+        self.watch.update(now_ms, counts, expected);
+        if self.harness.board().faults().clock_lost() {
+            self.watch.clock_lost();
+        }
+        let faults = self.watch.faults();
+        let mark = if faults.is_empty() {
+            OutputStatus::empty()
+        } else {
+            OutputStatus::TIMING_FAULT
+        };
+        self.harness.set_output_mark(mark);
+        let drive_unsafe = faults.contains(TimingFaults::CLOCK_LOST)
+            || faults.contains(TimingFaults::of(Event::DriveTick));
+        if drive_unsafe && !self.drive_taken_off {
+            self.drive_taken_off = true;
+            self.harness.take_drive_off();
         }
     }
 
@@ -228,7 +332,13 @@ impl SimDevice {
             }
             let output_before = self.output.len();
             let busy_before_s = self.service.flash().stats().busy_s;
-            let mut ports = SimPorts::new(&mut self.harness, &mut self.output, &mut self.otp_key);
+            let health = self.board_health();
+            let mut ports = SimPorts::new(
+                &mut self.harness,
+                &mut self.output,
+                &mut self.otp_key,
+                health,
+            );
             self.service.on_byte(byte, &mut ports);
             if ports.paused {
                 // The stall: the readout misses what happens meanwhile and re-synchronises
@@ -276,6 +386,7 @@ struct SimPorts<'a> {
     otp_key: &'a mut Option<Key>,
     now_ms: u64,
     paused: bool,
+    health: BoardHealth,
 }
 
 impl<'a> SimPorts<'a> {
@@ -284,6 +395,7 @@ impl<'a> SimPorts<'a> {
         harness: &'a mut Harness,
         output: &'a mut Vec<u8>,
         otp_key: &'a mut Option<Key>,
+        health: BoardHealth,
     ) -> Self {
         // 64-bit milliseconds: no saturation at 49.7 days as a u32 would.
         let now_ms = (harness.time_s() * 1000.0) as u64;
@@ -295,6 +407,7 @@ impl<'a> SimPorts<'a> {
             output,
             otp_key,
             paused: false,
+            health,
         }
     }
 }
@@ -351,4 +464,9 @@ impl ReadoutAccess for SimPorts<'_> {
 
     /// Nothing to do now: the device re-synchronises the readout when the stall has passed.
     fn restart_readout(&mut self) {}
+
+    /// The self-test and the rate monitors, as the device holds them.
+    fn board_health(&self) -> BoardHealth {
+        self.health
+    }
 }

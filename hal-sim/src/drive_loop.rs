@@ -32,8 +32,11 @@
 
 use crate::board::SimBoard;
 use crate::dither::drive::{DacParams, DriveError, DriveSegment};
+use firmware::board_timing::selftest::SelfTestReport;
 use firmware::dither::{CommandError, DitherConfig, DitherController, DitherState, Drive, Tick};
 use firmware::profile::BoardProfile;
+use firmware::signal::lockin::CycleRecord;
+use firmware::storage::DitherSetpoints;
 use std::collections::VecDeque;
 
 /// State changes kept for [`FirmwareDrive::locked_at`] (a few seconds of lock changes).
@@ -51,6 +54,12 @@ pub struct FirmwareDrive {
     missed_ticks: u64,
     /// (first tick, locked) at every change of the lock state, oldest first.
     locked_since: VecDeque<(u64, bool)>,
+    /// The DAC code the last tick wrote.
+    last_code: u16,
+    /// Ticks handled since t = 0 (the board's drive-tick count).
+    handled: u64,
+    /// TIM4 stopped (`BoardFault::StoppedTrigger(DriveTick)`): no tick runs, the DAC holds.
+    stopped: bool,
 }
 
 impl FirmwareDrive {
@@ -73,7 +82,68 @@ impl FirmwareDrive {
             next_tick: 0,
             missed_ticks: 0,
             locked_since: VecDeque::from([(0, false)]),
+            last_code: profile.dac_full_scale / 2 + 1,
+            handled: 0,
+            stopped: false,
         })
+    }
+
+    /// The board's power-up, before the first tick (`board::resources::start_dither`): the
+    /// stored setpoints ([`DitherController::apply_stored`]), then, with the board's
+    /// clock, timer and trigger checks passed, the pick-off check (the half-drive sweep) and
+    /// the start-up if the drive is wanted on; with one failed, the drive inhibited. `None`:
+    /// no self-test (the controller as [`Self::new`] left it, but with the stored setpoints).
+    pub fn power_up(&mut self, stored: Option<DitherSetpoints>, selftest: Option<&SelfTestReport>) {
+        self.controller = DitherController::new(&self.config);
+        self.controller.apply_stored(&self.config, stored);
+        match selftest {
+            Some(report) if report.hardware_passed() => self.controller.start_self_test(),
+            Some(_) => self.controller.inhibit(),
+            None => {}
+        }
+    }
+
+    /// The fringe count's amplitude over `record`'s cycle against the mechanical limit
+    /// ([`DitherController::check_count_amplitude`]), as the board's main loop does with
+    /// every closed cycle.
+    pub fn check_count_amplitude(&mut self, record: &CycleRecord, scale_factor_arcsec: f64) {
+        let arcsec = firmware::dither::count_amplitude_arcsec(record, scale_factor_arcsec as f32);
+        self.controller.check_count_amplitude(&self.config, arcsec);
+    }
+
+    /// Ticks handled since t = 0 (the board counts them for its rate monitor).
+    pub fn ticks_handled(&self) -> u64 {
+        self.handled
+    }
+
+    /// TIM4 stops from the next edge (a fault): no tick runs any more and the DAC holds the
+    /// last code written (a constant drive).
+    pub fn stop_ticks(&mut self, board: &mut SimBoard) -> Result<(), DriveError> {
+        if self.stopped {
+            return Ok(());
+        }
+        self.stopped = true;
+        self.hold_code(board, f64::from(self.last_code))
+    }
+
+    /// The drive taken off by software (`board::dither::force_mid`: the board's reaction to a
+    /// stopped drive tick or a lost clock): mid-scale from the next edge, the controller
+    /// inhibited.
+    pub fn take_off(&mut self, board: &mut SimBoard) -> Result<(), DriveError> {
+        self.controller.inhibit();
+        self.last_code = self.config.dac_mid_code;
+        self.hold_code(board, f64::from(self.config.dac_mid_code))
+    }
+
+    /// A constant DAC code from the next edge on (with the ticks stopped: from where the
+    /// drive is known).
+    fn hold_code(&mut self, board: &mut SimBoard, code: f64) -> Result<(), DriveError> {
+        let start_s = self
+            .tick_time_s(self.next_tick)
+            .max(board.drive_known_until_s());
+        let hold = DriveSegment::from_codes(start_s, 0.0, 0.0, 0.0, code, &self.dac);
+        board.extend_drive_until(start_s)?;
+        board.push_drive(hold)
     }
 
     /// The controller (status, setpoints, estimate).
@@ -125,6 +195,10 @@ impl FirmwareDrive {
     /// Runs every tick whose edge is at or before `t_s`; the board's drive is then known up to
     /// the edge after the last tick run (beyond `t_s`).
     pub fn run_until(&mut self, board: &mut SimBoard, t_s: f64) -> Result<(), DriveError> {
+        if self.stopped {
+            // No tick: the DAC holds; the drive is known as far as asked.
+            return board.extend_drive_until(t_s.max(board.drive_known_until_s()));
+        }
         while self.tick_time_s(self.next_tick) <= t_s {
             self.tick(board)?;
         }
@@ -146,6 +220,8 @@ impl FirmwareDrive {
         let locked = self.controller.state() == DitherState::Locked;
         self.note_lock(n, locked);
         self.next_tick = n + 1;
+        self.last_code = tick.dac_code;
+        self.handled += 1;
         Ok(())
     }
 
@@ -164,6 +240,10 @@ impl FirmwareDrive {
     /// controller's tick count falls behind), and the controller restarts, listening first,
     /// at the first tick after the stall. The dither rings down meanwhile.
     pub fn stall(&mut self, board: &mut SimBoard, until_s: f64) -> Result<(), DriveError> {
+        if self.stopped {
+            // TIM4 is not running: nothing loads the DAC, nothing ticks.
+            return Ok(());
+        }
         // The main loop wrote mid-scale into the DAC's holding register before the stall: the
         // next edge outputs it.
         let first = self.next_tick;

@@ -62,7 +62,9 @@
 //!   i.e. `firmware::profile::BoardProfile::F405` with the simulated board's timer and counter):
 //!   the firmware is configured for the board it runs on, never by a copy of its constants.
 
-use crate::board::{BoardConfig, BoardError, LatchRecord, LatchTiming, OutputLatch, SimBoard};
+use crate::board::{
+    BoardConfig, BoardError, LatchRecord, LatchTiming, OutputLatch, SimBoard, Trigger,
+};
 use crate::dither::drive::DriveError;
 use crate::dither::open_loop::OpenLoopDrive;
 use crate::drive_loop::FirmwareDrive;
@@ -76,7 +78,7 @@ use firmware::sample::TurnaroundSample;
 use firmware::signal::compensation::CompensationSettings;
 use firmware::signal::lockin::CycleRecord;
 use firmware::signal::output::dither_model::PickoffSample;
-use firmware::signal::output::record::OutputRecord;
+use firmware::signal::output::record::{OutputRecord, OutputStatus};
 
 /// How far ahead of the board's time the harness feeds an open-loop drive at most while it
 /// looks for the next turnaround, s.
@@ -242,6 +244,11 @@ pub struct Harness {
     lead_s: f64,
     /// The last latch and what the readout was fed of it (for [`Harness::replay_into`]).
     last: Option<(TurnaroundSample, Feed)>,
+    /// Status bits added to every output record ([`Harness::set_output_mark`]).
+    output_mark: OutputStatus,
+    /// Turnaround and output latches delivered to the readout since t = 0.
+    turnarounds_fed: u64,
+    outputs_fed: u64,
 }
 
 impl Harness {
@@ -266,6 +273,9 @@ impl Harness {
             latches: Vec::new(),
             outputs: Vec::new(),
             last: None,
+            output_mark: OutputStatus::empty(),
+            turnarounds_fed: 0,
+            outputs_fed: 0,
         })
     }
 
@@ -275,12 +285,20 @@ impl Harness {
     }
 
     /// One half dither cycle, the readout fed as `feed` says; a closed cycle goes back to the
-    /// board before it is returned.
-    pub fn step_with(&mut self, feed: Feed) -> HalfCycle {
+    /// board before it is returned (and, with the firmware's drive, its count amplitude to the
+    /// drive's over-amplitude check, as the board's main loop does). A stopped latch trigger
+    /// (`BoardFault::StoppedTrigger(LatchCompare)`) delivers no latch at all.
+    pub fn step_with(&mut self, mut feed: Feed) -> HalfCycle {
         self.feed_drive();
         let mut sample = self.board.next_half_cycle(&mut self.lissajous);
         self.board.drain_outputs(&mut self.latches);
         self.board.drain_pickoff_samples(&mut self.pickoff);
+        if self.board.faults().stopped(Trigger::LatchCompare) {
+            self.latches.clear();
+            if feed == Feed::Everything {
+                feed = Feed::MissTurnaround;
+            }
+        }
         if let DriveSource::Firmware(drive) = &self.drive {
             // The latch copies the drive tick's state, as `board::turnaround::latch` does.
             sample.drive_locked = drive.locked_at(self.board.time_s());
@@ -302,11 +320,22 @@ impl Harness {
                 latches: &self.latches,
                 sample,
                 feed,
+                mark: self.output_mark,
             },
             |latch, out| self.outputs.push((*latch, out)),
         );
+        if feed != Feed::Stalled {
+            self.outputs_fed += self.latches.len() as u64;
+        }
+        if feed == Feed::Everything {
+            self.turnarounds_fed += 1;
+        }
         if let Some(record) = &record {
             self.board.on_cycle(record);
+            if let DriveSource::Firmware(drive) = &mut self.drive {
+                let sf = f64::from(self.config.output.scale_factor_arcsec);
+                drive.check_count_amplitude(record, sf);
+            }
         }
         self.board
             .set_pickoff_lag_ticks(self.readout.pickoff_lag_ticks(&self.config));
@@ -325,6 +354,13 @@ impl Harness {
     fn feed_drive(&mut self) {
         if matches!(self.drive, DriveSource::External) {
             return;
+        }
+        if self.board.faults().stopped(Trigger::DriveTick) {
+            if let DriveSource::Firmware(drive) = &mut self.drive {
+                drive
+                    .stop_ticks(&mut self.board)
+                    .expect("the held code's segment is valid");
+            }
         }
         let now = self.board.time_s();
         let mut until = now + self.lead_s;
@@ -354,6 +390,42 @@ impl Harness {
             drive
                 .stall(&mut self.board, until_s)
                 .expect("the stall's drive segments are valid");
+        }
+    }
+
+    /// Status bits added to every output record from the next step on (the board's readout task
+    /// marks every output latch `TIMING_FAULT` while its watch has a fault raised);
+    /// `OutputStatus::empty()` to stop.
+    pub fn set_output_mark(&mut self, mark: OutputStatus) {
+        self.output_mark = mark;
+    }
+
+    /// The running counts of the board's periodic events, as its handlers count them, in
+    /// `firmware::board_timing::monitor::Event::ALL`'s order: DMA half transfers (256 pairs),
+    /// drive ticks, turnaround latches and output latches delivered, sync edges (wrapping).
+    pub fn event_counts(&self) -> [u32; 5] {
+        let ticks = match &self.drive {
+            DriveSource::Firmware(drive) => drive.ticks_handled(),
+            _ => 0,
+        };
+        [
+            self.board.lissajous_pairs() / 256,
+            ticks,
+            self.turnarounds_fed,
+            self.outputs_fed,
+            self.board.sync_edges(),
+        ]
+        .map(|c| c as u32)
+    }
+
+    /// The board's reaction to a stopped drive tick or a lost clock
+    /// ([`FirmwareDrive::take_off`]): mid-scale by software, the drive inhibited. Nothing for
+    /// another drive.
+    pub fn take_drive_off(&mut self) {
+        if let DriveSource::Firmware(drive) = &mut self.drive {
+            drive
+                .take_off(&mut self.board)
+                .expect("the mid-scale segment is valid");
         }
     }
 
@@ -418,6 +490,7 @@ impl Harness {
             latches: &self.latches,
             sample,
             feed,
+            mark: self.output_mark,
         };
         feed_readout(readout, &self.config, fed, |_, _| {})
     }
@@ -482,6 +555,8 @@ struct Fed<'a> {
     latches: &'a [OutputLatch],
     sample: TurnaroundSample,
     feed: Feed,
+    /// Status bits added to every output record.
+    mark: OutputStatus,
 }
 
 /// The readout's interrupts for one half cycle, as `fed.feed` says: the conversions, the
@@ -506,6 +581,9 @@ fn feed_readout(
         // Up to the latch's tick (wrapping ticks: at or before it).
         while let Some(s) = stream.next_if(|s| last.wrapping_sub(s.tick) < u32::MAX / 2) {
             readout.on_pickoff_sample(config, *s);
+        }
+        if !fed.mark.is_empty() {
+            readout.mark_output(fed.mark);
         }
         on_output(latch, readout.on_output_latch(config, latch.sample));
     }

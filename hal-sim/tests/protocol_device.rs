@@ -148,11 +148,19 @@ fn calibrate_accept_store_and_survive_a_power_cycle() {
     assert!(ask(&mut dev, "cal status").starts_with("OK cal=run_done"));
     let result = ask(&mut dev, "cal result");
     assert!(result.starts_with("OK a="), "{result}");
-    // Omega_L and eps within 1 % of the simulator's truth (200 deg/h, 0.3 rad).
+    // Omega_L within 1 % of the simulator's truth (200 deg/h); eps (0.3 rad) within three of
+    // its standard errors, which the fit's a_std and b_std give: at 3000 cycles that is about
+    // 0.003 rad, 1 % of eps, so a 1 % bound would fail one seed in three.
     let lock_in: f64 = field(&result, "lock_in_deg_h").parse().unwrap();
     let eps: f64 = field(&result, "eps_rad").parse().unwrap();
+    let num = |k: &str| field(&result, k).parse::<f64>().unwrap();
+    let (a, b, a_std, b_std) = (num("a"), num("b"), num("a_std"), num("b_std"));
+    let eps_std = (a * b_std).hypot(b * a_std) / (a * a + b * b);
     assert!((lock_in / 200.0 - 1.0).abs() < 0.01, "{result}");
-    assert!((eps / 0.3 - 1.0).abs() < 0.01, "{result}");
+    assert!(
+        (eps - 0.3).abs() < 3.0 * eps_std,
+        "{result}: eps std {eps_std}"
+    );
     let accepted = ask(&mut dev, "cal accept");
     assert!(
         accepted.starts_with("OK a=") && accepted.ends_with("comp=on"),

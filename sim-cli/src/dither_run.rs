@@ -297,10 +297,10 @@ pub fn csv_line(row: &DitherRow) -> String {
     )
 }
 
-/// The state as a level for plotting: off 0, starting 1, locked 2, fault -1.
+/// The state as a level for plotting: off (or inhibited) 0, starting 1, locked 2, fault -1.
 fn state_level(state: DitherState) -> f64 {
     match state {
-        DitherState::Off => 0.0,
+        DitherState::Off | DitherState::Inhibited => 0.0,
         DitherState::Starting => 1.0,
         DitherState::Locked => 2.0,
         DitherState::Fault(_) => -1.0,

@@ -34,7 +34,7 @@ fn a_calibration_the_board_refuses_exits_1_with_its_reason() {
 }
 
 /// The default calibration passes the board's checks: the README's fit on the default
-/// (realistic) board, Omega_L 200.016 deg/h, eps 0.29999 rad, and exit 0. (Two points of 1 s:
+/// (realistic) board, Omega_L 200.010 deg/h, eps 0.29997 rad, and exit 0. (Two points of 1 s:
 /// the calibration is the defaults'.)
 #[test]
 fn the_default_calibration_passes() {
@@ -49,7 +49,7 @@ fn the_default_calibration_passes() {
     let stderr = text(&out.stderr);
     assert_eq!(out.status.code(), Some(0), "{stderr}");
     assert!(
-        stderr.contains("Omega_L = 200.016 deg/h") && stderr.contains("eps = 0.29999 rad"),
+        stderr.contains("Omega_L = 200.010 deg/h") && stderr.contains("eps = 0.29997 rad"),
         "{stderr}"
     );
 }

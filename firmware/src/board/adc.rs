@@ -30,6 +30,18 @@
 //! # Pins
 //! Channel A on PC0 (ADC123_IN10), channel B on PC1 (ADC123_IN11), analog mode. Simultaneous mode
 //! must never convert one channel on both ADCs at once: here each ADC has its own channel.
+//!
+//! # Overrun and transfer errors: the stream restarts
+//! A regular pair that the DMA did not take before the next one (the bus held too long) sets
+//! `OVR`, and the ADCs then stop issuing DMA requests (RM0090 13.8.1): the photodiode stream
+//! would be over for good. `OVRIE` raises the ADC interrupt (the latch's vector, which checks
+//! `OVR` first); a DMA transfer error disables the stream in hardware and raises the DMA
+//! interrupt. Both restart the stream the same way ([`restart_stream`]): the DMA's request
+//! bits in `ADC_CCR` off, the stream re-armed from the start of the buffer, the `OVR` flags
+//! cleared, the request bits on again; the half buffer under way is dropped (the readout's
+//! Lissajous fit loses one block; the next starts clean), and every restart is counted
+//! ([`OVERRUNS`], [`DMA_ERRORS`]). The rate monitor (`board_timing::monitor`, `lissajous`)
+//! names a stream that stops for any other reason.
 
 use core::cell::UnsafeCell;
 use core::sync::atomic::{compiler_fence, AtomicU32, AtomicU8, Ordering};
@@ -39,22 +51,26 @@ use super::pac;
 /// Conversion pairs per half buffer: 256 pairs = 20.7 ms at 12 347.5 pairs/s (48 blocks/s).
 pub const BLOCK_PAIRS: usize = 256;
 /// TIM3 auto-reload for the regular trigger: 84 MHz / (6802 + 1) = 12 347.5 Hz.
-const TIM3_ARR: u32 = 6802;
+pub const TIM3_ARR: u32 = 6802;
 /// ADC channels of the photodiodes.
 const CHANNEL_A: u32 = 10;
 const CHANNEL_B: u32 = 11;
 
 // ADC_CCR: MULTI[4:0] = 00001, DMA[15:14] = 10, DDS 13, ADCPRE[17:16] = 01
 const CCR: u32 = 0b00001 | (0b10 << 14) | (1 << 13) | (0b01 << 16);
-// ADC_CR1: JEOCIE 7; RES[25:24] = 00 (12 bits)
+// ADC_CR1: JEOCIE 7, OVRIE 26; RES[25:24] = 00 (12 bits)
 const CR1_JEOCIE: u32 = 1 << 7;
+const CR1_OVRIE: u32 = 1 << 26;
 // ADC_CR2: ADON 0, JEXTSEL[19:16], JEXTEN[21:20], EXTSEL[27:24], EXTEN[29:28]
 const ADON: u32 = 1;
 const CR2_MASTER: u32 = ADON | (0b0011 << 16) | (0b01 << 20) | (0b1000 << 24) | (0b01 << 28);
 // SMPR1: SMP10[2:0], SMP11[5:3] = 001 (15 cycles)
 const SMPR1: u32 = 0b001 | (0b001 << 3);
-// ADC_SR: JEOC bit 2 (rc_w0)
+// ADC_SR: JEOC bit 2, OVR bit 5 (rc_w0)
 const SR_JEOC: u32 = 1 << 2;
+const SR_OVR: u32 = 1 << 5;
+// ADC_CCR: DMA[15:14], the multi-mode DMA request
+const CCR_DMA_MASK: u32 = 0b11 << 14;
 /// JSQR with JL = 0: the single injected channel goes in JSQ4[19:15].
 const fn jsqr(channel: u32) -> u32 {
     channel << 15
@@ -87,8 +103,12 @@ static BUFFER: DmaBuffer = DmaBuffer(UnsafeCell::new([0; 2 * BLOCK_PAIRS]));
 static READY: AtomicU8 = AtomicU8::new(0);
 /// A half completed again before the readout task had processed it (samples lost).
 pub static BLOCK_OVERRUNS: AtomicU32 = AtomicU32::new(0);
-/// DMA transfer errors.
+/// DMA transfer errors (each restarted the stream).
 pub static DMA_ERRORS: AtomicU32 = AtomicU32::new(0);
+/// Regular-group overruns (each restarted the stream).
+pub static OVERRUNS: AtomicU32 = AtomicU32::new(0);
+/// Half buffers completed, wrapping: the rate monitor's count.
+pub static HALVES: AtomicU32 = AtomicU32::new(0);
 
 /// Configures both ADCs, TIM3 and DMA2 stream 0 and starts the regular stream. Clocks for ADC1,
 /// ADC2, TIM3, DMA2 and GPIOC must be on. The injected group waits for TIM2's TRGO.
@@ -108,14 +128,26 @@ pub fn init(
         adc.sqr3().write(|w| unsafe { w.bits(channel) });
         adc.jsqr().write(|w| unsafe { w.bits(jsqr(channel)) });
     }
-    adc1.cr1().write(|w| unsafe { w.bits(CR1_JEOCIE) });
-    adc2.cr1().write(|w| unsafe { w.bits(0) });
+    adc1.cr1()
+        .write(|w| unsafe { w.bits(CR1_JEOCIE | CR1_OVRIE) });
+    adc2.cr1().write(|w| unsafe { w.bits(CR1_OVRIE) });
     adc2.cr2().write(|w| unsafe { w.bits(ADON) }); // slave: triggered by the master
     adc1.cr2().write(|w| unsafe { w.bits(CR2_MASTER) });
     // t_STAB (3 us) before the first trigger: TIM3 starts below, TIM2's first compare is
     // scheduled a dither cycle later.
     cortex_m::asm::delay(super::SYSCLK_HZ / 1_000_000 * 3);
 
+    arm_stream(dma);
+
+    tim3.psc().write(|w| unsafe { w.bits(0) });
+    tim3.arr().write(|w| unsafe { w.bits(TIM3_ARR) });
+    tim3.cr2().write(|w| unsafe { w.bits(0b010 << 4) }); // MMS = update -> TRGO
+    tim3.cr1().write(|w| unsafe { w.bits(1) });
+}
+
+/// Sets DMA2 stream 0 up from the start of the buffer and enables it (the stream must be
+/// disabled).
+fn arm_stream(dma: &pac::dma2::RegisterBlock) {
     let stream = dma.st(0);
     stream.cr().write(|w| unsafe { w.bits(0) });
     dma.lifcr().write(|w| unsafe { w.bits(S0_ALL) });
@@ -128,11 +160,53 @@ pub fn init(
         .write(|w| unsafe { w.bits(2 * BLOCK_PAIRS as u32) });
     stream.fcr().write(|w| unsafe { w.bits(0) }); // direct mode
     stream.cr().write(|w| unsafe { w.bits(DMA_CR | 1) });
+}
 
-    tim3.psc().write(|w| unsafe { w.bits(0) });
-    tim3.arr().write(|w| unsafe { w.bits(TIM3_ARR) });
-    tim3.cr2().write(|w| unsafe { w.bits(0b010 << 4) }); // MMS = update -> TRGO
-    tim3.cr1().write(|w| unsafe { w.bits(1) });
+/// Polls of a stream's EN bit after clearing it (the stream finishes its current transfer
+/// first: a few bus cycles).
+const STREAM_STOP_POLLS: u32 = 1000;
+
+/// Restarts the photodiode stream after an overrun or a transfer error (module docs): the
+/// multi-mode DMA requests off, the stream re-armed at the start of the buffer, `OVR` cleared
+/// on both ADCs, the requests on again. The halves not yet handed over are dropped.
+pub fn restart_stream(
+    common: &pac::adc_common::RegisterBlock,
+    adc1: &pac::adc1::RegisterBlock,
+    adc2: &pac::adc1::RegisterBlock,
+    dma: &pac::dma2::RegisterBlock,
+) {
+    let ccr = common.ccr().read().bits();
+    common
+        .ccr()
+        .write(|w| unsafe { w.bits(ccr & !CCR_DMA_MASK) });
+    let stream = dma.st(0);
+    stream.cr().write(|w| unsafe { w.bits(0) });
+    let _ = (0..STREAM_STOP_POLLS).any(|_| stream.cr().read().bits() & 1 == 0);
+    READY.store(0, Ordering::Release);
+    arm_stream(dma);
+    for adc in [adc1, adc2] {
+        adc.sr().write(|w| unsafe { w.bits(!SR_OVR) });
+    }
+    common.ccr().write(|w| unsafe { w.bits(ccr) });
+}
+
+/// The latch vector's first job: an overrun of the regular pair (either ADC) restarts the
+/// stream (counted). Returns whether ADC1's injected pair has a result (the latch's own
+/// event; false when only the overrun raised the interrupt).
+#[inline(always)]
+pub fn on_adc_interrupt(
+    common: &pac::adc_common::RegisterBlock,
+    adc1: &pac::adc1::RegisterBlock,
+    adc2: &pac::adc1::RegisterBlock,
+    dma: &pac::dma2::RegisterBlock,
+) -> bool {
+    let sr = adc1.sr().read().bits();
+    if (sr | adc2.sr().read().bits()) & SR_OVR != 0 {
+        OVERRUNS.fetch_add(1, Ordering::Relaxed);
+        restart_stream(common, adc1, adc2, dma);
+        return sr & SR_JEOC != 0;
+    }
+    true
 }
 
 /// Clears the injected end-of-conversion flag (the turnaround handler, first thing).
@@ -153,7 +227,20 @@ pub fn on_dma_interrupt(dma: &pac::dma2::RegisterBlock) -> bool {
     let flags = dma.lisr().read().bits() & S0_ALL;
     dma.lifcr().write(|w| unsafe { w.bits(flags) });
     if flags & S0_TE != 0 {
+        // The hardware disabled the stream: restarted (module docs).
         DMA_ERRORS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: the ADCs' CCR and OVR flags are touched only by a restart, this handler's
+        // or the latch's; the latch (0x00) may preempt this one half-way and restart too:
+        // every step leaves a state the next restart starts from, so the later one wins.
+        let (common, adc1, adc2) = unsafe {
+            (
+                &*pac::ADC_COMMON::ptr(),
+                &*pac::ADC1::ptr(),
+                &*pac::ADC2::ptr(),
+            )
+        };
+        restart_stream(common, adc1, adc2, dma);
+        return false;
     }
     let mut halves = 0;
     if flags & S0_HT != 0 {
@@ -166,6 +253,7 @@ pub fn on_dma_interrupt(dma: &pac::dma2::RegisterBlock) -> bool {
     if before & halves != 0 {
         BLOCK_OVERRUNS.fetch_add(1, Ordering::Relaxed);
     }
+    HALVES.fetch_add(halves.count_ones(), Ordering::Relaxed);
     halves != 0
 }
 

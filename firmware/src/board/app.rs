@@ -18,7 +18,8 @@ use embedded_storage::nor_flash::NorFlash;
 use super::ports::BoardPorts;
 use super::resources::{self, init_core, start_dither, unmask_readout, ReadoutQueues, SCHEDULER};
 use super::{
-    adc, backup, clocks, dither, encoder, flash, otp, pac, sync, turnaround, usart, watchdog,
+    adc, backup, clocks, dither, encoder, flash, otp, pac, selftest, sync, turnaround, usart,
+    watchdog,
 };
 use crate::dither::DitherConfig;
 use crate::profile::BoardProfile;
@@ -53,8 +54,18 @@ pub struct Health {
     pub sync_overruns: u32,
     /// Lissajous DMA halves completed again before the readout task processed them.
     pub lissajous_block_overruns: u32,
-    /// DMA2 stream 0 transfer errors.
+    /// DMA2 stream 0 transfer errors (each restarted the stream).
     pub dma_errors: u32,
+    /// Photodiode regular-group overruns (each restarted the stream).
+    pub adc_overruns: u32,
+    /// Output latches whose pick-off conversion had not ended (the record flagged invalid).
+    pub pickoff_not_converted: u32,
+    /// Pick-off edges captured over an unread one (an edge lost).
+    pub pickoff_overcaptures: u32,
+    /// Internal output periods passed without their compare (a store's pause).
+    pub sync_periods_missed: u32,
+    /// Drive ticks whose pick-off conversion had not ended.
+    pub drive_samples_missed: u32,
     /// USART1 receive overruns (bytes lost in hardware).
     pub usart_overruns: u32,
     /// USART1 framing or noise errors.
@@ -81,6 +92,11 @@ impl Health {
             sync_overruns: turnaround::sync_overruns(),
             lissajous_block_overruns: get(&adc::BLOCK_OVERRUNS),
             dma_errors: get(&adc::DMA_ERRORS),
+            adc_overruns: get(&adc::OVERRUNS),
+            pickoff_not_converted: get(&turnaround::PICKOFF_NOT_CONVERTED),
+            pickoff_overcaptures: get(&turnaround::PICKOFF_OVERCAPTURES),
+            sync_periods_missed: get(&sync::PERIODS_MISSED),
+            drive_samples_missed: get(&dither::SAMPLES_MISSED),
             usart_overruns: get(&usart::OVERRUNS),
             usart_line_errors: get(&usart::LINE_ERRORS),
             usart_rx_dropped: get(&usart::RX_DROPPED),
@@ -130,9 +146,10 @@ pub fn boot<F: NorFlash>(
 }
 
 /// Brings the board up and runs it: clocks, watchdog, serial link, calibration from flash,
-/// encoder, turnaround timer, ADCs, the dither drive (enabled: it finds the resonance and
-/// locks by itself), interrupts, then the main loop. Needs
-/// [`crate::bind_board_interrupts`] in the binary.
+/// encoder, turnaround timer, ADCs, the drive's peripherals, the power-up self-test (its clock,
+/// timer and trigger checks, [`super::selftest`]), the dither drive (its pick-off check first,
+/// then, enabled, it finds the resonance and locks by itself; inhibited if a check failed),
+/// interrupts, then the main loop. Needs [`crate::bind_board_interrupts`] in the binary.
 pub fn run() -> ! {
     let profile = BoardProfile::F405;
     let mut cp = cortex_m::Peripherals::take().unwrap();
@@ -154,8 +171,16 @@ pub fn run() -> ! {
             | clocks::APB1_DAC,
         clocks::APB2_USART1 | clocks::APB2_ADC1 | clocks::APB2_ADC2 | clocks::APB2_ADC3,
     );
-    defmt::info!("clocks: 168 MHz from {}", source);
-    backup::init(&dp.PWR);
+    let clock = clocks::flags(&dp.RCC);
+    defmt::info!(
+        "clocks: SYSCLK {} Hz, crystal {}, PLL locked {}",
+        clocks::sysclk_hz(clock),
+        source,
+        clock.pll_locked
+    );
+    if !backup::init(&dp.PWR) {
+        defmt::warn!("backup regulator not ready: the wrong-key count does not survive power loss");
+    }
     init_core(&mut cp.SCB, &mut cp.NVIC, &mut cp.SYST);
     let serial = usart::init(dp.USART1);
     let config = ServiceConfig::for_profile(
@@ -172,16 +197,31 @@ pub fn run() -> ! {
     sync::init(&dp.TIM2);
     let dither_config = DitherConfig::for_profile(&profile);
     dither::init(&dp.TIM4, &dp.DAC, &dp.ADC3, dither_config.dac_mid_code);
-    turnaround::measure_drive_tick_phase(&dp.TIM2, &dp.TIM4);
-    start_dither(dither_config, dither_setpoints);
+    let report = selftest::run(
+        &selftest::Under {
+            rcc: &dp.RCC,
+            tim2: &dp.TIM2,
+            tim3: &dp.TIM3,
+            tim4: &dp.TIM4,
+            adc1: &dp.ADC1,
+            adc2: &dp.ADC2,
+            adc3: &dp.ADC3,
+            dac: &dp.DAC,
+            dma: &dp.DMA2,
+        },
+        dither_config.dac_mid_code,
+    );
+    match report.first_failure() {
+        Some((check, why)) => {
+            defmt::error!("self-test: {} failed ({}): drive inhibited", check, why)
+        }
+        None => defmt::info!("self-test: clock, timers, triggers pass"),
+    }
+    start_dither(dither_config, dither_setpoints, Some(&report));
     unmask_readout(true);
     // SAFETY: the USART's queues were set up in `usart::init`.
     unsafe { NVIC::unmask(pac::Interrupt::USART1) };
-    let ports = BoardPorts {
-        serial,
-        watchdog: Some(watchdog),
-        hardware: true,
-    };
+    let ports = BoardPorts::new(serial, Some(watchdog), true, report);
     serve(service, queues, ports, Some("# rlg-readout ready"))
 }
 
@@ -203,13 +243,25 @@ pub fn serve<F: NorFlash>(
     let mut dither_state = None;
     loop {
         ports.refresh_watchdog();
+        ports.watch_pass();
         // Bounded: one command line and one queue of records of each kind, then the watchdog
         // again.
         let ReadoutQueues { cycles, outputs } = &mut queues;
+        let scale_factor = service.config().identity.scale_factor_arcsec;
         let busy = service.pass(
             &mut ports,
             |p| p.serial.read_byte(),
-            || cycles.dequeue(),
+            || {
+                // Every closed cycle's count amplitude against the mechanical limit: the
+                // over-amplitude trip that does not rely on the pick-off.
+                let record = cycles.dequeue();
+                if let Some(r) = &record {
+                    let arcsec = crate::dither::count_amplitude_arcsec(r, scale_factor);
+                    resources::DITHER
+                        .lock(|task| task.controller.check_count_amplitude(&task.config, arcsec));
+                }
+                record
+            },
             || outputs.dequeue(),
         );
         let state = resources::DITHER.lock(|task| task.controller.state());

@@ -37,14 +37,23 @@ fn record() -> *mut [u32; 3] {
     core::ptr::addr_of_mut!(RECORD).cast()
 }
 
+/// Polls of `PWR_CSR.BRR` after `BRE`: the backup regulator needs a few microseconds (the
+/// datasheet's t_BRR is not characterised; this is about 10 ms at 168 MHz).
+const BRR_POLLS: u32 = 200_000;
+
 /// Opens the backup domain for writes and keeps the backup SRAM on VBAT (the clocks
-/// `AHB1_BKPSRAM` and `APB1_PWR` must be on).
-pub fn init(pwr: &pac::PWR) {
+/// `AHB1_BKPSRAM` and `APB1_PWR` must be on). Waits (bounded) until the backup regulator
+/// reports ready (`BRR`, RM0090 5.4.2: the SRAM keeps its contents on VBAT only from then on);
+/// returns whether it did (false: the wrong-key count survives resets, not a power loss;
+/// logged). QEMU models no PWR: true at once.
+pub fn init(pwr: &pac::PWR) -> bool {
     const CR_DBP: u32 = 1 << 8;
     const CSR_BRE: u32 = 1 << 9;
+    const CSR_BRR: u32 = 1 << 3;
     pwr.cr().modify(|r, w| unsafe { w.bits(r.bits() | CR_DBP) });
     pwr.csr()
         .modify(|r, w| unsafe { w.bits(r.bits() | CSR_BRE) });
+    cfg!(feature = "qemu") || (0..BRR_POLLS).any(|_| pwr.csr().read().bits() & CSR_BRR != 0)
 }
 
 /// The count kept before the reset (0 after a cold start).

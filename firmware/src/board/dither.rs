@@ -37,6 +37,13 @@
 //! handler appears at tick k + 1's update (3 APB1 clocks later), which is the controller's
 //! convention (`on_tick` returns the code of the next tick). Before the first tick and
 //! whenever the controller is off the output is mid-scale (zero drive).
+//!
+//! Mid-scale from the start: with a trigger selected (`TEN1`) the output register `DOR1` is
+//! loaded only by a trigger and resets to 0, so enabling the channel triggered would drive 0 V,
+//! a full negative drive step, until TIM4's first update. So the channel is enabled first
+//! without a trigger, which loads `DHR12R1` (mid-scale) into `DOR1` one APB1 clock later
+//! (RM0090 14.3.4), and the trigger is selected after that. The codes stay inside the buffered
+//! output's linear range (`crate::dither::drive_limit_codes`).
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
@@ -61,13 +68,16 @@ const PICKOFF_CHANNEL: u32 = 12;
 /// Ticks whose pick-off conversion had not finished when the handler ran (the previous code
 /// was used).
 pub static SAMPLES_MISSED: AtomicU32 = AtomicU32::new(0);
+/// Drive ticks handled, wrapping: the rate monitor's count.
+pub static TICKS: AtomicU32 = AtomicU32::new(0);
 
 // TIMx_CR2: MMS[6:4] = 010 (update -> TRGO)
 const TIM_CR2_MMS_UPDATE: u32 = 0b010 << 4;
 // TIMx_DIER: CC1IE 1; SR: CC1IF 1
 const TIM_CC1: u32 = 1 << 1;
 // DAC_CR: EN1 0, BOFF1 1 (0: buffer on), TEN1 2, TSEL1[5:3] = 101 (TIM4 TRGO)
-const DAC_CR: u32 = 1 | (1 << 2) | (0b101 << 3);
+const DAC_CR_EN1: u32 = 1;
+const DAC_CR: u32 = DAC_CR_EN1 | (1 << 2) | (0b101 << 3);
 // ADC_CR2: ADON 0, JEXTSEL[19:16] = 1001 (TIM4 TRGO), JEXTEN[21:20] = 01 (rising); the regular
 // group is the output latch's pick-off: EXTSEL[27:24] = 0110 (TIM2 TRGO, the latch's compare
 // pulse, as ADC1/ADC2's injected pair), EXTEN[29:28] = 01 (rising). EOCS and DMA stay 0: no
@@ -86,6 +96,10 @@ pub fn init(tim: &pac::TIM4, dac: &pac::DAC, adc3: &pac::ADC3, mid_code: u16) {
     super::Port::A.analog(4); // DAC_OUT1
     super::Port::C.analog(2); // ADC3 IN12: the pick-off
     dac.dhr12r1().write(|w| unsafe { w.bits(mid_code as u32) });
+    // Enabled untriggered first: DOR1 = mid-scale one APB1 clock later (module docs), then
+    // the trigger.
+    dac.cr().write(|w| unsafe { w.bits(DAC_CR_EN1) });
+    cortex_m::asm::delay(16);
     dac.cr().write(|w| unsafe { w.bits(DAC_CR) });
     adc3.smpr1().write(|w| unsafe { w.bits(ADC_SMPR1) });
     adc3.jsqr()
@@ -119,6 +133,14 @@ pub fn take_pickoff(tim: &pac::tim3::RegisterBlock, adc3: &pac::adc1::RegisterBl
     adc3.jdr1().read().bits() as u16
 }
 
+/// Drive off by software, without TIM4: the trigger deselected, so the DAC takes mid-scale at
+/// once (the drive tick stopped, or the clock was lost: nothing else would move the DAC off
+/// its last code, a DC force on the dither). The main loop's, once; the tick is inhibited too.
+pub fn force_mid(dac: &pac::dac::RegisterBlock, mid_code: u16) {
+    dac.cr().write(|w| unsafe { w.bits(DAC_CR_EN1) });
+    dac.dhr12r1().write(|w| unsafe { w.bits(mid_code as u32) });
+}
+
 /// The drive tick: the pick-off code to the controller, its DAC code to the holding register.
 #[inline(always)]
 pub fn on_tick(
@@ -127,6 +149,7 @@ pub fn on_tick(
     dac: &pac::dac::RegisterBlock,
 ) {
     let code = take_pickoff(tim, adc3);
+    TICKS.fetch_add(1, Ordering::Relaxed);
     DITHER.lock(|task| {
         let tick = task.controller.on_tick(&task.config, code);
         dac.dhr12r1()

@@ -14,7 +14,9 @@
 //!   store to the address. Both: wait while `SR.BSY`, then check `SR` (`OPERR`, `WRPERR`, `PGAERR`,
 //!   `PGPERR`, `PGSERR`) -> [`FlashError`], clear the flags (write 1).
 //! - After an erase or program, the ART data cache may hold the old contents of those addresses:
-//!   it is reset (`ACR.DCEN = 0`, `DCRST` pulse, `DCEN = 1`) before anything reads them back.
+//!   it is reset before anything reads them back, in four separate writes, because `DCRST` may
+//!   be written only while the data cache is disabled (RM0090 3.9.1, FLASH_ACR): `DCEN = 0`,
+//!   `DCRST = 1`, `DCRST = 0`, `DCEN = 1`.
 //!
 //! # The stall
 //! The F405 has a single flash bank. While `BSY` is set, every instruction fetch and data read
@@ -105,13 +107,12 @@ impl InternalFlash {
 
     fn lock(&mut self) {
         self.regs.cr().write(|w| unsafe { w.bits(CR_LOCK) });
-        let acr = self.regs.acr().read().bits();
-        self.regs
-            .acr()
-            .write(|w| unsafe { w.bits((acr & !ACR_DCEN) | ACR_DCRST) });
-        self.regs
-            .acr()
-            .write(|w| unsafe { w.bits(acr & !ACR_DCRST) });
+        // The data cache reset, DCRST written only with the cache disabled (module docs).
+        let acr = self.regs.acr().read().bits() & !ACR_DCRST;
+        let off = acr & !ACR_DCEN;
+        for step in [off, off | ACR_DCRST, off, acr] {
+            self.regs.acr().write(|w| unsafe { w.bits(step) });
+        }
     }
 
     /// Waits for the end of the operation (the CPU stalls here) and collects its errors.
@@ -156,29 +157,38 @@ impl InternalFlash {
         result
     }
 
-    /// Programs `words` into OTP block `block` (16 blocks of 32 bytes at 0x1FFF_7800) from word
-    /// `first`, then writes the block's lock byte (0x1FFF_7A00 + block) to 0x00, after which no
-    /// word of the block can be programmed again (RM0090 3.7.6). Each bit can only go from 1 to
-    /// 0, once: the caller checks the words are blank first (`super::otp`).
-    pub fn program_otp_and_lock(
+    /// Programs one word of OTP block `block` (16 blocks of 8 words at 0x1FFF_7800). Each bit
+    /// can only go from 1 to 0, once (RM0090 3.7.6); the caller (`crate::otp_record`) decides
+    /// what and in which order.
+    pub fn program_otp_word(
         &mut self,
         block: u32,
-        first: u32,
-        words: &[u32],
+        word: u32,
+        value: u32,
     ) -> Result<(), FlashError> {
-        if block >= OTP_BLOCKS || first as usize + words.len() > OTP_BLOCK_WORDS {
+        if block >= OTP_BLOCKS || word as usize >= OTP_BLOCK_WORDS {
             return Err(FlashError::OutOfBounds);
         }
-        let base = OTP_BASE + 32 * block + 4 * first;
+        let address = OTP_BASE + 32 * block + 4 * word;
         self.unlocked(|f| {
-            for (i, &word) in words.iter().enumerate() {
-                f.regs
-                    .cr()
-                    .write(|w| unsafe { w.bits(CR_PSIZE_X32 | CR_PG) });
-                // SAFETY: an aligned word of OTP block `block` (checked above), PG set.
-                unsafe { ((base + 4 * i as u32) as *mut u32).write_volatile(word) };
-                f.finish()?;
-            }
+            f.regs
+                .cr()
+                .write(|w| unsafe { w.bits(CR_PSIZE_X32 | CR_PG) });
+            // SAFETY: an aligned word of OTP block `block` (checked above), PG set.
+            unsafe { (address as *mut u32).write_volatile(value) };
+            let result = f.finish();
+            f.regs.cr().write(|w| unsafe { w.bits(0) });
+            result
+        })
+    }
+
+    /// Writes OTP block `block`'s lock byte (0x1FFF_7A00 + block) to 0x00: no word of the block
+    /// can be programmed again (RM0090 3.7.6).
+    pub fn lock_otp_block(&mut self, block: u32) -> Result<(), FlashError> {
+        if block >= OTP_BLOCKS {
+            return Err(FlashError::OutOfBounds);
+        }
+        self.unlocked(|f| {
             f.regs
                 .cr()
                 .write(|w| unsafe { w.bits(CR_PSIZE_X8 | CR_PG) });
@@ -192,8 +202,8 @@ impl InternalFlash {
 }
 
 /// The OTP area: 16 blocks of 32 bytes, then 16 lock bytes.
-const OTP_BASE: u32 = 0x1FFF_7800;
-const OTP_LOCK_BASE: u32 = 0x1FFF_7A00;
+pub(super) const OTP_BASE: u32 = 0x1FFF_7800;
+pub(super) const OTP_LOCK_BASE: u32 = 0x1FFF_7A00;
 const OTP_BLOCKS: u32 = 16;
 const OTP_BLOCK_WORDS: usize = 8;
 

@@ -15,9 +15,14 @@ use super::resources::{
 };
 use super::turnaround::Latched;
 use super::{adc, dither, pac, turnaround, usart};
+use crate::signal::output::record::OutputStatus;
 
-/// `ADC`: the latch (JEOC of ADC1): a turnaround, or an output latch (`super::sync`).
+/// `ADC`: the latch (JEOC of ADC1): a turnaround, or an output latch (`super::sync`); first
+/// a regular-group overrun, which restarts the photodiode stream (`super::adc`).
 pub fn adc() {
+    // SAFETY: the ADC common CCR, the ADCs' OVR flags and DMA2 stream 0 are touched here only
+    // by the stream's restart (see `adc::restart_stream`).
+    let (common, dma) = unsafe { (&*pac::ADC_COMMON::ptr(), &*pac::DMA2::ptr()) };
     // SAFETY: register reads/flag clears of peripherals this handler owns after start-up; the
     // CCR1 write is inside the plan's critical section (`turnaround::latch`). ADC3's regular
     // data register is read by this handler only (the drive tick reads its injected one).
@@ -30,6 +35,9 @@ pub fn adc() {
             &*pac::TIM5::ptr(),
         )
     };
+    if !adc::on_adc_interrupt(common, adc1, adc2, dma) {
+        return;
+    }
     match turnaround::latch(adc1, adc2, adc3, tim2, tim5) {
         Some(Latched::Turnaround(sample)) => {
             // SAFETY: this handler is the only producer.
@@ -84,6 +92,12 @@ pub fn dma2_stream0() {
     }
 }
 
+/// `NonMaskableInt`: the clock security system (the crystal stopped). Touches only RCC_CIR
+/// and an atomic flag: the NMI preempts every critical section.
+pub fn nmi() {
+    super::clocks::on_nmi();
+}
+
 /// `SysTick`: 1 ms.
 pub fn systick() {
     resources::tick_ms();
@@ -99,7 +113,11 @@ pub fn readout_task() {
             task.output_latches_dropped_seen = dropped;
             task.readout.break_output_chain();
         }
+        let timing_fault = super::watch::TIMING_FAULT.load(Ordering::Relaxed);
         while let Some(sample) = task.output_samples.dequeue() {
+            if timing_fault {
+                task.readout.mark_output(OutputStatus::TIMING_FAULT);
+            }
             let record = task.readout.on_output_latch(&task.config, sample);
             if task.outputs.enqueue(record).is_err() {
                 OUTPUT_RECORDS_DROPPED.fetch_add(1, Ordering::Relaxed);
@@ -153,6 +171,12 @@ macro_rules! bind_board_interrupts {
             #[cortex_m_rt::exception]
             fn SysTick() {
                 $crate::board::isr::systick()
+            }
+            // SAFETY: the NMI preempts critical sections: its handler touches only RCC_CIR
+            // and an atomic flag, nothing a critical section guards.
+            #[cortex_m_rt::exception]
+            unsafe fn NonMaskableInt() {
+                $crate::board::isr::nmi()
             }
         }
     };

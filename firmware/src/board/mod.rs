@@ -21,6 +21,10 @@
 //! | [`backup`] | PWR, backup SRAM | the wrong-key count across resets |
 //! | [`watchdog`] | IWDG | reset if the main loop stops |
 //!
+//! and the board's watch over itself: [`selftest`] (the power-up checks' measurements) and
+//! [`watch`] (the rate monitors' counts and reactions), whose judgements are the host-tested
+//! `crate::board_timing`.
+//!
 //! and the contexts around them, in three files that import one way (`app` -> `ports` ->
 //! `resources` <- `isr`):
 //!
@@ -50,9 +54,11 @@ pub mod isr;
 pub mod otp;
 pub mod ports;
 pub mod resources;
+pub mod selftest;
 pub mod sync;
 pub mod turnaround;
 pub mod usart;
+pub mod watch;
 pub mod watchdog;
 
 use core::cell::UnsafeCell;

@@ -1,76 +1,139 @@
-//! OTP block 0: the board's identity, written once at production.
+//! OTP: the board's identity, written once at production: the serial number (block 0 word 0,
+//! by the production jig over SWD) and the 128-bit calibration key (by the firmware itself on
+//! `key provision`). The layout, the check word that makes a half-written key read as no key,
+//! the spare blocks and the provisioning order are plain logic in [`crate::otp_record`]; this
+//! file gives it the cells ([`crate::otp_record::OtpCells`]): reads of the OTP area, and the
+//! flash controller's word programming and block locking ([`super::flash`]).
 //!
-//! | word | content |
-//! |---|---|
-//! | 0 | the gyro's serial number (all ones: serial 0) |
-//! | 1..=4 | the 128-bit calibration key, big-endian words (all ones: unprovisioned) |
-//!
-//! The serial number is programmed first (production jig, over SWD); the key last, by the
-//! firmware itself on `key provision` ([`program_key`]), which also writes block 0's lock byte:
-//! afterwards no bit of the block can change, not even through the flash controller. The key is
-//! read once at boot ([`read`]); provisioning takes effect at once (the service keeps the key it
-//! wrote).
+//! The key is read once at boot ([`read`]); provisioning takes effect at once (the service
+//! keeps the key it wrote).
 //!
 //! QEMU (feature `qemu`) does not map the OTP area (a read faults) and its flash controller
-//! ignores writes, so that build models a blank OTP block in RAM: it boots unprovisioned, and a
-//! `key provision` lasts until the emulator exits, like every other QEMU state.
+//! ignores writes, so that build models the OTP blocks in RAM, as a board leaves the jig: serial
+//! number [`QEMU_SERIAL`] programmed, no key. A `key provision` there lasts until the emulator
+//! exits, like every other QEMU state.
 
+#[cfg(feature = "qemu")]
+use crate::otp_record::KEY_BLOCKS;
+use crate::otp_record::{self, OtpCells, OtpWriteError, ProvisionError};
 use crate::protocol::key::Key;
 use crate::protocol::link::KeyWriteError;
 
-/// Words 0..=4 of block 0 as read now.
+/// The OTP cells of this build.
+struct Cells;
+
 #[cfg(not(feature = "qemu"))]
-fn words() -> [u32; 5] {
-    // SAFETY: the OTP area is always readable on the F405.
-    core::array::from_fn(|i| unsafe { (0x1FFF_7800 as *const u32).add(i).read_volatile() })
-}
-
-#[cfg(feature = "qemu")]
-static MODEL: cortex_m::interrupt::Mutex<core::cell::Cell<[u32; 5]>> =
-    cortex_m::interrupt::Mutex::new(core::cell::Cell::new([u32::MAX; 5]));
-
-#[cfg(feature = "qemu")]
-fn words() -> [u32; 5] {
-    cortex_m::interrupt::free(|cs| MODEL.borrow(cs).get())
-}
-
-/// The serial number (0 when unprogrammed) and the key (`None`: unprovisioned), decoded by
-/// the host-tested `service::power_up::otp_identity`.
-pub fn read() -> (u32, Option<Key>) {
-    crate::service::power_up::otp_identity(words())
-}
-
-/// Writes `key` to words 1..=4 and locks block 0; refused unless those words are blank. The
-/// words are read back: a key that did not program exactly is reported as failed.
-pub fn program_key(key: &Key) -> Result<(), KeyWriteError> {
-    if words()[1..] != [u32::MAX; 4] {
-        return Err(KeyWriteError::NotBlank);
+impl OtpCells for Cells {
+    fn read(&self, block: u32, word: u32) -> u32 {
+        let address = super::flash::OTP_BASE + 32 * block + 4 * word;
+        // SAFETY: the OTP area is always readable on the F405 (callers stay inside it).
+        unsafe { (address as *const u32).read_volatile() }
     }
-    let new = key.to_otp_words();
-    write(&new)?;
-    match read().1 {
-        Some(k) if k.matches(key) => Ok(()),
-        _ => Err(KeyWriteError::Failed),
+
+    fn locked(&self, block: u32) -> bool {
+        // SAFETY: the lock bytes are always readable.
+        unsafe { ((super::flash::OTP_LOCK_BASE + block) as *const u8).read_volatile() == 0 }
+    }
+
+    fn program(&mut self, block: u32, word: u32, value: u32) -> Result<(), OtpWriteError> {
+        flash()
+            .program_otp_word(block, word, value)
+            .map_err(|_| OtpWriteError)
+    }
+
+    fn lock(&mut self, block: u32) -> Result<(), OtpWriteError> {
+        flash().lock_otp_block(block).map_err(|_| OtpWriteError)
     }
 }
 
+/// The flash controller for an OTP write.
 #[cfg(not(feature = "qemu"))]
-fn write(key_words: &[u32; 4]) -> Result<(), KeyWriteError> {
+fn flash() -> super::flash::InternalFlash {
     // SAFETY: the flash interface is otherwise used only by the calibration store's
     // `InternalFlash`, from this same context (the main loop), never while this runs.
-    let regs = unsafe { super::pac::FLASH::steal() };
-    super::flash::InternalFlash::new(regs)
-        .program_otp_and_lock(0, 1, key_words)
-        .map_err(|_| KeyWriteError::Failed)
+    super::flash::InternalFlash::new(unsafe { super::pac::FLASH::steal() })
+}
+
+/// The serial number the QEMU build's OTP model holds (the production jig's word).
+#[cfg(feature = "qemu")]
+pub const QEMU_SERIAL: u32 = 1;
+
+#[cfg(feature = "qemu")]
+type Model = ([[u32; 8]; KEY_BLOCKS as usize], [bool; KEY_BLOCKS as usize]);
+
+#[cfg(feature = "qemu")]
+static MODEL: cortex_m::interrupt::Mutex<core::cell::Cell<Option<Model>>> =
+    cortex_m::interrupt::Mutex::new(core::cell::Cell::new(None));
+
+#[cfg(feature = "qemu")]
+fn model() -> Model {
+    cortex_m::interrupt::free(|cs| {
+        MODEL.borrow(cs).get().unwrap_or_else(|| {
+            let mut words = [[otp_record::BLANK; 8]; KEY_BLOCKS as usize];
+            words[0][0] = QEMU_SERIAL;
+            (words, [false; KEY_BLOCKS as usize])
+        })
+    })
 }
 
 #[cfg(feature = "qemu")]
-fn write(key_words: &[u32; 4]) -> Result<(), KeyWriteError> {
-    cortex_m::interrupt::free(|cs| {
-        let cell = MODEL.borrow(cs);
-        let mut w = cell.get();
-        w[1..].copy_from_slice(key_words);
-        cell.set(w);
-    });
-    Ok(())
+fn with_model<R>(f: impl FnOnce(&mut Model) -> R) -> R {
+    let mut m = model();
+    let r = f(&mut m);
+    cortex_m::interrupt::free(|cs| MODEL.borrow(cs).set(Some(m)));
+    r
+}
+
+#[cfg(feature = "qemu")]
+impl OtpCells for Cells {
+    fn read(&self, block: u32, word: u32) -> u32 {
+        let (words, _) = model();
+        words
+            .get(block as usize)
+            .and_then(|b| b.get(word as usize))
+            .copied()
+            .unwrap_or(otp_record::BLANK)
+    }
+
+    fn locked(&self, block: u32) -> bool {
+        model().1.get(block as usize).copied().unwrap_or(true)
+    }
+
+    fn program(&mut self, block: u32, word: u32, value: u32) -> Result<(), OtpWriteError> {
+        with_model(|(words, locks)| {
+            if locks.get(block as usize) != Some(&false) {
+                return Err(OtpWriteError);
+            }
+            let cell = words
+                .get_mut(block as usize)
+                .and_then(|b| b.get_mut(word as usize))
+                .ok_or(OtpWriteError)?;
+            *cell &= value;
+            Ok(())
+        })
+    }
+
+    fn lock(&mut self, block: u32) -> Result<(), OtpWriteError> {
+        with_model(|(_, locks)| {
+            let lock = locks.get_mut(block as usize).ok_or(OtpWriteError)?;
+            *lock = true;
+            Ok(())
+        })
+    }
+}
+
+/// The serial number (0 when not programmed) and the key (`None`: unprovisioned, or only
+/// spent blocks).
+pub fn read() -> (u32, Option<Key>) {
+    crate::service::power_up::otp_identity(&Cells)
+}
+
+/// Provisions `key` ([`crate::otp_record::provision`]): `NotBlank` when it is not possible
+/// (no serial number, a key already there, no block left), `Failed` when a word did not
+/// program or read back (that block is spent; the next attempt uses the next one).
+pub fn program_key(key: &Key) -> Result<(), KeyWriteError> {
+    otp_record::provision(&mut Cells, key).map_err(|e| match e {
+        ProvisionError::NotPossible => KeyWriteError::NotBlank,
+        ProvisionError::Failed => KeyWriteError::Failed,
+    })
 }

@@ -11,7 +11,10 @@ use core::sync::atomic::Ordering;
 use super::resources::{self, DITHER, READOUT, TURNAROUNDS_DROPPED};
 use super::turnaround;
 use super::usart::SerialPort;
+use super::watch::Watch;
 use super::watchdog::Watchdog;
+use crate::board_timing::health::BoardHealth;
+use crate::board_timing::selftest::SelfTestReport;
 use crate::dither::{DitherConfig, DitherController};
 use crate::protocol::key::Key;
 use crate::protocol::link::KeyWriteError;
@@ -28,9 +31,37 @@ pub struct BoardPorts {
     /// The turnaround and Lissajous hardware runs (false in the QEMU serial test: an idle
     /// readout, only its task and lock exist).
     pub hardware: bool,
+    /// The power-up self-test's clock, timer and trigger checks.
+    pub selftest: SelfTestReport,
+    /// The rate monitors (run only with the hardware).
+    pub watch: Watch,
 }
 
 impl BoardPorts {
+    /// The ports of a board (`hardware`) or of the serial-only QEMU example, with the power-up
+    /// self-test's report.
+    pub fn new(
+        serial: SerialPort,
+        watchdog: Option<Watchdog>,
+        hardware: bool,
+        selftest: SelfTestReport,
+    ) -> Self {
+        Self {
+            serial,
+            watchdog,
+            hardware,
+            selftest,
+            watch: Watch::new(),
+        }
+    }
+
+    /// The rate monitors' pass (every main-loop pass; nothing without the hardware).
+    pub fn watch_pass(&mut self) {
+        if self.hardware {
+            self.watch.pass(resources::now_ms());
+        }
+    }
+
     /// Refreshes the watchdog, if one runs.
     pub fn refresh_watchdog(&mut self) {
         if let Some(dog) = self.watchdog.as_mut() {
@@ -86,15 +117,27 @@ impl ReadoutAccess for BoardPorts {
         self.refresh_watchdog();
     }
 
-    /// Refreshes the watchdog right after the stall, re-synchronises and unmasks.
+    /// Refreshes the watchdog right after the stall, re-synchronises and unmasks; the rate
+    /// monitors start afresh (the events stopped on purpose).
     fn restart_readout(&mut self) {
         self.refresh_watchdog();
         resources::resume_readout(self.hardware);
+        self.watch.restart();
     }
 
     /// Turnarounds the hardware path lost: scheduled too late, or dropped from a full queue.
     fn missed_below_readout(&self) -> u32 {
         turnaround::LATE.load(Ordering::Relaxed) + TURNAROUNDS_DROPPED.load(Ordering::Relaxed)
+    }
+
+    /// The self-test's report and the watch's faults; under QEMU the self-test says which
+    /// checks the emulator cannot pass.
+    fn board_health(&self) -> BoardHealth {
+        BoardHealth {
+            selftest: self.selftest,
+            timing: self.watch.faults(),
+            emulated: self.hardware && cfg!(feature = "qemu"),
+        }
     }
 }
 

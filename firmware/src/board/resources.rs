@@ -8,7 +8,7 @@
 //!
 //! | context | vector | prio | work | worst case |
 //! |---|---|---|---|---|
-//! | latch | `ADC` (JEOC) | 0x00 | copy ADC1/ADC2 JDR1, ADC3 DR, TIM5 CCR3, TIM2 CCR1 into a `TurnaroundSample` or an `OutputSample`, arm the next compare (`LatchPlan`), enqueue, pend the readout task | 129 instr, 1.3 us |
+//! | latch | `ADC` (JEOC, OVR) | 0x00 | an overrun restarts the photodiode stream; copy ADC1/ADC2 JDR1, ADC3 DR (after its EOC), TIM5 CCR3, TIM2 CCR1 into a `TurnaroundSample` or an `OutputSample`, arm the next compare (`LatchPlan`, re-anchored from TIM2/TIM4), enqueue, pend the readout task | ~150 instr, 1.6 us; 480 instr, 4.7 us with ADC3's full EOC poll |
 //! | dither drive tick | `TIM4` (CC1, 40 kHz) | 0x10 | ADC3 JDR1 (pick-off) -> `DitherController::on_tick` -> DAC DHR12R1 | 18 + 232 instr, 2.5 us; at the end of a half dither cycle 18 + 1243, 12.0 us |
 //! | pick-off and sync | `TIM2` (CC3/CC4, CC2) | 0x20 | edge time -> predicted turnaround -> `CCR1`; a sync edge (or the internal output period) -> the output latch's compare (`super::sync`) | 55 instr, 0.7 us (both edges pending: 1.1 us) |
 //! | serial | `USART1` | 0x30 | RX byte -> RX queue; TX queue -> DR | 35 + 20 per byte, 0.9 us |
@@ -27,7 +27,8 @@
 //! period minus 2 us (248 us at 1 kHz): the tick takes at most a few us of that. The USART
 //! must read each byte within one character time (21.7 us at 460 800 Bd): it is preempted
 //! only by the three handlers above (one tick at most per character; with the tick that
-//! closes a half cycle 0.7 + 11.7 + 1.1 = 13.5 us together). The
+//! closes a half cycle and a latch polling ADC3 to the end 4.7 + 12.2 + 1.1 = 18 us together).
+//! The NMI (the clock security system) records a flag and returns. The
 //! readout task has half a dither period per turnaround and 20.7 ms per Lissajous block; the
 //! main loop takes whatever is left.
 //!
@@ -64,6 +65,7 @@ use cortex_m::peripheral::{scb::SystemHandler, NVIC, SCB, SYST};
 use heapless::spsc::{Consumer, Producer, Queue};
 
 use super::{adc, pac, turnaround, Owned};
+use crate::board_timing::selftest::SelfTestReport;
 use crate::dither::{DitherConfig, DitherController};
 use crate::readout::{Readout, ReadoutConfig};
 use crate::sample::{OutputSample, TurnaroundSample};
@@ -273,14 +275,24 @@ pub fn unmask_readout(hardware: bool) {
     }
 }
 
-/// Starts the dither controller with the stored setpoints (none stored, or refused: the
-/// defaults, enabled) and unmasks the drive tick; enabled, the start-up begins at the first
-/// tick. TIM4, the DAC and ADC3 must be set up (`dither::init`).
-pub fn start_dither(config: DitherConfig, stored: Option<DitherSetpoints>) {
+/// Starts the dither controller with the stored setpoints (`DitherController::apply_stored`:
+/// none stored, the defaults, enabled; a refused record keeps its `enabled`) and unmasks the
+/// drive tick. With the board's power-up checks (`selftest`) passed the pick-off check runs
+/// first (the half-drive sweep, `crate::dither`'s `self_test`), then the start-up if the drive
+/// is wanted on; with a check failed the drive is inhibited. `None`: no board (the QEMU serial
+/// example: the controller exists for the protocol, its tick never runs). TIM4, the DAC and
+/// ADC3 must be set up (`dither::init`).
+pub fn start_dither(
+    config: DitherConfig,
+    stored: Option<DitherSetpoints>,
+    selftest: Option<&SelfTestReport>,
+) {
     let mut controller = DitherController::new(&config);
-    let applied = stored.is_some_and(|s| controller.apply_setpoints(&config, s).is_ok());
-    if !applied {
-        controller.enable();
+    controller.apply_stored(&config, stored);
+    match selftest {
+        Some(report) if report.hardware_passed() => controller.start_self_test(),
+        Some(_) => controller.inhibit(),
+        None => {}
     }
     DITHER.init(DitherTask { config, controller });
     // SAFETY: the tick's state was initialised just above.
@@ -323,7 +335,8 @@ pub fn pause_readout(hardware: bool) {
         turnaround::pause(unsafe { &*pac::TIM2::ptr() });
     }
     NVIC::pend(READOUT_TASK_IRQ);
-    // The pended task (priority 0x40 > thread) is taken before the next instruction completes.
+    // The pended task (priority 0x50, above thread mode) is taken before the next instruction
+    // completes.
     cortex_m::asm::dsb();
     cortex_m::asm::isb();
     NVIC::mask(READOUT_TASK_IRQ);

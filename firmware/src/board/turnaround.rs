@@ -39,10 +39,11 @@ use core::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, Ordering};
 use cortex_m::interrupt::Mutex;
 
 use super::pac;
+use crate::board_timing::phase::keep_out_now;
 use crate::profile::BoardProfile;
 use crate::sample::{OutputSample, TurnaroundKind, TurnaroundSample};
 use crate::signal::lockin::CycleRecord;
-use crate::signal::output::latch_plan::{Arm, KeepOut, LatchKind, LatchPlan, OUTPUT_LEAD_TICKS};
+use crate::signal::output::latch_plan::{Arm, LatchKind, LatchPlan, OUTPUT_LEAD_TICKS};
 use crate::signal::turnaround::{self as schedule, SchedulerConfig};
 pub use crate::signal::turnaround::{Edge, Schedule};
 
@@ -73,9 +74,17 @@ pub static PICKOFF_LAG_TICKS: AtomicI32 = AtomicI32::new(0);
 /// register never disagree. A compare match nobody armed (the parked compare coming round after
 /// 25 s without dither) is discarded.
 static PLAN: Mutex<RefCell<LatchPlan>> = Mutex::new(RefCell::new(LatchPlan::new()));
-/// Where the drive tick's ADC3 conversion window starts, TIM2 ticks modulo its period
-/// (measured at start-up, [`measure_drive_tick_phase`]).
-static DRIVE_TICK_WINDOW: AtomicU32 = AtomicU32::new(0);
+/// Output latches whose pick-off conversion (ADC3 regular) had not ended when the latch was
+/// read: the code is replaced by a rail code, so the record is flagged (`PICKOFF_FAULT`) and
+/// invalid rather than carrying the previous latch's pick-off.
+pub static PICKOFF_NOT_CONVERTED: AtomicU32 = AtomicU32::new(0);
+/// Pick-off edges captured over an unread capture (TIM2 CC3OF/CC4OF: the handler was held off
+/// for a whole half period): an edge was lost.
+pub static PICKOFF_OVERCAPTURES: AtomicU32 = AtomicU32::new(0);
+/// Latches taken (a turnaround's, an output's), wrapping: the rate monitors' counts.
+pub static TURNAROUNDS_LATCHED: AtomicU32 = AtomicU32::new(0);
+/// Output latches taken, wrapping.
+pub static OUTPUTS_LATCHED: AtomicU32 = AtomicU32::new(0);
 /// Latches nobody armed (discarded).
 pub static UNARMED: AtomicU32 = AtomicU32::new(0);
 /// Count latches overwritten before the handler read them (it ran a half cycle late).
@@ -104,6 +113,16 @@ const CCER: u32 = (1 << 0) | (1 << 8) | (1 << 12) | (1 << 13);
 const DIER_PICKOFF: u32 = (1 << 3) | (1 << 4);
 const SR_CC3IF: u32 = 1 << 3;
 const SR_CC4IF: u32 = 1 << 4;
+// SR overcapture flags (rc_w0): CC3OF 11, CC4OF 12
+const SR_CC3OF: u32 = 1 << 11;
+const SR_CC4OF: u32 = 1 << 12;
+// ADC_SR: EOC 1 (the regular conversion, ADC3's pick-off at an output latch)
+const ADC_SR_EOC: u32 = 1 << 1;
+/// Polls of ADC3's EOC before a latch's pick-off counts as not converted: each is an APB2 read
+/// and a branch, at least 4 core cycles, so 64 polls last at least 1.5 us at 168 MHz, more
+/// than the 1.3 us one injected conversion adds to the regular one it meets (the handler runs
+/// after ADC1's JEOC, when an undelayed ADC3 conversion has ended too: one poll).
+const EOC_POLLS: u32 = 64;
 
 /// Configures TIM2 (clocks for TIM2, GPIOA, GPIOB must be on) and starts it, compare parked.
 /// The pick-off interrupt is enabled in the peripheral; the NVIC line is the caller's.
@@ -133,20 +152,25 @@ fn park(tim: &pac::tim2::RegisterBlock, now: u32) {
         .write(|w| unsafe { w.bits(now.wrapping_add(1 << 31)) });
 }
 
-/// The drive tick's conversion window in TIM2's time: TIM4 updates (and triggers ADC3's
-/// injected pick-off conversion) when its counter wraps; reading both counters back to back
-/// (a few ticks apart, inside the window's margin) gives the phase. Call once both run.
-pub fn measure_drive_tick_phase(tim2: &pac::tim2::RegisterBlock, tim4: &pac::tim3::RegisterBlock) {
-    let period = BoardProfile::F405.drive_tick_period_timer_ticks();
-    let (t2, t4) =
-        cortex_m::interrupt::free(|_| (tim2.cnt().read().bits(), tim4.cnt().read().bits()));
-    // The update is at TIM4 count 0: t2 - t4 in TIM2 ticks. The window opens one conversion
-    // (27 ADC clocks = 108 ticks, plus margin) before it and closes one after.
-    let window_start = t2.wrapping_sub(t4).wrapping_sub(DRIVE_KEEP_OUT_HALF_TICKS) % period;
-    DRIVE_TICK_WINDOW.store(window_start, Ordering::Relaxed);
-    cortex_m::interrupt::free(|cs| {
-        *PLAN.borrow(cs).borrow_mut() = fresh_plan();
-    });
+/// Reads TIM2's and TIM4's counters together (inside the caller's critical section, a few
+/// timer clocks apart: inside the window's margin) and re-anchors the plan's keep-out window
+/// at them: TIM4 updates (and triggers ADC3's injected pick-off conversion) when its counter
+/// wraps, and the window opens one conversion (27 ADC clocks = 108 ticks, plus margin) before
+/// and closes one after. Never a stored phase: TIM2's wrap would move it
+/// ([`crate::board_timing::phase`]). Returns TIM2's count.
+fn anchor_keep_out(tim2: &pac::tim2::RegisterBlock, plan: &mut LatchPlan) -> u32 {
+    // SAFETY: a read of TIM4's counter, which nobody writes after start-up.
+    let tim4 = unsafe { &*pac::TIM4::ptr() };
+    let t4 = tim4.cnt().read().bits();
+    let t2 = tim2.cnt().read().bits();
+    plan.set_keep_out(keep_out_now(
+        t2,
+        t4,
+        BoardProfile::F405.drive_tick_period_timer_ticks(),
+        DRIVE_KEEP_OUT_HALF_TICKS,
+        2 * DRIVE_KEEP_OUT_HALF_TICKS,
+    ));
+    t2
 }
 
 /// Fewest ticks ahead a turnaround's compare may be re-armed at (after an output latch fired
@@ -156,15 +180,6 @@ const TURNAROUND_REARM_MIN_TICKS: i32 = 16;
 /// Half the keep-out window around a drive tick's conversion, ticks: one conversion (27 ADC
 /// clocks at 21 MHz, 108 ticks) plus the trigger latency and margin.
 const DRIVE_KEEP_OUT_HALF_TICKS: u32 = 125;
-
-/// A plan with nothing pending and the drive tick's window kept out.
-fn fresh_plan() -> LatchPlan {
-    LatchPlan::with_keep_out(KeepOut {
-        period_ticks: BoardProfile::F405.drive_tick_period_timer_ticks(),
-        start_ticks: DRIVE_TICK_WINDOW.load(Ordering::Relaxed),
-        width_ticks: 2 * DRIVE_KEEP_OUT_HALF_TICKS,
-    })
-}
 
 /// Writes the plan's armed compare to CCR1 (inside the caller's critical section): an output
 /// latch too close to `now` to be armed safely moves [`MIN_LEAD_TICKS`] on; nothing armed
@@ -247,11 +262,17 @@ impl Scheduler {
 #[inline(always)]
 pub fn on_pickoff_interrupt(tim: &pac::tim2::RegisterBlock, scheduler: &mut Scheduler) {
     let sr = tim.sr().read().bits();
+    if sr & (SR_CC3OF | SR_CC4OF) != 0 {
+        // An edge captured over an unread one: lost (the scheduler sees the gap).
+        tim.sr()
+            .write(|w| unsafe { w.bits(!(sr & (SR_CC3OF | SR_CC4OF))) });
+        PICKOFF_OVERCAPTURES.fetch_add(1, Ordering::Relaxed);
+    }
     // The output latch's sync edge (or internal period), if CC2 fired.
     if let Some(edge) = super::sync::take_edge(tim, sr) {
-        let now = tim.cnt().read().bits();
         cortex_m::interrupt::free(|cs| {
             let mut plan = PLAN.borrow(cs).borrow_mut();
+            let now = anchor_keep_out(tim, &mut plan);
             let arm = plan.on_sync(edge, now);
             write_armed(tim, &mut plan, arm, now);
         });
@@ -288,6 +309,7 @@ pub fn arm(tim: &pac::tim2::RegisterBlock, schedule: Schedule, now: u32) -> bool
     let in_time = schedule.compare_ticks.wrapping_sub(now) as i32 >= MIN_LEAD_TICKS as i32;
     cortex_m::interrupt::free(|cs| {
         let mut plan = PLAN.borrow(cs).borrow_mut();
+        let now = anchor_keep_out(tim, &mut plan);
         let arm = if in_time {
             plan.on_turnaround(schedule.kind, schedule.compare_ticks)
         } else {
@@ -323,13 +345,14 @@ pub fn latch(
     if overwritten {
         LATCH_OVERWRITTEN.fetch_add(1, Ordering::Relaxed);
     }
-    // Read before the compare is re-armed; ADC3's regular result (the pick-off, converted by
-    // every latch) is read always, which clears its EOC.
+    // Read before the compare is re-armed.
     let fired_at = tim2.ccr1().read().bits();
-    let pickoff_code = adc3.dr().read().bits() as u16;
-    let now = tim2.cnt().read().bits();
+    // ADC3's regular group converts the pick-off at every latch: taken at every latch (so an
+    // EOC left over can never pass for the next latch's), used by output latches.
+    let pickoff = take_pickoff_conversion(adc3);
     let fired = cortex_m::interrupt::free(|cs| {
         let mut plan = PLAN.borrow(cs).borrow_mut();
+        let now = anchor_keep_out(tim2, &mut plan);
         let (fired, next) = plan.on_fired();
         write_armed(tim2, &mut plan, next, now);
         fired
@@ -339,27 +362,50 @@ pub fn latch(
     let timestamp_ticks = fired_at.wrapping_add(APERTURE_DELAY_TICKS);
     let drive_locked = DRIVE_LOCKED.load(Ordering::Relaxed);
     match fired {
-        Some(LatchKind::Turnaround(kind)) => Some(Latched::Turnaround(TurnaroundSample {
-            kind,
-            encoder_count,
-            adc_a_code,
-            adc_b_code,
-            timestamp_ticks,
-            drive_locked,
-        })),
-        Some(LatchKind::Output) => Some(Latched::Output(OutputSample {
-            encoder_count,
-            adc_a_code,
-            adc_b_code,
-            pickoff_code,
-            timestamp_ticks,
-            drive_locked,
-        })),
+        Some(LatchKind::Turnaround(kind)) => {
+            TURNAROUNDS_LATCHED.fetch_add(1, Ordering::Relaxed);
+            Some(Latched::Turnaround(TurnaroundSample {
+                kind,
+                encoder_count,
+                adc_a_code,
+                adc_b_code,
+                timestamp_ticks,
+                drive_locked,
+            }))
+        }
+        Some(LatchKind::Output) => {
+            OUTPUTS_LATCHED.fetch_add(1, Ordering::Relaxed);
+            // Not converted in time: a rail code (0), which the readout flags as a pick-off
+            // fault (the record invalid), never the previous latch's code.
+            let pickoff_code = pickoff.unwrap_or_else(|| {
+                PICKOFF_NOT_CONVERTED.fetch_add(1, Ordering::Relaxed);
+                0
+            });
+            Some(Latched::Output(OutputSample {
+                encoder_count,
+                adc_a_code,
+                adc_b_code,
+                pickoff_code,
+                timestamp_ticks,
+                drive_locked,
+            }))
+        }
         None => {
             UNARMED.fetch_add(1, Ordering::Relaxed);
             None
         }
     }
+}
+
+/// ADC3's regular result, the pick-off at this latch, once its EOC says it is this latch's:
+/// an injected drive-tick conversion that met it delays it by up to one conversion (RM0090
+/// 13.3.9: the injected group interrupts the regular one, which restarts), so EOC is polled
+/// for that long; `None` if it has not ended by then. Reading DR clears EOC.
+#[inline(always)]
+fn take_pickoff_conversion(adc3: &pac::adc1::RegisterBlock) -> Option<u16> {
+    (0..EOC_POLLS)
+        .any(|_| adc3.sr().read().bits() & ADC_SR_EOC != 0)
+        .then(|| adc3.dr().read().bits() as u16)
 }
 
 /// Sync edges dropped because an output latch was still pending (the plan's overruns).
@@ -392,7 +438,7 @@ pub fn rate_shift_ticks(rate_rad_per_s: f32, amplitude_rad: f32, dither_hz: f32)
 pub fn pause(tim: &pac::tim2::RegisterBlock) {
     cortex_m::interrupt::free(|cs| {
         let overruns = PLAN.borrow(cs).borrow().overruns;
-        let mut plan = fresh_plan();
+        let mut plan = LatchPlan::new();
         plan.overruns = overruns;
         *PLAN.borrow(cs).borrow_mut() = plan;
     });

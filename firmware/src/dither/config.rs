@@ -57,13 +57,13 @@ pub struct DitherConfig {
 impl DitherConfig {
     /// The controller on `profile`'s board: its tick, pick-off, DAC and search range; a
     /// 450 arcsec default setpoint (docs/physics.md's gyro) settable in 50-650 arcsec; the drive
-    /// limited to 93 % of the DAC's half range; loop crossovers 4 Hz (amplitude) and 2 Hz
-    /// (frequency), integral corners a quarter of those.
+    /// limited to the DAC's linear range ([`drive_limit_codes`]); loop crossovers 4 Hz
+    /// (amplitude) and 2 Hz (frequency), integral corners a quarter of those.
     pub fn for_profile(profile: &BoardProfile) -> Self {
         let tick_hz = profile.drive_tick_hz as f64;
         let dither_hz = profile.nominal_dither_hz as f32;
-        let startup = StartupConfig::new(profile.dither_search_hz, tick_hz);
-        let half_range = (profile.dac_full_scale as f32 + 1.0) / 2.0;
+        let drive_limit = drive_limit_codes(profile);
+        let startup = StartupConfig::new(profile.dither_search_hz, tick_hz, drive_limit);
         let sensitivity = profile.pickoff_arcsec_per_code as f32;
         let pickoff_half_range =
             (profile.pickoff_mid_code as f32).min(0xFFF as f32 - profile.pickoff_mid_code as f32);
@@ -80,12 +80,12 @@ impl DitherConfig {
             setpoint_range_arcsec: (50.0, 650.0),
             default_setpoint_arcsec: 450.0,
             startup,
-            amplitude: AmplitudeLoopConfig::new(4.0, 4.0, dither_hz, 0.93 * half_range),
+            amplitude: AmplitudeLoopConfig::new(4.0, 4.0, dither_hz, drive_limit),
             amplitude_locked: AmplitudeLoopConfig::new(
                 LOCKED_AMPLITUDE_CROSSOVER_HZ,
                 1.0,
                 dither_hz,
-                0.93 * half_range,
+                drive_limit,
             ),
             frequency: FrequencyLoopConfig::new(
                 2.0,
@@ -122,6 +122,19 @@ impl DitherConfig {
     }
 }
 
+/// The drive's largest amplitude, DAC codes: the smaller of 93 % of the DAC's half range and
+/// the distance from the mid-code to the nearer end of the DAC's linear range (the buffered
+/// output clips beyond it: a clipped drive is a distorted drive, and its harmonics and its
+/// lower fundamental are not what the loops assume). 1798 codes on the F405 (the linear
+/// range), 4x what 450 arcsec needs at Q = 1000.
+pub fn drive_limit_codes(profile: &BoardProfile) -> f32 {
+    let mid = profile.dac_full_scale / 2 + 1;
+    let (lo, hi) = profile.dac_linear_codes;
+    let linear = mid.saturating_sub(lo).min(hi.saturating_sub(mid));
+    let half_range = (profile.dac_full_scale as f32 + 1.0) / 2.0;
+    (0.93 * half_range).min(linear as f32)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -131,11 +144,32 @@ mod tests {
         let c = DitherConfig::for_profile(&BoardProfile::F405);
         assert_eq!(c.tick_hz, 40_000.0);
         assert_eq!(c.dac_mid_code, 2048);
-        assert!((c.amplitude.drive_limit_codes() - 1904.64).abs() < 0.01);
+        assert_eq!(c.amplitude.drive_limit_codes(), 1798.0);
         // The largest setpoint stays inside the out-of-range limit, which stays off the rails.
         let max_codes = c.arcsec_to_codes(c.setpoint_range_arcsec.1);
         assert!(max_codes * (1.0 + c.faults.band) < c.faults.max_amplitude_codes);
         assert!(c.faults.max_amplitude_codes < 2047.0);
         assert_eq!(c.sample_delay_q16, 2185); // 70 / 2100 ticks
+    }
+
+    /// The largest drive the loops can command, at its peaks and with the noise dither's
+    /// clamp, stays inside the buffered DAC's linear range (0.2 V to VDDA - 0.2 V): no clipping
+    /// during the ring-up.
+    #[test]
+    fn the_drive_stays_inside_the_dacs_linear_range() {
+        let p = BoardProfile::F405;
+        let c = DitherConfig::for_profile(&p);
+        let mut drive = super::super::Drive::off(0, c.dac_mid_code, c.dac_full_scale);
+        drive.amplitude_q16 = c.amplitude.drive_limit_q16;
+        for config in [&c.amplitude, &c.amplitude_locked] {
+            assert!(config.drive_limit_q16 <= c.amplitude.drive_limit_q16);
+        }
+        let (lo, hi) = p.dac_linear_codes;
+        for sin in [i32::MAX, i32::MIN + 1, 0, i32::MAX / 2] {
+            let code = drive.code_from_sin(sin);
+            assert!((lo..=hi).contains(&code), "{code} outside {lo}..={hi}");
+        }
+        assert_eq!(drive.code_from_sin(i32::MAX), 3846);
+        assert_eq!(drive.code_from_sin(i32::MIN + 1), 250);
     }
 }

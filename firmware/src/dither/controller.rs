@@ -22,6 +22,7 @@ use super::estimate::DitherEstimate;
 use super::frequency::{phase_in, reference_shift, FrequencyLoop};
 use super::measure::{HalfCycle, Window, MAX_WINDOW};
 use super::noise::{NoiseDither, MAX_DEPTH_PERCENT};
+use super::self_test::{PickoffCheck, PickoffFailure};
 use super::startup::{Ring, RingListener};
 use super::supervisor::{Backoff, DitherState, FaultCounters, FaultKind, Run};
 use crate::storage::DitherSetpoints;
@@ -50,6 +51,8 @@ pub enum StartPhase {
     Sweep,
     /// At the ring's frequency, ringing up to the setpoint.
     RingUp,
+    /// The power-up self-test's low-drive sweep (`super::self_test`).
+    SelfTest,
 }
 
 /// A command refused (it changed nothing).
@@ -60,6 +63,8 @@ pub enum CommandError {
     NotFinite,
     /// Outside the settable range.
     OutOfRange,
+    /// The drive is inhibited (a failed self-test, a lost clock): it cannot be switched on.
+    Inhibited,
 }
 
 /// The controller's status (units at the edge: converted here, not in the tick).
@@ -94,6 +99,8 @@ pub struct DitherStatus {
     pub retry_in_s: Option<f32>,
     /// The noise dither's depth, percent.
     pub noise_depth_percent: f32,
+    /// The power-up check that the pick-off answers the drive ([`PickoffCheck`]).
+    pub pickoff_check: PickoffCheck,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -101,6 +108,8 @@ enum Request {
     Enable,
     Disable,
     Restart,
+    SelfTest,
+    Inhibit,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -112,6 +121,10 @@ enum Mode {
         resume_up: Option<bool>,
     },
     Sweep {
+        up: bool,
+    },
+    /// The power-up self-test: a sweep at a low drive ([`super::self_test`]).
+    SelfTest {
         up: bool,
     },
     Probe {
@@ -141,6 +154,17 @@ pub struct DitherController {
     window: Window,
     mode: Mode,
     request: Option<Request>,
+    /// The drive is wanted on (enabled, or asked to be): what `store` saves, whatever the
+    /// state (a fault, the self-test, an inhibit).
+    wanted_on: bool,
+    /// Held off for good (until a reset): enable requests are refused.
+    inhibited: bool,
+    /// The power-up self-test's outcome.
+    pickoff_check: PickoffCheck,
+    /// Half cycles in a row whose pick-off was flat during the self-test.
+    flat: Run,
+    /// A fault found outside the tick (the fringe count's amplitude), taken at the next tick.
+    pending_fault: Option<FaultKind>,
     setpoint_arcsec: f32,
     setpoint_changed: bool,
     amplitude: AmplitudeLoop,
@@ -169,6 +193,11 @@ impl DitherController {
             window: Window::new(),
             mode: Mode::Off,
             request: None,
+            wanted_on: false,
+            inhibited: false,
+            pickoff_check: PickoffCheck::NotRun,
+            flat: Run::default(),
+            pending_fault: None,
             setpoint_arcsec: config.default_setpoint_arcsec,
             setpoint_changed: false,
             amplitude: AmplitudeLoop::default(),
@@ -189,20 +218,65 @@ impl DitherController {
 
     // ---- commands (take effect at the next tick or half cycle) ----
 
-    /// Starts the dither (from `Off`; the start-up begins at the next tick).
+    /// Starts the dither (from `Off`; the start-up begins at the next tick; during the
+    /// self-test, once it has passed). Does nothing while inhibited.
     pub fn enable(&mut self) {
-        self.request = Some(Request::Enable);
+        if !self.inhibited {
+            self.wanted_on = true;
+            self.request = Some(Request::Enable);
+        }
     }
 
-    /// Stops the dither: drive off at the next tick, state `Off`.
+    /// Stops the dither: drive off at the next tick, state `Off` (a self-test under way is
+    /// abandoned: its outcome stays "not run").
     pub fn disable(&mut self) {
+        self.wanted_on = false;
         self.request = Some(Request::Disable);
     }
 
+    /// Runs the power-up self-test from `Off` (at the next tick): a sweep of the search range
+    /// at a low drive that must make the pick-off ring ([`super::self_test`]). Passed, the
+    /// drive starts if it is wanted on ([`Self::enable`], before or during the test); failed,
+    /// the drive is inhibited. Does nothing unless `Off` and not inhibited.
+    pub fn start_self_test(&mut self) {
+        if !self.inhibited && matches!(self.mode, Mode::Off) {
+            self.pickoff_check = PickoffCheck::Running;
+            self.request = Some(Request::SelfTest);
+        }
+    }
+
+    /// Holds the drive off until a reset (the board's power-up checks or its clock failed):
+    /// drive off at the next tick, state `Inhibited`, enable refused. What is wanted
+    /// ([`Self::setpoints`]) stays as it was, so a `store` does not save the inhibit.
+    pub fn inhibit(&mut self) {
+        self.inhibited = true;
+        self.request = Some(Request::Inhibit);
+    }
+
+    /// The fringe count's dither amplitude (the readout's, per cycle: independent of the
+    /// pick-off), arcsec: above the mechanical limit (the pick-off's, [`super::FaultLimits::
+    /// max_amplitude_codes`]) the drive goes off with `AmplitudeOutOfRange` at the next tick,
+    /// whatever the pick-off reads (a pick-off reading low would otherwise let the loop drive
+    /// the dither past its range: the drive can give about 4x the default setpoint).
+    pub fn check_count_amplitude(&mut self, config: &DitherConfig, count_amplitude_arcsec: f32) {
+        let limit = config.codes_to_arcsec(config.faults.max_amplitude_codes);
+        let driven = matches!(
+            self.mode,
+            Mode::Probe { .. } | Mode::Acquire { .. } | Mode::Locked { .. }
+        );
+        if driven && count_amplitude_arcsec > limit {
+            self.pending_fault = Some(FaultKind::AmplitudeOutOfRange);
+        }
+    }
+
     /// Starts again from listening (drive off at the next tick; not a fault): after the ticks
-    /// were interrupted (a flash store stalls the CPU). Does nothing while `Off` or in a fault.
+    /// were interrupted (a flash store stalls the CPU). Does nothing while `Off` or in a fault;
+    /// the self-test's sweep starts over. A request not yet taken (an enable, the self-test)
+    /// stays: it starts afresh anyway.
     pub fn restart(&mut self) {
-        self.request = Some(Request::Restart);
+        if self.request.is_none() {
+            self.request = Some(Request::Restart);
+        }
     }
 
     /// Sets the amplitude setpoint, arcsec (within `config.setpoint_range_arcsec`; an error
@@ -237,7 +311,9 @@ impl DitherController {
 
     /// Applies stored or commanded setpoints whole: the amplitude and the noise depth are
     /// range-checked first, so an error changes nothing; the drive is enabled or disabled only
-    /// if that differs from [`Self::enabled`] (a running start-up is not restarted).
+    /// if that differs from [`Self::enabled`] (a running start-up is not restarted). Setpoints
+    /// with the drive on are refused while it is inhibited ([`CommandError::Inhibited`]): the
+    /// answer must not say `dither=on` for a drive that stays off.
     pub fn apply_setpoints(
         &mut self,
         config: &DitherConfig,
@@ -246,6 +322,9 @@ impl DitherController {
         let (lo, hi) = config.setpoint_range_arcsec;
         check_range(setpoints.amplitude_arcsec, lo, hi)?;
         check_range(setpoints.noise_percent, 0.0, MAX_DEPTH_PERCENT)?;
+        if self.inhibited && setpoints.enabled {
+            return Err(CommandError::Inhibited);
+        }
         if setpoints.amplitude_arcsec != self.setpoint_arcsec {
             self.set_setpoint_arcsec(config, setpoints.amplitude_arcsec)?;
         }
@@ -258,16 +337,45 @@ impl DitherController {
         Ok(())
     }
 
+    /// The setpoints stored in flash, at power-up (`None`: none stored, the defaults with the
+    /// drive wanted on). A record the drive refuses (another firmware's wider range) leaves
+    /// the default setpoints but keeps its `enabled`: a drive stored off stays off. Returns
+    /// whether the record was applied whole.
+    pub fn apply_stored(&mut self, config: &DitherConfig, stored: Option<DitherSetpoints>) -> bool {
+        match stored {
+            None => {
+                self.enable();
+                false
+            }
+            Some(setpoints) => match self.apply_setpoints(config, setpoints) {
+                Ok(()) => true,
+                Err(_) => {
+                    if setpoints.enabled {
+                        self.enable();
+                    }
+                    false
+                }
+            },
+        }
+    }
+
     // ---- queries ----
 
-    /// Whether the drive is on or asked to be (a fault with its retry pending counts as on;
-    /// a request not yet taken by a tick counts as given).
+    /// Whether the drive is wanted on (a fault with its retry pending counts as on, and so
+    /// do the self-test and an inhibit when it was wanted on before; a request not yet taken
+    /// by a tick counts as given).
     pub fn enabled(&self) -> bool {
-        match self.request {
-            Some(Request::Enable) => true,
-            Some(Request::Disable) => false,
-            Some(Request::Restart) | None => !matches!(self.mode, Mode::Off),
-        }
+        self.wanted_on
+    }
+
+    /// Held off until a reset ([`Self::inhibit`], or a failed pick-off check).
+    pub fn inhibited(&self) -> bool {
+        self.inhibited
+    }
+
+    /// The power-up self-test's outcome.
+    pub fn pickoff_check(&self) -> PickoffCheck {
+        self.pickoff_check
     }
 
     /// The setpoints in force, as a `store` saves them.
@@ -304,7 +412,10 @@ impl DitherController {
     pub fn state(&self) -> DitherState {
         match self.mode {
             // Asked to start, the first tick not yet run.
-            Mode::Off if self.request == Some(Request::Enable) => DitherState::Starting,
+            _ if self.inhibited => DitherState::Inhibited,
+            Mode::Off if matches!(self.request, Some(Request::Enable | Request::SelfTest)) => {
+                DitherState::Starting
+            }
             Mode::Off => DitherState::Off,
             Mode::Locked { .. } => DitherState::Locked,
             Mode::Fault { kind, .. } => DitherState::Fault(kind),
@@ -325,6 +436,7 @@ impl DitherController {
         let start_phase = match self.mode {
             Mode::Listen { .. } => Some(StartPhase::Listen),
             Mode::Sweep { .. } => Some(StartPhase::Sweep),
+            Mode::SelfTest { .. } => Some(StartPhase::SelfTest),
             Mode::Probe { .. } | Mode::Acquire { .. } => Some(StartPhase::RingUp),
             _ => None,
         };
@@ -344,6 +456,7 @@ impl DitherController {
             retry_backoff_s,
             retry_in_s,
             noise_depth_percent: self.noise.depth_q16() as f32 / 655.36,
+            pickoff_check: self.pickoff_check,
         }
     }
 
@@ -357,6 +470,14 @@ impl DitherController {
         let mut changed = false;
         if let Some(request) = self.request.take() {
             changed = self.apply_request(config, request, k);
+        }
+        if let Some(kind) = self.pending_fault.take() {
+            if matches!(
+                self.mode,
+                Mode::Probe { .. } | Mode::Acquire { .. } | Mode::Locked { .. }
+            ) {
+                changed |= self.fault(config, kind, k);
+            }
         }
         match &self.mode {
             Mode::Off => return self.idle(changed),
@@ -423,16 +544,38 @@ impl DitherController {
 
     fn apply_request(&mut self, config: &DitherConfig, request: Request, k: u32) -> bool {
         match (request, self.mode) {
+            (Request::Inhibit, _) => {
+                self.mode = Mode::Off;
+                if self.pickoff_check == PickoffCheck::Running {
+                    self.pickoff_check = PickoffCheck::NotRun;
+                }
+                self.set_drive(0, Phase::ZERO)
+            }
+            (_, _) if self.inhibited => false,
             (Request::Disable, Mode::Off) => false,
             (Request::Disable, _) => {
                 self.mode = Mode::Off;
+                if self.pickoff_check == PickoffCheck::Running {
+                    self.pickoff_check = PickoffCheck::NotRun;
+                }
                 self.set_drive(0, Phase::ZERO)
             }
             (Request::Enable, Mode::Off) => {
                 self.listen(config, k, None);
                 true
             }
-            (Request::Restart, Mode::Off | Mode::Fault { .. }) | (Request::Enable, _) => false,
+            (Request::SelfTest, Mode::Off) | (Request::Restart, Mode::SelfTest { .. }) => {
+                self.window = Window::new();
+                self.flat.clear();
+                self.mode = Mode::SelfTest { up: true };
+                self.set_drive(
+                    config.startup.self_test_drive_q16 as i32,
+                    config.startup.search_steps.0,
+                );
+                true
+            }
+            (Request::Restart, Mode::Off | Mode::Fault { .. })
+            | (Request::Enable | Request::SelfTest, _) => false,
             (Request::Restart, _) => {
                 self.listen(config, k, None);
                 true
@@ -532,6 +675,9 @@ impl DitherController {
                 valid: false,
             };
         }
+        if let Mode::SelfTest { up } = self.mode {
+            return self.self_test_half_cycle(config, k, &h, up);
+        }
         if let Some(kind) = self.check(config, &h, k) {
             return self.fault(config, kind, k);
         }
@@ -612,7 +758,7 @@ impl DitherController {
                 };
                 (drive, step)
             }
-            Mode::Off | Mode::Fault { .. } => return false,
+            Mode::Off | Mode::Fault { .. } | Mode::SelfTest { .. } => return false,
         };
         self.setpoint_changed = false;
         self.estimate.valid = matches!(self.mode, Mode::Locked { .. });
@@ -643,6 +789,67 @@ impl DitherController {
         self.mode = Mode::Sweep { up };
         self.set_drive(
             config.amplitude.drive_limit_q16 as i32,
+            Phase::from_bits(next),
+        )
+    }
+
+    /// One half cycle of the self-test's sweep ([`super::self_test`]): a ring passes it (the
+    /// start-up follows if the drive is wanted on: it hears the ring at once); rails, a flat
+    /// pick-off, or the whole range swept up and down without a ring fail it and inhibit the
+    /// drive.
+    fn self_test_half_cycle(
+        &mut self,
+        config: &DitherConfig,
+        k: u32,
+        h: &HalfCycle,
+        up: bool,
+    ) -> bool {
+        let failure = if h.rail_samples >= config.faults.rail_samples {
+            Some(PickoffFailure::Rail)
+        } else if self.flat.exceeds(
+            h.range_codes() <= config.faults.flat_codes,
+            super::self_test::FLAT_HALF_CYCLES,
+        ) {
+            Some(PickoffFailure::Flat)
+        } else {
+            None
+        };
+        if let Some(failure) = failure {
+            self.pickoff_check = PickoffCheck::Fail(failure);
+            self.inhibited = true;
+            self.mode = Mode::Off;
+            return self.set_drive(0, Phase::ZERO);
+        }
+        if u32::from(h.range_codes()) > 2 * u32::from(config.startup.ring_threshold_codes) {
+            self.pickoff_check = PickoffCheck::Pass;
+            if self.wanted_on {
+                self.listen(config, k, None);
+                return true;
+            }
+            self.mode = Mode::Off;
+            return self.set_drive(0, Phase::ZERO);
+        }
+        let (lo, hi) = config.startup.search_steps;
+        let delta = config.startup.sweep_step_per_tick.saturating_mul(h.samples);
+        let step = self.drive.step.to_bits();
+        let next = if up {
+            step.saturating_add(delta)
+        } else {
+            step.saturating_sub(delta)
+        };
+        let (up, next) = match (up, next > hi.to_bits(), next < lo.to_bits()) {
+            (true, true, _) => (false, hi.to_bits()),
+            (false, _, true) => {
+                self.pickoff_check = PickoffCheck::Fail(PickoffFailure::NoResponse);
+                self.inhibited = true;
+                self.mode = Mode::Off;
+                return self.set_drive(0, Phase::ZERO);
+            }
+            _ => (up, next),
+        };
+        self.mode = Mode::SelfTest { up };
+        self.set_drive(
+            config.startup.self_test_drive_q16 as i32,
             Phase::from_bits(next),
         )
     }

@@ -48,11 +48,14 @@ pub struct StartupConfig {
     pub lock_phase_error: Phase,
     /// ...for this many half cycles in a row.
     pub lock_half_cycles: u16,
+    /// The power-up self-test's sweep drive, DAC codes in Q16 (`super::self_test`).
+    pub self_test_drive_q16: u32,
 }
 
 impl StartupConfig {
-    /// The start-up for a search range of `search_hz` at tick rate `tick_hz`.
-    pub fn new(search_hz: (f64, f64), tick_hz: f64) -> Self {
+    /// The start-up for a search range of `search_hz` at tick rate `tick_hz`, with a drive
+    /// limited to `drive_limit_codes`.
+    pub fn new(search_hz: (f64, f64), tick_hz: f64, drive_limit_codes: f32) -> Self {
         use super::dds::hz_to_step;
         let sweep_hz_per_s = 300.0;
         let per_tick = sweep_hz_per_s / tick_hz / tick_hz * crate::units::Q32_PER_FRINGE;
@@ -71,6 +74,9 @@ impl StartupConfig {
             lock_tolerance: 0.002,
             lock_phase_error: Phase::from_bits(1 << 26), // 1/64 turn, 0.1 rad
             lock_half_cycles: 256,
+            self_test_drive_q16: (drive_limit_codes
+                * super::self_test::SELF_TEST_DRIVE_FRACTION
+                * 65_536.0) as u32,
         }
     }
 }
@@ -231,7 +237,7 @@ mod tests {
 
     #[test]
     fn sweep_rate_in_steps() {
-        let c = StartupConfig::new((280.0, 620.0), 40_000.0);
+        let c = StartupConfig::new((280.0, 620.0), 40_000.0, 1798.0);
         // 300 Hz/s for one second of ticks moves the step by 300 Hz.
         let hz = c.sweep_step_per_tick as f64 * 40_000.0 / 4_294_967_296.0 * 40_000.0;
         assert!((hz - 300.0).abs() < 0.5, "{hz}");

@@ -68,6 +68,9 @@ pub enum DitherState {
     Locked,
     /// Drive off after a fault; a retry follows after the back-off.
     Fault(FaultKind),
+    /// Drive off until a reset: the board's power-up self-test or its clock failed
+    /// (`DitherController::inhibit`; the pick-off check inhibits by itself).
+    Inhibited,
 }
 
 /// The fault limits (immutable; part of the controller's configuration).

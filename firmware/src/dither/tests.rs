@@ -7,6 +7,7 @@
 
 use super::*;
 use crate::profile::BoardProfile;
+use crate::storage::DitherSetpoints;
 use crate::test_rng::XorShift;
 use std::f64::consts::TAU;
 
@@ -434,7 +435,8 @@ fn amplitude_out_of_range_is_detected_within_3_periods() {
 }
 
 /// The drive's gain fades to 20 % over 60 s (a failing drive amplifier): holding the setpoint
-/// would then take 1.15 of the DAC's half range, above the 0.93 limit. The locked loop follows
+/// would then take 1.15 of the DAC's half range, above the 0.88 limit (the DAC's linear range).
+/// The locked loop follows
 /// the fade until it runs into the limit and is flagged 2.5 periods after it got there (5 half
 /// cycles at the limit), while the amplitude is still inside its band. (A gain that collapses
 /// at once takes the amplitude out of its band before the slow locked loop reaches the limit:
@@ -565,6 +567,260 @@ fn commands_are_range_checked_and_take_effect() {
     for _ in 0..1000 {
         assert_eq!(b.tick().dac_code, 2048);
     }
+}
+
+/// Runs the power-up self-test until it ends (or 3 s pass): its duration, the largest drive
+/// it used (DAC codes from mid) and the ring's peak-to-peak at its end (codes).
+fn run_self_test(b: &mut Bench) -> (f64, u16, u16) {
+    b.ctrl.start_self_test();
+    let (start, mut peak) = (b.seconds(), 0u16);
+    loop {
+        b.tick();
+        peak = peak.max(b.dac.abs_diff(2048));
+        if b.ctrl.pickoff_check() != PickoffCheck::Running || b.seconds() - start > 3.0 {
+            return (
+                b.seconds() - start,
+                peak,
+                b.ctrl.last_half_cycle().range_codes(),
+            );
+        }
+    }
+}
+
+/// The power-up self-test on a live pick-off, at both ends of the range, at Q 1000 and 5000,
+/// and with a drive 5x weaker than the test model's (the start-up's own sweep needs about a
+/// tenth; at 300 Hz a 0.15x drive fails: the margin): a half-drive sweep makes it ring (over
+/// the 40 codes peak-to-peak of the start-up's ring test); the start-up then catches that ring
+/// and locks when the drive is wanted on (and strong enough); the drive stays off otherwise.
+#[test]
+fn self_test_passes_on_a_live_pickoff_and_the_start_up_follows() {
+    let half = (b_limit() * SELF_TEST_DRIVE_FRACTION).ceil() as u16;
+    let cases = [
+        (300.0, 1000.0, 1.0),
+        (389.0, 1000.0, 1.0),
+        (389.0, 5000.0, 1.0),
+        (600.0, 1000.0, 1.0),
+        (300.0, 1000.0, 0.2),
+        (600.0, 1000.0, 0.2),
+    ];
+    for (f0, q, drive_gain) in cases {
+        let mut b = Bench::new(f0, q);
+        b.gyro.noise = 1.0;
+        b.gyro.k *= drive_gain;
+        b.ctrl.enable();
+        let (took_s, peak_drive, ring) = run_self_test(&mut b);
+        let locked = b.run_until(DitherState::Locked, 3.0);
+        println!(
+            "f0 {f0} Q {q} drive x{drive_gain}: self-test passed after {took_s:.3} s, ring \
+             {ring} codes p-p, drive <= {peak_drive} codes, locked {locked:?} s later"
+        );
+        assert_eq!(b.ctrl.pickoff_check(), PickoffCheck::Pass, "f0 {f0} Q {q}");
+        assert!(peak_drive <= half, "{peak_drive} > {half}");
+        assert!(ring > 40, "{ring}");
+        // The sweep up the range takes 1.13 s; at 600 Hz the ring is found near its top.
+        assert!(took_s < 1.3, "{took_s}");
+        // A 0.2x drive cannot hold 450 arcsec (it holds 270 at its limit): no lock there.
+        if drive_gain == 1.0 {
+            assert!(locked.is_some_and(|t| t < 2.0), "{locked:?}");
+        }
+    }
+    // Not wanted on: it passes and the drive stays off; enabled later, it starts.
+    let mut b = Bench::new(389.0, 1000.0);
+    run_self_test(&mut b);
+    assert_eq!(b.ctrl.pickoff_check(), PickoffCheck::Pass);
+    for _ in 0..4000 {
+        assert_eq!(b.tick().dac_code, 2048);
+    }
+    assert_eq!(b.ctrl.state(), DitherState::Off);
+    b.ctrl.enable();
+    assert!(b.run_until(DitherState::Locked, 3.0).is_some());
+}
+
+fn b_limit() -> f32 {
+    DitherConfig::for_profile(&BoardProfile::F405)
+        .amplitude
+        .drive_limit_codes()
+}
+
+/// The self-test fails on a dead pick-off and inhibits the drive: a constant code (flat, in
+/// 10 ms), a code at a rail, noise without the mechanics (no ring in the sweep up and down,
+/// 2.3 s); inhibited, the drive stays at mid-scale, `enable` does nothing, switching it on
+/// through the setpoints is refused, and what is wanted (`store`'s setpoints) is unchanged.
+#[test]
+fn self_test_fails_on_a_dead_pickoff_and_inhibits_the_drive() {
+    type Pickoff = fn(&mut Resonator, u16) -> u16;
+    let cases: [(Pickoff, PickoffFailure, f64); 3] = [
+        (|_, _| 2051, PickoffFailure::Flat, 0.05),
+        (|_, _| 4095, PickoffFailure::Rail, 0.01),
+        (
+            |g, _| (2048.0 + g.rng.gauss()).round() as u16,
+            PickoffFailure::NoResponse,
+            2.4,
+        ),
+    ];
+    for (code, failure, within_s) in cases {
+        let mut b = Bench::new(389.0, 1000.0);
+        let c = b.config.clone();
+        b.ctrl.enable();
+        b.ctrl.start_self_test();
+        let start = b.seconds();
+        while b.ctrl.pickoff_check() == PickoffCheck::Running {
+            b.tick_with(code);
+            assert!(b.seconds() - start < 3.0, "{failure:?}: still running");
+        }
+        let took = b.seconds() - start;
+        println!("{failure:?}: failed after {took:.3} s");
+        assert_eq!(b.ctrl.pickoff_check(), PickoffCheck::Fail(failure));
+        assert!(took < within_s, "{failure:?}: {took}");
+        assert_eq!(b.ctrl.state(), DitherState::Inhibited);
+        b.ctrl.enable();
+        b.ctrl.restart();
+        for _ in 0..40_000 {
+            assert_eq!(b.tick_with(code).dac_code, 2048);
+        }
+        assert_eq!(b.ctrl.state(), DitherState::Inhibited);
+        let wanted = b.ctrl.setpoints();
+        assert!(wanted.enabled, "the drive is still wanted on");
+        let off = DitherSetpoints {
+            enabled: false,
+            ..wanted
+        };
+        b.ctrl.apply_setpoints(&c, off).unwrap();
+        assert_eq!(
+            b.ctrl.apply_setpoints(&c, wanted),
+            Err(CommandError::Inhibited)
+        );
+        assert!(!b.ctrl.setpoints().enabled);
+    }
+}
+
+/// A board check failed (`inhibit`): the drive goes off at the next tick and stays off, a
+/// self-test is not started.
+#[test]
+fn an_inhibit_takes_the_drive_off_at_the_next_tick() {
+    let mut b = Bench::new(389.0, 1000.0);
+    b.ctrl.enable();
+    assert!(b.run_until(DitherState::Locked, 3.0).is_some());
+    b.ctrl.inhibit();
+    let t = b.tick();
+    assert!(t.drive_changed);
+    assert_eq!(t.dac_code, 2048);
+    assert_eq!(b.ctrl.state(), DitherState::Inhibited);
+    b.ctrl.start_self_test();
+    for _ in 0..40_000 {
+        assert_eq!(b.tick().dac_code, 2048);
+    }
+    assert_eq!(b.ctrl.pickoff_check(), PickoffCheck::NotRun);
+}
+
+/// The pick-off reads 45 % low: holding its setpoint on the pick-off would take the true
+/// dither to 818 arcsec, past the mechanical limit (753 arcsec, the pick-off's). The fringe
+/// count's amplitude (here the true one, as the readout measures it per cycle) takes the drive
+/// off at the next tick once it passes the limit: the dither never gets more than a few arcsec
+/// beyond it (printed), and the fault is `AmplitudeOutOfRange`.
+#[test]
+fn the_count_amplitude_above_the_limit_takes_the_drive_off() {
+    let mut b = Bench::new(389.0, 1000.0);
+    let c = b.config.clone();
+    let limit = c.codes_to_arcsec(c.faults.max_amplitude_codes) as f64;
+    b.gyro.pickoff_gain = 0.55;
+    b.ctrl.enable();
+    let mut peak = 0.0f64;
+    while !matches!(b.ctrl.state(), DitherState::Fault(_)) {
+        let t = b.tick();
+        peak = peak.max(b.gyro.amplitude());
+        if t.half_cycle {
+            b.ctrl.check_count_amplitude(&c, b.gyro.amplitude() as f32);
+        }
+        assert!(
+            b.seconds() < 5.0,
+            "no fault; amplitude {:.1}",
+            b.gyro.amplitude()
+        );
+    }
+    for _ in 0..4000 {
+        b.tick();
+        peak = peak.max(b.gyro.amplitude());
+    }
+    println!("limit {limit:.1} arcsec, peak {peak:.1} arcsec");
+    assert_eq!(
+        b.ctrl.state(),
+        DitherState::Fault(FaultKind::AmplitudeOutOfRange)
+    );
+    assert!(peak < limit + 10.0, "{peak}");
+    // Below the limit nothing happens.
+    let mut b = Bench::new(389.0, 1000.0);
+    b.ctrl.enable();
+    assert!(b.run_until(DitherState::Locked, 3.0).is_some());
+    b.ctrl.check_count_amplitude(&c, (limit - 1.0) as f32);
+    b.run(0.1);
+    assert_eq!(b.ctrl.state(), DitherState::Locked);
+}
+
+/// Stored setpoints at power-up: applied whole; none stored, the defaults with the drive on; a
+/// record the drive refuses keeps the default setpoints but its `enabled`: stored off, the
+/// drive stays off.
+#[test]
+fn a_refused_stored_record_keeps_its_enabled() {
+    let c = DitherConfig::for_profile(&BoardProfile::F405);
+    let good = DitherSetpoints {
+        enabled: false,
+        amplitude_arcsec: 400.0,
+        noise_percent: 12.5,
+    };
+    let refused = DitherSetpoints {
+        amplitude_arcsec: 5000.0,
+        ..good
+    };
+    let mut ctrl = DitherController::new(&c);
+    assert!(!ctrl.apply_stored(&c, Some(refused)));
+    assert!(!ctrl.enabled());
+    assert_eq!(ctrl.setpoints().amplitude_arcsec, c.default_setpoint_arcsec);
+    for _ in 0..1000 {
+        assert_eq!(ctrl.on_tick(&c, 2048).dac_code, 2048);
+    }
+    assert_eq!(ctrl.state(), DitherState::Off);
+    let mut ctrl = DitherController::new(&c);
+    assert!(!ctrl.apply_stored(
+        &c,
+        Some(DitherSetpoints {
+            enabled: true,
+            ..refused
+        })
+    ));
+    assert!(ctrl.enabled());
+    let mut ctrl = DitherController::new(&c);
+    assert!(!ctrl.apply_stored(&c, None));
+    assert!(ctrl.enabled());
+    let mut ctrl = DitherController::new(&c);
+    assert!(ctrl.apply_stored(&c, Some(good)));
+    assert_eq!(ctrl.setpoints(), good);
+}
+
+/// A restart (the end of a store's pause) before the first tick keeps the pending start: an
+/// enable still starts the drive, a self-test still runs; a restart during the self-test's
+/// sweep starts the sweep over (the drive was at mid-scale during the pause).
+#[test]
+fn a_restart_keeps_a_pending_start_and_restarts_the_self_test() {
+    let mut b = Bench::new(389.0, 1000.0);
+    b.ctrl.enable();
+    b.ctrl.restart();
+    assert!(b.run_until(DitherState::Locked, 3.0).is_some());
+    let mut b = Bench::new(389.0, 1000.0);
+    b.ctrl.enable();
+    b.ctrl.start_self_test();
+    b.ctrl.restart();
+    b.run(0.1);
+    assert_eq!(
+        b.ctrl.status(&b.config).start_phase,
+        Some(StartPhase::SelfTest)
+    );
+    b.ctrl.restart();
+    let t = b.tick();
+    assert!(t.drive_changed, "the sweep starts over");
+    assert_eq!(b.ctrl.pickoff_check(), PickoffCheck::Running);
+    assert!(b.run_until(DitherState::Locked, 3.0).is_some());
+    assert_eq!(b.ctrl.pickoff_check(), PickoffCheck::Pass);
 }
 
 /// Random-noise dither, closed loop: depth 30 %, the drive's amplitude changes at every half

@@ -8,6 +8,7 @@
 //! [`super::execute`], where callers have always found them.
 
 use super::key::Key;
+use crate::board_timing::health::BoardHealth;
 use crate::dither::{CommandError, DitherStatus};
 use crate::signal::compensation::CompensationSettings;
 use crate::signal::output::strip::StripStatus;
@@ -98,6 +99,11 @@ pub trait DeviceLink {
     /// provision`; the executor calls it only while no key is provisioned). `Err`: the write
     /// failed or did not read back; the board stays unprovisioned.
     fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError>;
+    /// The board's power-up self-test and the timing faults raised now (`status`'s `board=`,
+    /// `selftest`); a device without a board: untested.
+    fn board_health(&mut self) -> BoardHealth {
+        BoardHealth::UNTESTED
+    }
 }
 
 /// Why the key could not be written to OTP.

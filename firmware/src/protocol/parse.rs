@@ -40,8 +40,10 @@ pub enum Command {
     Help,
     /// `id` | `identify`: firmware, board, serial number, scale factor, timer clock.
     Identify,
-    /// `status`: signal, dither, rate, counters, compensation, tracking, source, lock.
+    /// `status`: signal, dither, rate, counters, compensation, tracking, source, lock, board.
     Status,
+    /// `selftest`: the power-up self-test's checks, the timing faults raised now.
+    SelfTest,
     /// `get a` | `get b` | `get coeffs`: one coefficient, or both with Omega_L and eps.
     Get(Option<Coefficient>),
     /// `set a <rad/s>` | `set b <rad/s>`.
@@ -176,6 +178,8 @@ pub fn parse(text: &str) -> Result<Command, ErrorCode> {
         Command::Identify
     } else if is("status") {
         Command::Status
+    } else if is("selftest") {
+        Command::SelfTest
     } else if is("get") {
         match words.next() {
             Some(w) if w.eq_ignore_ascii_case("coeffs") => Command::Get(None),
@@ -350,6 +354,7 @@ mod tests {
         assert_eq!(parse("key provision"), Err(ErrorCode::Syntax));
         assert_eq!(parse("key"), Err(ErrorCode::Syntax));
         assert_eq!(parse("  status\t"), Ok(Command::Status));
+        assert_eq!(parse("SelfTest"), Ok(Command::SelfTest));
         assert_eq!(
             parse("dither amp 420.5"),
             Ok(Command::Dither(DitherCommand::Amplitude(420.5)))

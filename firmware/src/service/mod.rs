@@ -445,6 +445,13 @@ impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess + Secrets> DeviceLink
     fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError> {
         self.ports.program_key(key)
     }
+
+    fn board_health(&mut self) -> crate::board_timing::health::BoardHealth {
+        let pickoff = self.ports.with_dither(|drive, _| drive.pickoff_check());
+        let mut health = self.ports.board_health();
+        health.selftest = health.selftest.with_pickoff(pickoff);
+        health
+    }
 }
 
 #[cfg(test)]

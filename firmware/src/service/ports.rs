@@ -50,6 +50,11 @@ pub trait ReadoutAccess {
     fn missed_below_readout(&self) -> u32 {
         0
     }
+    /// The board's power-up self-test (its pick-off check is the dither controller's, which
+    /// the service adds) and the rate monitors' faults; a platform without a board: untested.
+    fn board_health(&self) -> crate::board_timing::health::BoardHealth {
+        crate::board_timing::health::BoardHealth::UNTESTED
+    }
 }
 
 /// The service's access to the dither drive's controller, which runs in the drive tick's

@@ -2,9 +2,10 @@
 //! boot does (`board::app::boot` is a call to [`power_up`] plus the queues and the log).
 //!
 //! What a reset decides, in order:
-//! 1. the identity: serial number and key from OTP block 0's words ([`otp_identity`]): blank
-//!    words are serial 0 and *no key*, so a board nobody provisioned refuses every unlock
-//!    (`ERR 16`); there is no default key;
+//! 1. the identity: serial number and key from OTP ([`otp_identity`], the layout
+//!    `crate::otp_record`): a blank serial word is serial 0 and no complete key record is *no
+//!    key*, so a board nobody provisioned refuses every unlock (`ERR 16`); there is no default
+//!    key;
 //! 2. the calibration: the newest valid record of this gyro from flash, or the defaults
 //!    (`Service::boot`);
 //! 3. the wrong-key count the backup domain kept across the reset, restored into the access
@@ -16,6 +17,7 @@
 use embedded_storage::nor_flash::NorFlash;
 
 use super::{Service, ServiceConfig};
+use crate::otp_record::{self, OtpCells};
 use crate::protocol::key::Key;
 use crate::readout::Readout;
 use crate::storage::{DitherSetpoints, GeometryError, LoadReport};
@@ -34,12 +36,10 @@ pub struct PoweredUp<F: NorFlash> {
     pub wrong_keys: u32,
 }
 
-/// The serial number and the key in OTP block 0's words 0..=4 as read: word 0 all ones is
-/// serial 0; words 1..=4 all ones is no key (unprovisioned).
-pub fn otp_identity(words: [u32; 5]) -> (u32, Option<Key>) {
-    let [serial, k0, k1, k2, k3] = words;
-    let serial = if serial == u32::MAX { 0 } else { serial };
-    (serial, Key::from_otp_words([k0, k1, k2, k3]))
+/// The serial number (0 when not programmed) and the key (`None`: unprovisioned, or only
+/// spent blocks) in the OTP `cells` (`crate::otp_record`).
+pub fn otp_identity(cells: &impl OtpCells) -> (u32, Option<Key>) {
+    (otp_record::serial(cells).unwrap_or(0), otp_record::key(cells))
 }
 
 /// Powers up on `flash` (see the module docs); `kept_wrong_keys` is what the backup domain

@@ -469,12 +469,33 @@ fn power_up_restores_the_kept_wrong_key_count() {
 #[test]
 fn a_board_with_blank_otp_powers_up_without_a_key() {
     use super::power_up::{otp_identity, power_up};
-    assert_eq!(otp_identity([u32::MAX; 5]), (0, None));
+    use crate::otp_record::{self, OtpCells, OtpWriteError, BLANK};
+    /// OTP cells in RAM: blocks of 8 words.
+    struct Cells([[u32; 8]; 4]);
+    impl OtpCells for Cells {
+        fn read(&self, block: u32, word: u32) -> u32 {
+            self.0[block as usize][word as usize]
+        }
+        fn locked(&self, _: u32) -> bool {
+            false
+        }
+        fn program(&mut self, block: u32, word: u32, value: u32) -> Result<(), OtpWriteError> {
+            self.0[block as usize][word as usize] &= value;
+            Ok(())
+        }
+        fn lock(&mut self, _: u32) -> Result<(), OtpWriteError> {
+            Ok(())
+        }
+    }
+    let blank_cells = Cells([[BLANK; 8]; 4]);
+    assert_eq!(otp_identity(&blank_cells), (0, None));
     let key = Key::parse_hex(KEY).unwrap();
-    let [k0, k1, k2, k3] = key.to_otp_words();
-    assert_eq!(otp_identity([42, k0, k1, k2, k3]), (42, Some(key)));
+    let mut cells = Cells([[BLANK; 8]; 4]);
+    cells.0[0][0] = 42;
+    otp_record::provision(&mut cells, &key).unwrap();
+    assert_eq!(otp_identity(&cells), (42, Some(key)));
     let mut blank = config();
-    (blank.identity.serial_number, blank.identity.key) = otp_identity([u32::MAX; 5]);
+    (blank.identity.serial_number, blank.identity.key) = otp_identity(&blank_cells);
     let up = power_up(blank, Flash::new(), 0, 0).unwrap();
     let (mut s, mut p) = (up.service, TestPorts::new(up.readout));
     assert!(ask(&mut s, &mut p, "status").contains(" key=unprovisioned"));

@@ -44,6 +44,7 @@
 //! before each [`SimBoard::next_half_cycle`] (the harness does, [`crate::harness`]).
 
 mod config;
+mod faults;
 mod pickoff_stream;
 
 use crate::clock::CaptureTimer;
@@ -55,6 +56,7 @@ use crate::param_error::ParamError;
 use crate::photodiode::Photodiodes;
 use crate::pickoff::Pickoff;
 pub use config::{BoardConfig, LatchTiming};
+pub use faults::{BoardFault, BoardFaults, Trigger};
 use firmware::sample::{OutputSample, TurnaroundKind, TurnaroundSample};
 use firmware::signal::lockin::CycleRecord;
 use firmware::signal::output::dither_model::PickoffSample;
@@ -134,6 +136,11 @@ pub struct SimBoard {
     /// The next sync edge, s, and the output latches taken since the last drain.
     next_sync_s: f64,
     outputs: Vec<OutputLatch>,
+    /// Injected faults.
+    faults: BoardFaults,
+    /// Photodiode pairs converted and sync edges seen since t = 0 (the rate monitors' counts).
+    lissajous_pairs: u64,
+    sync_edges: u64,
     /// The pick-off's conversion at every drive tick.
     stream: PickoffStream,
     /// The pick-off's lag as the readout measures it, ticks (the schedule subtracts it).
@@ -196,6 +203,9 @@ impl SimBoard {
             last_latch: None,
             next_sync_s: config.sync_hz.map_or(f64::INFINITY, |hz| 1.0 / hz),
             outputs: Vec::new(),
+            faults: BoardFaults::default(),
+            lissajous_pairs: 0,
+            sync_edges: 0,
             stream,
             pickoff_lag_ticks: 0,
             eps_rad,
@@ -282,7 +292,12 @@ impl SimBoard {
         loop {
             let tick_s = self.stream.next_instant_s();
             if tick_s < until_s && tick_s <= self.next_lissajous_s.min(self.next_sync_s) {
-                self.stream.take_next(&mut self.pickoff, &self.gyro);
+                if self.faults.stopped(Trigger::DriveTick) {
+                    // TIM4 stopped: no conversion of the pick-off, a gap in the stream.
+                    self.stream.skip_next();
+                } else {
+                    self.stream.take_next(&mut self.pickoff, &self.gyro);
+                }
                 continue;
             }
             let sync_first = self.next_sync_s < self.next_lissajous_s;
@@ -293,7 +308,12 @@ impl SimBoard {
             let psi_h = self.gyro.advance_to(t) - self.eps_at(t);
             self.counter.advance_to(psi_h);
             let codes = self.photodiodes.sample_codes(psi_h);
-            if sync_first {
+            if sync_first && self.faults.stopped(Trigger::Sync) {
+                // No sync edge: no output latch.
+                let hz = self.config.sync_hz.unwrap_or(f64::INFINITY);
+                self.next_sync_s = ((t * hz).round() + 1.0) / hz;
+            } else if sync_first {
+                self.sync_edges += 1;
                 let (pickoff_tick, pickoff_offset_ticks) = self.stream.reference(t);
                 self.outputs.push(OutputLatch {
                     sample: OutputSample {
@@ -313,7 +333,10 @@ impl SimBoard {
                 let hz = self.config.sync_hz.unwrap_or(f64::INFINITY);
                 self.next_sync_s = ((t * hz).round() + 1.0) / hz;
             } else {
-                lissajous.push((codes.a_code, codes.b_code));
+                if !self.faults.stopped(Trigger::Lissajous) {
+                    lissajous.push((codes.a_code, codes.b_code));
+                    self.lissajous_pairs += 1;
+                }
                 self.next_lissajous_s += 1.0 / self.config.lissajous_rate_hz;
             }
         }
@@ -552,6 +575,29 @@ impl SimBoard {
     /// The photodiodes, for fault injection in tests ([`Photodiodes::set_fault`]).
     pub fn photodiodes_mut(&mut self) -> &mut Photodiodes {
         &mut self.photodiodes
+    }
+
+    /// Injects a fault of the timing chain, the clock or the pick-off ([`BoardFault`]).
+    pub fn inject(&mut self, fault: BoardFault) {
+        self.faults.inject(fault);
+        if fault == BoardFault::DeadPickoff {
+            self.pickoff.set_lost(true);
+        }
+    }
+
+    /// The faults injected so far.
+    pub fn faults(&self) -> &BoardFaults {
+        &self.faults
+    }
+
+    /// Photodiode pairs converted since t = 0 (256 make a DMA half transfer on the board).
+    pub fn lissajous_pairs(&self) -> u64 {
+        self.lissajous_pairs
+    }
+
+    /// Sync edges (or internal output compares) since t = 0.
+    pub fn sync_edges(&self) -> u64 {
+        self.sync_edges
     }
 }
 

@@ -93,6 +93,15 @@ impl PickoffStream {
         self.next += 1;
     }
 
+    /// The next tick takes no conversion (its trigger stopped): a gap in the stream.
+    pub(super) fn skip_next(&mut self) {
+        let n = self.next;
+        while self.first <= n && self.cache.pop_front().is_some() {
+            self.first += 1;
+        }
+        self.next += 1;
+    }
+
     /// The stream's reference for a latch sampled at `t_s`: the last tick handed over (at or
     /// before `t_s`) and the capture-timer ticks from its sampling instant to `t_s`.
     pub(super) fn reference(&self, t_s: f64) -> (u32, u32) {

@@ -32,6 +32,7 @@ pub fn command<D: DeviceLink>(device: &mut D, id: &Identity, command: DitherComm
     device.apply_dither(setpoints).map_err(|e| match e {
         CommandError::NotFinite => ErrorCode::NotFinite,
         CommandError::OutOfRange => ErrorCode::OutOfRange,
+        CommandError::Inhibited => ErrorCode::WrongState,
     })?;
     let s = device.dither_setpoints();
     Ok(ok_with(format_args!(
@@ -42,13 +43,14 @@ pub fn command<D: DeviceLink>(device: &mut D, id: &Identity, command: DitherComm
     )))
 }
 
-/// The state as one word: `off`, `starting`, `locked`, or `fault`.
+/// The state as one word: `off`, `starting`, `locked`, `fault`, or `inhibited`.
 pub fn state_word(state: DitherState) -> &'static str {
     match state {
         DitherState::Off => "off",
         DitherState::Starting => "starting",
         DitherState::Locked => "locked",
         DitherState::Fault(_) => "fault",
+        DitherState::Inhibited => "inhibited",
     }
 }
 
@@ -76,6 +78,7 @@ fn status(s: &DitherStatus, count_arcsec: f32) -> crate::protocol::respond::Resp
         (DitherState::Starting, Some(StartPhase::Listen)) => ("start", "listen"),
         (DitherState::Starting, Some(StartPhase::Sweep)) => ("start", "sweep"),
         (DitherState::Starting, Some(StartPhase::RingUp)) => ("start", "ring_up"),
+        (DitherState::Starting, Some(StartPhase::SelfTest)) => ("start", "selftest"),
         _ => ("detail", "-"),
     };
     let f = s.faults.0;

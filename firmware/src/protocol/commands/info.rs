@@ -6,13 +6,15 @@
 
 use super::ok_with;
 use super::provenance::{Source, SourceText};
+use crate::board_timing::monitor::{Event, TimingFaults};
+use crate::board_timing::selftest::{Check, Outcome, SelfTestReport, QEMU_UNMODELLED};
 use crate::protocol::link::{DeviceLink, Identity};
 use crate::protocol::parse::Coefficient;
 use crate::protocol::respond::Response;
 use crate::signal::compensation::Coefficients;
 
 const HELP: &str =
-    "commands: id status get{a|b|coeffs} set{a|b}<rad/s> comp{on|off} track{on|off} \
+    "commands: id status selftest get{a|b|coeffs} set{a|b}<rad/s> comp{on|off} track{on|off} \
 cal{start<n>[<warmup>]|status|abort|result|accept} store reload defaults stream{on[<n>]|output|off} \
 dither{on|off|amp<arcsec>|noise<percent>|status} unlock<key> lock key{provision<key>} help";
 
@@ -54,12 +56,13 @@ pub fn status<D: DeviceLink>(id: &Identity, device: &mut D, flags: StatusFlags) 
     let amplitude_arcsec = s.dither_amplitude_rad * id.scale_factor_arcsec / core::f32::consts::TAU;
     let drive = super::dither::state_word(device.dither_status().state);
     ok_with(format_args!(
-        "signal={} drive={} dither_hz={:.3} dither_amp_arcsec={:.2} rate_deg_h={:.4} turnarounds={} \
+        "signal={} drive={} board={} dither_hz={:.3} dither_amp_arcsec={:.2} rate_deg_h={:.4} turnarounds={} \
 cycles={} counter_glitches={} phase_glitches={} signal_lost={} missed={} dropped={} comp={} track={} \
 coeffs={} locked={} key={} strip_k={:.7} strip_k_quad={:.7} strip_k_std_rel={:.1e} strip={} \
 output_records={}",
         if s.signal_ok { "ok" } else { "lost" },
         drive,
+        device.board_health().word(),
         s.dither_hz,
         amplitude_arcsec,
         s.rate_deg_per_h,
@@ -89,6 +92,78 @@ output_records={}",
         },
         s.output_records,
     ))
+}
+
+/// `selftest`: each power-up check (`pass`, `fail:<what>`, `running`, `not_run`), the timing
+/// faults raised now (`watch=ok` or their names), the drive's state, and on the emulator the
+/// checks it cannot pass (`unmodelled=`).
+pub fn selftest<D: DeviceLink>(device: &mut D) -> Response {
+    let health = device.board_health();
+    let drive = super::dither::state_word(device.dither_status().state);
+    ok_with(format_args!(
+        "{} watch={} drive={}{}",
+        Checks(&health.selftest),
+        Watch(health.timing),
+        drive,
+        Unmodelled(health.emulated),
+    ))
+}
+
+/// `clock=pass timers=pass ...`.
+struct Checks<'a>(&'a SelfTestReport);
+
+impl core::fmt::Display for Checks<'_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        for (i, check) in Check::ALL.into_iter().enumerate() {
+            let sep = if i == 0 { "" } else { " " };
+            match self.0.outcome(check) {
+                Outcome::Pass => write!(f, "{sep}{}=pass", check.word())?,
+                Outcome::Fail(why) => write!(f, "{sep}{}=fail:{why}", check.word())?,
+                Outcome::Running => write!(f, "{sep}{}=running", check.word())?,
+                Outcome::NotRun => write!(f, "{sep}{}=not_run", check.word())?,
+            }
+        }
+        Ok(())
+    }
+}
+
+/// `ok`, or the raised timing faults' names separated by commas.
+struct Watch(TimingFaults);
+
+impl core::fmt::Display for Watch {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        if self.0.is_empty() {
+            return f.write_str("ok");
+        }
+        let mut sep = "";
+        for event in Event::ALL {
+            if self.0.contains(TimingFaults::of(event)) {
+                write!(f, "{sep}{}", event.word())?;
+                sep = ",";
+            }
+        }
+        if self.0.contains(TimingFaults::CLOCK_LOST) {
+            write!(f, "{sep}clock_lost")?;
+        }
+        Ok(())
+    }
+}
+
+/// ` unmodelled=clock,...` on the emulator, nothing on a board.
+struct Unmodelled(bool);
+
+impl core::fmt::Display for Unmodelled {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        if !self.0 {
+            return Ok(());
+        }
+        f.write_str(" unmodelled=")?;
+        for (i, check) in QEMU_UNMODELLED.into_iter().enumerate() {
+            let sep = if i == 0 { "" } else { "," };
+            write!(f, "{sep}{}", check.word())?;
+        }
+        Ok(())
+    }
 }
 
 /// `get a`, `get b`, `get coeffs` (`None`).
@@ -177,10 +252,35 @@ mod tests {
         };
         assert_eq!(
             text(status(&ID, &mut device, flags)).trim_end(),
-            "OK signal=ok drive=locked dither_hz=389.000 dither_amp_arcsec=200.00 rate_deg_h=15.0000 \
+            "OK signal=ok drive=locked board=untested dither_hz=389.000 dither_amp_arcsec=200.00 rate_deg_h=15.0000 \
 turnarounds=10 cycles=5 counter_glitches=1 phase_glitches=2 signal_lost=3 missed=4 dropped=6 \
 comp=off track=on coeffs=flash:3 locked=yes key=unprovisioned strip_k=0.2144199 \
 strip_k_quad=-0.0001234 strip_k_std_rel=2.1e-5 strip=converged output_records=12345"
+        );
+    }
+
+    /// `selftest` without a board: every check not run; with a board's report, each check's
+    /// outcome, the raised timing faults, and on the emulator what it cannot pass.
+    #[test]
+    fn selftest_reports_each_check() {
+        let mut device = MemDevice::default();
+        assert_eq!(
+            text(selftest(&mut device)).trim_end(),
+            "OK clock=not_run timers=not_run timer_clock=not_run triggers=not_run \
+pickoff=not_run watch=ok drive=locked"
+        );
+        let mut report = SelfTestReport([Outcome::Pass; 5]);
+        report.set(Check::Clock, Outcome::Fail("hse"));
+        report.set(Check::Pickoff, Outcome::NotRun);
+        device.health = crate::board_timing::health::BoardHealth {
+            selftest: report,
+            timing: TimingFaults(TimingFaults::of(Event::DriveTick).0 | TimingFaults::CLOCK_LOST.0),
+            emulated: true,
+        };
+        assert_eq!(
+            text(selftest(&mut device)).trim_end(),
+            "OK clock=fail:hse timers=pass timer_clock=pass triggers=pass pickoff=not_run \
+watch=drive_tick,clock_lost drive=locked unmodelled=clock,timer_clock,triggers,pickoff"
         );
     }
 

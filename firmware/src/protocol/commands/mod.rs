@@ -107,6 +107,8 @@ pub(crate) mod testing {
         pub strip: Option<crate::storage::StripCoefficients>,
         /// The key `program_key` wrote (OTP); `fail_store` makes the write fail too.
         pub otp_key: Option<Key>,
+        /// What `board_health` reports.
+        pub health: crate::board_timing::health::BoardHealth,
     }
 
     impl DeviceLink for MemDevice {
@@ -177,6 +179,9 @@ pub(crate) mod testing {
                     Ok(())
                 }
             }
+        }
+        fn board_health(&mut self) -> crate::board_timing::health::BoardHealth {
+            self.health
         }
     }
 

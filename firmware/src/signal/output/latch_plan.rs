@@ -55,7 +55,9 @@ pub type Arm = Option<(LatchKind, u32)>;
 pub struct KeepOut {
     /// Period of the window, ticks (the drive tick: 2100).
     pub period_ticks: u32,
-    /// Where a window starts, ticks modulo the period.
+    /// A counter instant at which a window starts (not reduced modulo the period: 2^32 is no
+    /// multiple of it), within half a counter wrap of every instant placed against it; the
+    /// board re-anchors it from its two timers at every use (`board_timing::phase`).
     pub start_ticks: u32,
     /// Its width, ticks.
     pub width_ticks: u32,
@@ -67,7 +69,8 @@ impl KeepOut {
         if self.period_ticks == 0 {
             return at;
         }
-        let into = at.wrapping_sub(self.start_ticks) % self.period_ticks;
+        let into = i64::from(at.wrapping_sub(self.start_ticks) as i32)
+            .rem_euclid(i64::from(self.period_ticks)) as u32;
         if into < self.width_ticks {
             at.wrapping_add(self.width_ticks - into)
         } else {
@@ -108,6 +111,11 @@ impl LatchPlan {
             keep_out: Some(keep_out),
             ..Self::new()
         }
+    }
+
+    /// Re-anchors the keep-out windows (the pending latches stay where they are).
+    pub fn set_keep_out(&mut self, keep_out: KeepOut) {
+        self.keep_out = Some(keep_out);
     }
 
     /// `at` moved out of a turnaround's guard and the keep-out windows (a move may land in the
@@ -281,10 +289,8 @@ mod tests {
         assert_eq!(p.on_fired().1, Some((LatchKind::Output, 6450)));
         for at in (0..20_000u32).step_by(7) {
             let c = k.clear_of(at);
-            assert!(
-                (c.wrapping_sub(2000) % 2100) >= 250 && c >= at && c - at <= 250,
-                "{at}"
-            );
+            let into = i64::from(c.wrapping_sub(2000) as i32).rem_euclid(2100);
+            assert!(into >= 250 && c >= at && c - at <= 250, "{at}");
         }
     }
 

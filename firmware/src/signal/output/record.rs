@@ -68,6 +68,9 @@ impl OutputStatus {
     pub const PICKOFF_FAULT: Self = Self(1 << 7);
     /// No previous latch to difference against (start, resynchronisation).
     pub const RESTART: Self = Self(1 << 8);
+    /// The board's timing watch had a fault raised at the latch (a periodic event stopped or
+    /// off its rate, or the clock lost: `board_timing::monitor`).
+    pub const TIMING_FAULT: Self = Self(1 << 9);
     /// The model of the pick-off stream was not valid at the latch (start, a gap in the
     /// stream, a re-seed): the dither angle there is not known to the output's precision.
     pub const NO_DITHER_MODEL: Self = Self(1 << 10);
@@ -78,6 +81,7 @@ impl OutputStatus {
             | Self::SIGNAL_LOST.0
             | Self::PICKOFF_FAULT.0
             | Self::RESTART.0
+            | Self::TIMING_FAULT.0
             | Self::NO_DITHER_MODEL.0,
     );
 }
@@ -268,6 +272,22 @@ mod tests {
         r.record(&c, 0, 0, OK);
         let rec = r.record(&c, 84_000, 1 << 32, OutputStatus::empty());
         assert!(!rec.is_valid() && rec.delta_angle_q16 == 0);
+    }
+
+    /// A timing fault (the board's watch) invalidates the period and holds the angle; the
+    /// next period, without it, is a restart (no angle spliced across the fault).
+    #[test]
+    fn a_timing_fault_invalidates_and_holds_the_angle() {
+        let c = config();
+        let mut r = OutputRecorder::new();
+        r.record(&c, 0, 0, OK);
+        let good = r.record(&c, 84_000, 1 << 32, OK);
+        assert!(good.is_valid());
+        let bad = r.record(&c, 168_000, 2 << 32, OK.union(OutputStatus::TIMING_FAULT));
+        assert!(!bad.is_valid() && bad.delta_angle_q16 == 0 && bad.angle_q16 == good.angle_q16);
+        assert!(bad.status.contains(OutputStatus::TIMING_FAULT));
+        let next = r.record(&c, 252_000, 3 << 32, OK);
+        assert!(!next.is_valid() && next.status.contains(OutputStatus::RESTART));
     }
 
     /// The 32-bit capture register wraps; the record's time does not.
