@@ -286,9 +286,7 @@ impl Readout {
             status = status.union(OutputStatus::COMPENSATION_ON);
         }
         let model = &config.output.model;
-        let dither = self
-            .model
-            .estimate(model, sample.pickoff_tick, sample.pickoff_offset_ticks);
+        let dither = self.model.estimate(model, sample.timestamp_ticks);
         match &dither {
             None => status = status.union(OutputStatus::NO_DITHER_MODEL),
             Some(d) => {

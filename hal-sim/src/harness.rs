@@ -577,9 +577,9 @@ fn feed_readout(
     }
     let mut stream = fed.pickoff.iter().peekable();
     for latch in fed.latches {
-        let last = latch.sample.pickoff_tick;
-        // Up to the latch's tick (wrapping ticks: at or before it).
-        while let Some(s) = stream.next_if(|s| last.wrapping_sub(s.tick) < u32::MAX / 2) {
+        let at = latch.sample.timestamp_ticks;
+        // The stream up to the latch (wrapping timer ticks: at or before it).
+        while let Some(s) = stream.next_if(|s| at.wrapping_sub(s.timestamp_ticks) < u32::MAX / 2) {
             readout.on_pickoff_sample(config, *s);
         }
         if !fed.mark.is_empty() {

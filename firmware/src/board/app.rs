@@ -256,7 +256,7 @@ pub fn serve<F: NorFlash>(
                 // over-amplitude trip that does not rely on the pick-off.
                 let record = cycles.dequeue();
                 if let Some(r) = &record {
-                    let arcsec = crate::dither::count_amplitude_arcsec(r, scale_factor);
+                    let arcsec = crate::dither::count_amplitude_arcsec(&r.record, scale_factor);
                     resources::DITHER
                         .lock(|task| task.controller.check_count_amplitude(&task.config, arcsec));
                 }

@@ -184,7 +184,6 @@ impl SimBoard {
         let stream = PickoffStream::new(
             f64::from(profile.drive_tick_hz),
             f64::from(profile.aperture_delay_ticks) / config.timer_hz,
-            config.timer_hz,
         );
         let eps_rad = gyro.params().eps_rad;
         let psi_h0 = gyro.advance_to(0.0) - eps_rad;
@@ -296,7 +295,8 @@ impl SimBoard {
                     // TIM4 stopped: no conversion of the pick-off, a gap in the stream.
                     self.stream.skip_next();
                 } else {
-                    self.stream.take_next(&mut self.pickoff, &self.gyro);
+                    self.stream
+                        .take_next(&mut self.pickoff, &self.gyro, &self.timer);
                 }
                 continue;
             }
@@ -314,15 +314,12 @@ impl SimBoard {
                 self.next_sync_s = ((t * hz).round() + 1.0) / hz;
             } else if sync_first {
                 self.sync_edges += 1;
-                let (pickoff_tick, pickoff_offset_ticks) = self.stream.reference(t);
                 self.outputs.push(OutputLatch {
                     sample: OutputSample {
                         encoder_count: self.counter.count(),
                         adc_a_code: codes.a_code,
                         adc_b_code: codes.b_code,
                         pickoff_code: self.pickoff.sample_latch_code(&self.gyro, t),
-                        pickoff_tick,
-                        pickoff_offset_ticks,
                         timestamp_ticks: self.timer.ticks_at(t),
                         drive_locked: true,
                     },
@@ -349,7 +346,7 @@ impl SimBoard {
     }
 
     /// Hands over the pick-off stream's conversions up to the board's time since the last call
-    /// (in tick order; an output latch's `pickoff_tick` names the last one before it).
+    /// (in time order, on the capture timer's time base like the output latches).
     pub fn drain_pickoff_samples(&mut self, into: &mut Vec<PickoffSample>) {
         self.stream.drain(into);
     }
