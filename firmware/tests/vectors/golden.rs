@@ -68,7 +68,7 @@ pub const GOLDEN: &[Golden] = &[
     // readout output stage (bit-identical)
     Golden { name: "readout output stage", words: 43379, digest: 0x95dfa59c534ba78a, f32_bits: &[] },
     // signal::dither_model (bit-identical)
-    Golden { name: "signal::dither_model", words: 1706, digest: 0xf72d34e6f05b298d, f32_bits: &[] },
+    Golden { name: "signal::dither_model", words: 1682, digest: 0xecdc88f05af16d18, f32_bits: &[] },
     // calibration::fit (bit-identical)
     Golden { name: "calibration::fit", words: 951, digest: 0x7c27fe47192c1138, f32_bits: &[] },
     // calibration::tracking (bit-identical)
