@@ -129,19 +129,11 @@ pub fn readout_task() {
             task.readout.break_output_chain();
         }
         let timing_fault = super::watch::TIMING_FAULT.load(Ordering::Relaxed);
+        // Each output latch first, with the dither model as the stream so far made it (the
+        // model evaluates its sine at the latch's own instant: a fit a millisecond older is the
+        // same sine), then the stream up to it: the record's latency is the latch's own work,
+        // not a backlog of pick-off samples.
         while let Some(sample) = task.output_samples.dequeue() {
-            // The pick-off stream up to the latch (wrapping timer ticks: at or before it); a
-            // later sample waits for the next latch.
-            let at = sample.timestamp_ticks;
-            while task
-                .pickoff
-                .peek()
-                .is_some_and(|p| at.wrapping_sub(p.timestamp_ticks) < u32::MAX / 2)
-            {
-                if let Some(p) = task.pickoff.dequeue() {
-                    task.readout.on_pickoff_sample(&task.config, p);
-                }
-            }
             if timing_fault {
                 task.readout.mark_output(OutputStatus::TIMING_FAULT);
             }
@@ -151,6 +143,16 @@ pub fn readout_task() {
             }
             if let Some(lag) = task.readout.pickoff_lag_ticks(&task.config) {
                 turnaround::publish_pickoff_lag(lag);
+            }
+            let at = sample.timestamp_ticks;
+            while task
+                .pickoff
+                .peek()
+                .is_some_and(|p| at.wrapping_sub(p.timestamp_ticks) < u32::MAX / 2)
+            {
+                if let Some(p) = task.pickoff.dequeue() {
+                    task.readout.on_pickoff_sample(&task.config, p);
+                }
             }
         }
         while let Some(p) = task.pickoff.dequeue() {
