@@ -41,14 +41,24 @@
 //!   the windows afresh; until the model is valid again the output is invalid, never stripped
 //!   with a stale sine.
 //!
+//! # The candidates, and why this one
+//!
+//! | candidate | noise at a latch (1.27 codes per conversion) | cost on the M4F | against it |
+//! |---|---|---|---|
+//! | one conversion at the latch (before) | 1.27 codes, 0.51 arcsec | ~0 | the floor this replaces |
+//! | a burst of conversions around the latch (ADC3's regular sequence, 16 at most, 1.3 us each) | 1.27 / sqrt(16) = 0.32 code, *if* the noise is white at 0.8 MHz | ~20 instructions, a DMA stream | 3x short of 0.1 arcsec; a preamplifier's noise is band-limited, so conversions 1.3 us apart share most of it and the burst averages far less than sqrt(16); the burst collides with the drive tick's injected conversion (the keep-out window) |
+//! | the optical phase at the turnarounds (amplitude to 1e-3 fringe) with the pick-off's phase | the amplitude 10x better than the pick-off's, the phase still the pick-off's, which dominates at the dither's zero crossings | a second model, the turnarounds' timing | no gain where the error is largest, and couples the output to the lock-in errors of the turnaround latches |
+//! | **a sine fitted to the drive tick's stream (this module)** | sqrt(2 / 384) x 1.27 = 0.092 code at every phase; measured 0.097 with the offset (tests) | 136 instructions per sample (2 % of the CPU at 40 kHz with the exception-free batching in the readout task), 1 168 at a window's close, `cargo fw-icount --example cost` | a model: a dither that changes its sine within 10 ms (a random-noise dither of 25 %) leaves a model error (0.24 arcsec rms per record there) |
+//!
 //! # Trade-offs (measured: docs/physics.md section 12)
 //!
 //! - The span (6 x 64 samples, 9.6 ms) sets the noise (sqrt(2 / 384) of a conversion's, at
 //!   every phase) against the amplitude change the fit lags by half a span: a 0.1 % wander at
 //!   2 Hz moves the amplitude by 0.07 code in 4.8 ms, a tone 84 dB below the dither.
-//! - Per sample: one `cossin` and nine integer multiply-accumulates (about 90 Cortex-M4
-//!   instructions, 2 % of the CPU at 40 kHz); per window a solve and an `atan2`; per latch one
-//!   `cossin`. All integer or basic `f32`: the host and the Cortex-M4F compute the same bits.
+//! - Per sample: one `cossin` and nine integer multiply-accumulates (136 Cortex-M4
+//!   instructions with the call, 3.2 % of 168 M instructions/s at 40 kHz); per window a solve
+//!   and an `atan2`; per latch one `cossin`. All integer or basic `f32`: the host and the
+//!   Cortex-M4F compute the same bits (the golden vector `signal::dither_model`).
 //! - The model knows only the fundamental: a pick-off's harmonic distortion stays in the
 //!   output as harmonics of the dither (not at its frequency).
 
