@@ -218,6 +218,7 @@ pub static PICKOFF_SIDE: Owned<Producer<'static, PickoffSample>> = Owned::new();
 pub static SCHEDULER: Owned<turnaround::Scheduler> = Owned::new();
 
 /// Creates the queues and the readout; returns the main loop's ends of the record queues.
+#[allow(clippy::unwrap_used)] // at reset, once: the peripherals and the static queues are taken for the first time
 pub fn init_readout(config: ReadoutConfig, readout: Readout) -> ReadoutQueues {
     let samples =
         cortex_m::singleton!(: Queue<TurnaroundSample, TURNAROUND_QUEUE> = Queue::new()).unwrap();
