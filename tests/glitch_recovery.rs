@@ -89,7 +89,7 @@ struct Run {
 
 impl Run {
     fn rate_deg_h(&self, record: &CycleRecord) -> f64 {
-        let fringes = record.output.increment_q32 as f64 / 2f64.powi(32);
+        let fringes = record.output.increment_q32 as f64 / firmware::units::Q32_PER_FRINGE;
         fringes / record.duration_s(&self.config.cycle) * paper_gyro(0).scale_factor_arcsec
     }
 
@@ -180,7 +180,7 @@ fn check(name: &str, clean: &Run, run: &Run, faulty_s: &[f64], flag: CycleFlags,
     let last: Vec<_> = run.cycles[run.cycles.len() - 100..].iter().collect();
     let fringes: f64 = last
         .iter()
-        .map(|(_, c)| c.output.increment_q32 as f64 / 2f64.powi(32))
+        .map(|(_, c)| c.output.increment_q32 as f64 / firmware::units::Q32_PER_FRINGE)
         .sum();
     let seconds: f64 = last
         .iter()

@@ -7,8 +7,13 @@
 //! fringes of range). Radians appear only where the physics needs them (P1/P2, the
 //! compensation); deg/h only at the rate output.
 
-/// One fringe (2 pi rad of beat phase) in Q32 fringes: 2^32, as `f64` for conversions.
-pub const Q32_PER_FRINGE: f64 = 4_294_967_296.0;
+/// One turn of a [`Phase`] in Q32 (a fractional fringe, a dither or oscillator cycle, any full
+/// turn): 2^32, as `f64` for conversions. Defined once; [`Q32_PER_FRINGE`] is the same turn.
+pub const Q32_PER_TURN: f64 = 4_294_967_296.0;
+/// [`Q32_PER_TURN`] as `f32` (exact: a power of two), for the f32 paths of the M4F.
+pub const Q32_PER_TURN_F32: f32 = Q32_PER_TURN as f32;
+/// One fringe (2 pi rad of beat phase) in Q32 fringes: one turn.
+pub const Q32_PER_FRINGE: f64 = Q32_PER_TURN;
 
 /// A phase angle in **Q32 turns**: a full turn (2 pi rad; in the chain one fringe) is 2^32, so
 /// the wrapping arithmetic of the operators is turn arithmetic; one LSB is 2^-32 turn =

@@ -75,7 +75,7 @@ impl CaptureTimer {
 
     /// Time of one full wrap of the register (s): 2^32 / tick_hz.
     pub fn wrap_period_s(&self) -> f64 {
-        4_294_967_296.0 / self.tick_hz
+        (f64::from(u32::MAX) + 1.0) / self.tick_hz
     }
 
     /// The start time (s) of the tick whose register value is `ticks`, choosing among the wraps

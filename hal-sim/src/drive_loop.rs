@@ -268,7 +268,7 @@ impl FirmwareDrive {
                 "the controller's drive does not start at the next tick",
             ));
         }
-        let turns = |bits: u32| f64::from(bits) / 4_294_967_296.0;
+        let turns = |bits: u32| f64::from(bits) / firmware::units::Q32_PER_TURN;
         Ok(DriveSegment::from_codes(
             self.tick_time_s(first),
             core::f64::consts::TAU * turns(drive.phase.to_bits()),

@@ -400,7 +400,7 @@ fn the_angle_turned_during_a_store_stall_is_carried_into_the_stream() {
     assert!(bridged >= 1, "the cycle across the stall is flagged");
     let summed: i64 = frames[1..].iter().map(|f| f.raw_increment_q32).sum();
     let spanned = frames.last().unwrap().end_phase_q32 - frames[0].end_phase_q32;
-    let lost_fringes = (spanned - summed) as f64 / 2f64.powi(32);
+    let lost_fringes = (spanned - summed) as f64 / firmware::units::Q32_PER_FRINGE;
     assert!(
         lost_fringes.abs() < 1e-6,
         "{lost_fringes:.3} fringes turned during the stall are missing from the stream"

@@ -20,7 +20,8 @@ const SCALE: RateScale = RateScale {
 const TICKS: u32 = 215_938;
 /// 10 deg/h over one cycle of TICKS: 10 arcsec/s * (TICKS / timer) s / sf arcsec per fringe.
 fn increment_q32(rate_deg_per_h: f64) -> i64 {
-    (rate_deg_per_h * (TICKS as f64 / DEFAULT_TIMER_HZ) / 1.8655 * 4_294_967_296.0).round() as i64
+    (rate_deg_per_h * (TICKS as f64 / DEFAULT_TIMER_HZ) / 1.8655 * firmware::units::Q32_PER_FRINGE)
+        .round() as i64
 }
 
 fn record(sequence: u32, rate_deg_per_h: f64) -> StreamRecord {

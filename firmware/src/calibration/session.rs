@@ -227,7 +227,7 @@ mod tests {
     use crate::signal::lockin::LockinTerms;
     use crate::signal::lockin::{CycleFlags, CycleOutput};
 
-    const Q32: f64 = 4_294_967_296.0;
+    const Q32: f64 = crate::units::Q32_PER_FRINGE;
     const TAU: f64 = core::f64::consts::TAU;
     const K: f64 = 26.3e-6;
     const A: f64 = 344.0;

@@ -101,9 +101,11 @@ impl DitherConfig {
     /// The drive amplifier's phase lag at drive step `step`: atan(f / f_c), Q32 turns (`f32`
     /// arithmetic, once per half cycle).
     pub fn drive_lag(&self, step: crate::units::Phase) -> crate::units::Phase {
-        let f_hz = step.to_bits() as f32 / 4_294_967_296.0 * self.tick_hz;
+        let f_hz = step.to_bits() as f32 / crate::units::Q32_PER_TURN_F32 * self.tick_hz;
         let turns = libm::atanf(f_hz / self.drive_lowpass_hz) / core::f32::consts::TAU;
-        crate::units::Phase::from_bits(crate::math::round_f32_to_i32(turns * 4_294_967_296.0) as u32)
+        crate::units::Phase::from_bits(crate::math::round_f32_to_i32(
+            turns * crate::units::Q32_PER_TURN_F32,
+        ) as u32)
     }
 
     /// Arcsec of dither per pick-off code.

@@ -939,9 +939,9 @@ fn check_range(value: f32, lo: f32, hi: f32) -> Result<(), CommandError> {
 /// The frequency of DDS step `step` in `f32` (no `f64` in the half-cycle path: the M4F has no
 /// double-precision unit).
 fn step_hz(step: Phase, tick_hz: f32) -> f32 {
-    step.to_bits() as f32 * (tick_hz / 4_294_967_296.0)
+    step.to_bits() as f32 * (tick_hz / crate::units::Q32_PER_TURN_F32)
 }
 
 fn turns_to_rad(p: Phase) -> f32 {
-    p.to_signed() as f32 * (core::f32::consts::TAU / 4_294_967_296.0)
+    p.to_signed() as f32 * (core::f32::consts::TAU / crate::units::Q32_PER_TURN_F32)
 }

@@ -149,7 +149,7 @@ mod tests {
         let d = drive(389.0, 1900.0);
         let mut differ = 0;
         for n in 0..200_000u32 {
-            let turns = d.phase_of(n).to_bits() as f64 / 4_294_967_296.0;
+            let turns = d.phase_of(n).to_bits() as f64 / crate::units::Q32_PER_TURN;
             let ideal = 2048.0 + (d.amplitude_codes() * (TAU * turns).sin() + 0.5).floor();
             let got = d.dac_code(n) as f64;
             assert!((got - ideal).abs() <= 1.0, "n {n}: {got} vs {ideal}");

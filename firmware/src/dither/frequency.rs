@@ -139,7 +139,9 @@ mod tests {
         fn step(&mut self, drive_hz: f64, dt: f64) -> Phase {
             let dw = std::f64::consts::TAU * (drive_hz - self.f0);
             self.dphi += (-self.dphi / self.tau - dw) * dt;
-            Phase::from_bits(((self.dphi / std::f64::consts::TAU) * 4_294_967_296.0) as i64 as u32)
+            Phase::from_bits(
+                ((self.dphi / std::f64::consts::TAU) * crate::units::Q32_PER_TURN) as i64 as u32,
+            )
         }
     }
 

@@ -107,11 +107,11 @@ mod tests {
     use std::f64::consts::TAU;
 
     fn turns(p: Phase) -> f64 {
-        p.to_bits() as f64 / 4_294_967_296.0
+        p.to_bits() as f64 / crate::units::Q32_PER_TURN
     }
 
     fn signed_turns(p: Phase) -> f64 {
-        p.to_signed() as f64 / 4_294_967_296.0
+        p.to_signed() as f64 / crate::units::Q32_PER_TURN
     }
 
     /// One synthetic half cycle: the regressor phase runs from `start` by `step` for `n`
@@ -161,7 +161,9 @@ mod tests {
                 let fit = h.fit.unwrap();
                 let ea = fit.amplitude_codes as f64 - 1125.0;
                 let ep = TAU
-                    * signed_turns(fit.phase - Phase::from_bits((phase * 4_294_967_296.0) as u32));
+                    * signed_turns(
+                        fit.phase - Phase::from_bits((phase * crate::units::Q32_PER_TURN) as u32),
+                    );
                 assert!((fit.offset_codes as f64 - offset).abs() < 0.5 + 2.0 * noise);
                 se_a += ea * ea;
                 se_p += ep * ep;

@@ -239,7 +239,7 @@ mod tests {
     fn sweep_rate_in_steps() {
         let c = StartupConfig::new((280.0, 620.0), 40_000.0, 1798.0);
         // 300 Hz/s for one second of ticks moves the step by 300 Hz.
-        let hz = c.sweep_step_per_tick as f64 * 40_000.0 / 4_294_967_296.0 * 40_000.0;
+        let hz = c.sweep_step_per_tick as f64 * 40_000.0 / crate::units::Q32_PER_TURN * 40_000.0;
         assert!((hz - 300.0).abs() < 0.5, "{hz}");
         assert_eq!(c.listen_timeout_ticks, 643);
     }

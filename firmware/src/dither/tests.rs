@@ -335,7 +335,8 @@ fn estimate_matches_the_true_dither() {
         );
         // The model has advanced one tick past the estimate's: advance the estimate too.
         let truth = b.gyro.angle_turns();
-        let est = e.angle_phase.to_signed() as f64 / 4_294_967_296.0 + e.frequency_hz as f64 / 40e3;
+        let est = e.angle_phase.to_signed() as f64 / crate::units::Q32_PER_TURN
+            + e.frequency_hz as f64 / 40e3;
         let mut d = est - truth;
         d -= d.round();
         worst_phase = worst_phase.max((TAU * d).abs());

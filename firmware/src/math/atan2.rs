@@ -169,7 +169,7 @@ mod tests {
     use std::f64::consts::PI;
 
     /// A turn in LSB (2^32).
-    const TURN: f64 = 4_294_967_296.0;
+    const TURN: f64 = crate::units::Q32_PER_TURN;
 
     /// Signed difference in LSB between the CORDIC and the f64 reference, modulo a turn.
     fn error_lsb(y: i32, x: i32) -> i64 {

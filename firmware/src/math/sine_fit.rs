@@ -174,7 +174,7 @@ mod tests {
     fn merged_windows_fit_as_one_and_the_fit_gives_back_the_signal() {
         let step = Phase::from_bits(41_757_000);
         let signal = |theta: Phase| {
-            12.5 + 800.0 * (TAU * (theta.to_bits() as f64 / 4_294_967_296.0 + 0.3)).cos()
+            12.5 + 800.0 * (TAU * (theta.to_bits() as f64 / crate::units::Q32_PER_TURN + 0.3)).cos()
         };
         let (mut first, mut second, mut whole) =
             (SineSums::new(), SineSums::new(), SineSums::new());

@@ -24,7 +24,7 @@ pub struct OpenLoopDrive {
     next: u64,
 }
 
-const Q32: f64 = 4_294_967_296.0;
+const Q32: f64 = firmware::units::Q32_PER_TURN;
 
 impl OpenLoopDrive {
     /// A DDS at `freq_hz` (rounded to the accumulator's resolution `f_s / 2^32`), amplitude

@@ -196,7 +196,7 @@ pub(crate) mod tests {
             p2_s: (k * (v.cos() - u.sin())) as f32,
         };
         let y = rate / 389.0 + 344.0 * terms.p1_s as f64 + 579.0 * terms.p2_s as f64;
-        let q = (y / TAU * 4_294_967_296.0).round() as i64;
+        let q = (y / TAU * crate::units::Q32_PER_FRINGE).round() as i64;
         CycleRecord {
             output: CycleOutput {
                 increment_q32: q,

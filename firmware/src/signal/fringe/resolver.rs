@@ -358,7 +358,7 @@ mod tests {
                 assert!(
                     e.abs() < 1e-8,
                     "{e} step {step} d {} off {:?} {reading:?}",
-                    reading.disagreement_q32 as f64 / 4294967296.0 * 360.0,
+                    reading.disagreement_q32 as f64 / crate::units::Q32_PER_TURN * 360.0,
                     r.quadrant_offset(&cfg)
                 );
                 if step > 5000 {

@@ -63,7 +63,7 @@
 //!   output as harmonics of the dither (not at its frequency).
 
 use crate::math::sine_fit::{cos_sin_q31, SineFit, SineSums, MAX_SAMPLES};
-use crate::units::{Phase, Q32_PER_FRINGE};
+use crate::units::{Phase, Q32_PER_TURN_F32 as Q32_PER_TURN};
 
 /// Windows merged into one fit.
 pub const WINDOWS: usize = 6;
@@ -374,9 +374,6 @@ fn advanced(config: &DitherModelConfig, theta: Phase, step: Phase, elapsed_ticks
 fn step_hz(config: &DitherModelConfig, step: Phase) -> f32 {
     step.to_bits() as f32 / Q32_PER_TURN * config.sample_hz
 }
-
-/// One turn of the oscillator's phase in Q32, as `f32` (exact: a power of two).
-const Q32_PER_TURN: f32 = Q32_PER_FRINGE as f32;
 
 #[cfg(test)]
 mod tests {
