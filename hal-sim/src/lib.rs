@@ -2,7 +2,8 @@
 //!
 //! The rooms:
 //! - the gyro ([`params`], [`units`], [`input`], [`dither`], [`noise`], [`phase`], [`gyro`];
-//!   [`random_gyro`] draws gyros within what real ones have):
+//!   [`random_gyro`] draws gyros within what real ones have; [`trig`] is the fast cos/sin the
+//!   dither and the integrator share, below both):
 //!   the phase equation (docs/physics.md Eq. 6) integrated with the dither phase known analytically,
 //!   the dither a prescribed sine (`ideal`) or a resonator driven by the firmware's DAC through
 //!   its amplifier (the drive pushed in segments, [`dither`]);
@@ -26,6 +27,7 @@ pub mod param_error;
 pub mod params;
 pub mod phase;
 pub mod random_gyro;
+pub mod trig;
 pub mod units;
 
 pub mod clock;

@@ -8,79 +8,13 @@
 
 use crate::dither::open_loop::OpenLoopDrive;
 use crate::dither::resonator::ResonatorParams;
+use crate::dither::DitherSpec;
+pub use crate::dither::{AmplitudeModulation, DitherModel};
 use crate::param_error::ParamError;
 use crate::units::{
     arcsec_to_beat_rad, arw_deg_per_rt_h_to_beat_rad_per_rt_s, deg_per_h_to_beat_rad_per_s,
     hz_to_rad_per_s,
 };
-
-/// A smooth, seeded, band-limited modulation of the dither amplitude:
-/// `A(t) = A0 (1 + m(t))`, `m(t) = sum_j a_j sin(2 pi f_j t + phi_j)` with `tones` random
-/// frequencies uniform in `[min_hz, max_hz]`, random phases, and equal `a_j` such that the rms
-/// of `m` is `relative_rms`. A high-Q dither resonator changes its amplitude slowly, so keep
-/// `max_hz` well below the dither frequency.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct AmplitudeModulation {
-    /// Rms of the relative amplitude deviation `m(t)` (0 = off).
-    pub relative_rms: f64,
-    /// Lowest modulation frequency, Hz.
-    pub min_hz: f64,
-    /// Highest modulation frequency, Hz.
-    pub max_hz: f64,
-    /// Number of sinusoids summed.
-    pub tones: usize,
-}
-
-impl AmplitudeModulation {
-    /// No modulation.
-    pub const OFF: Self = Self {
-        relative_rms: 0.0,
-        min_hz: 0.1,
-        max_hz: 2.0,
-        tones: 6,
-    };
-
-    /// A slow amplitude jitter of a high-Q resonator (0.1 % rms, 0.1..2 Hz).
-    pub fn jitter(relative_rms: f64) -> Self {
-        Self {
-            relative_rms,
-            ..Self::OFF
-        }
-    }
-
-    /// The industry's random-noise dither: a deliberately large random amplitude modulation
-    /// (e.g. 10..20 % rms) up to a few tens of Hz, which spreads the lock-in error over the
-    /// turnaround phase instead of compensating it.
-    pub fn random_noise_dither(relative_rms: f64) -> Self {
-        Self {
-            relative_rms,
-            min_hz: 1.0,
-            max_hz: 30.0,
-            tones: 12,
-        }
-    }
-
-    fn is_on(&self) -> bool {
-        self.relative_rms > 0.0
-    }
-}
-
-/// Which dither the gyro has (see [`crate::dither`]).
-// Part of the `Copy` parameter set: a box would not be `Copy`; ~300 bytes copied is nothing.
-#[allow(clippy::large_enum_variant)]
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub enum DitherModel {
-    /// The prescribed sine of `dither_hz` and `dither_amplitude_arcsec` (with the amplitude
-    /// modulations): the paper's idealised experiment and the theory tests.
-    #[default]
-    Ideal,
-    /// The driven resonator: the dither is what the pushed drive segments make of it
-    /// (`Gyro::push_drive`). `dither_hz` is then the *nominal* dither frequency (the
-    /// readout's configuration, the noise segments, the planner's grid; the resonance f0 must
-    /// lie within a factor 4 of it), `dither_amplitude_arcsec` the nominal amplitude (what
-    /// [`GyroParams::open_loop_drive`] aims at); the amplitude modulations are ignored.
-    Driven(ResonatorParams),
-}
 
 /// Settings of the integrator (see [`crate::phase`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -229,6 +163,21 @@ impl GyroParams {
         match self.dither_model {
             DitherModel::Ideal => self.dither_amplitude_arcsec > 0.0 && self.dither_hz > 0.0,
             DitherModel::Driven(_) => self.dither_hz > 0.0,
+        }
+    }
+
+    /// What the gyro's dither is made from, in the dither's own terms (`crate::dither`).
+    pub fn dither_spec(&self, derived: &Derived) -> DitherSpec {
+        DitherSpec {
+            model: self.dither_model,
+            on: self.has_dither(),
+            hz: self.dither_hz,
+            w_rad_per_s: derived.dither_w_rad_per_s,
+            amp_rad: derived.dither_amp_rad,
+            scale_factor_arcsec: derived.scale_factor_arcsec,
+            jitter: self.amplitude_jitter,
+            noise: self.random_noise_dither,
+            seed: self.seed,
         }
     }
 

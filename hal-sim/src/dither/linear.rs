@@ -33,8 +33,8 @@
 //! segments with the same drive (a new segment every half cycle) reproduces one long segment
 //! to ~1e-13 relative.
 
-use crate::phase::trig::fast_cos_sin;
-use crate::phase::trig::reduced_phase;
+use crate::trig::fast_cos_sin;
+use crate::trig::reduced_phase;
 use core::f64::consts::TAU;
 
 /// A complex number (the few operations the closed form needs).

@@ -1,4 +1,4 @@
-//! The mechanical dither, in one of two models ([`crate::params::DitherModel`]):
+//! The mechanical dither, in one of two models ([`DitherModel`]):
 //!
 //! - **ideal** ([`sine`]): a prescribed sine, `theta_d = -A(t) cos(w_d t)` with an optional
 //!   smooth amplitude modulation. The paper's idealised experiment and the theory tests.
@@ -69,15 +69,59 @@ pub mod amplifier;
 pub mod drive;
 pub mod driven;
 pub mod linear;
+mod modulation;
 pub mod open_loop;
 pub mod resonator;
 pub mod sine;
 
-use crate::params::{Derived, DitherModel, GyroParams};
 use core::f64::consts::TAU;
 use driven::DrivenDither;
 use firmware::sample::TurnaroundKind;
+pub use modulation::AmplitudeModulation;
+use resonator::ResonatorParams;
 use sine::SineDither;
+
+/// Which dither the gyro has (see [`crate::dither`]).
+// Part of the `Copy` parameter set: a box would not be `Copy`; ~300 bytes copied is nothing.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum DitherModel {
+    /// The prescribed sine of `dither_hz` and `dither_amplitude_arcsec` (with the amplitude
+    /// modulations): the paper's idealised experiment and the theory tests.
+    #[default]
+    Ideal,
+    /// The driven resonator: the dither is what the pushed drive segments make of it
+    /// (`Gyro::push_drive`). `dither_hz` is then the *nominal* dither frequency (the
+    /// readout's configuration, the noise segments, the planner's grid; the resonance f0 must
+    /// lie within a factor 4 of it), `dither_amplitude_arcsec` the nominal amplitude (what
+    /// `GyroParams::open_loop_drive` aims at); the amplitude modulations are ignored.
+    Driven(ResonatorParams),
+}
+
+/// What a dither is made from: the gyro's parameters in the dither's own terms
+/// (`crate::params::GyroParams::dither_spec`), so this layer imports nothing of the parameter
+/// set above it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DitherSpec {
+    /// Prescribed or driven.
+    pub model: DitherModel,
+    /// There is a dither at all (a prescribed one needs an amplitude and a frequency).
+    pub on: bool,
+    /// The dither frequency, Hz (the driven resonator's nominal one).
+    pub hz: f64,
+    /// w_d, rad/s.
+    pub w_rad_per_s: f64,
+    /// The prescribed amplitude, rad of beat phase.
+    pub amp_rad: f64,
+    /// Scale factor, arcsec of angle per fringe (the pick-off's angle from the beat phase).
+    pub scale_factor_arcsec: f64,
+    /// The prescribed amplitude's slow jitter.
+    pub jitter: AmplitudeModulation,
+    /// The prescribed amplitude's random-noise dither.
+    pub noise: AmplitudeModulation,
+    /// The seed of both modulations.
+    pub seed: u64,
+}
 
 /// Longest derivative jet the dither evaluates (angle and 15 derivatives).
 pub const MAX_JET: usize = 16;
@@ -94,14 +138,14 @@ pub enum Dither {
 }
 
 impl Dither {
-    /// The dither of `params`.
-    pub fn new(params: &GyroParams, derived: &Derived) -> Self {
-        match &params.dither_model {
-            DitherModel::Ideal => Self::Ideal(SineDither::new(params, derived)),
+    /// The dither of `spec`.
+    pub fn new(spec: &DitherSpec) -> Self {
+        match &spec.model {
+            DitherModel::Ideal => Self::Ideal(SineDither::new(spec)),
             DitherModel::Driven(r) => Self::Driven(DrivenDither::new(
                 r,
-                params.dither_hz,
-                TAU / derived.scale_factor_arcsec,
+                spec.hz,
+                TAU / spec.scale_factor_arcsec,
             )),
         }
     }

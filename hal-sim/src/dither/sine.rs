@@ -12,7 +12,7 @@
 //!
 //! so the steady dither rate is `Omega_d sin(w_d t)` with `Omega_d = A0 w_d`, as in Eq. 6.
 //! `m(t)` is a seeded sum of low-frequency sinusoids (see
-//! [`crate::params::AmplitudeModulation`]): smooth at every order, so the amplitude of a
+//! [`super::AmplitudeModulation`]): smooth at every order, so the amplitude of a
 //! high-Q resonator drifts slowly and never jumps from one half-cycle to the next. The
 //! "random-noise dither" is the same process with a much larger depth and bandwidth; both
 //! can be on at once (their modulations add).
@@ -28,8 +28,8 @@
 //! by about `Omega_i / psi_ddot` (docs/physics.md pitfall 3), which is why both are offered.
 
 use super::MAX_JET;
-use crate::params::{AmplitudeModulation, Derived, GyroParams};
-use crate::phase::trig::reduced_phase;
+use super::{AmplitudeModulation, DitherSpec};
+use crate::trig::reduced_phase;
 use crate::units::beat_rad_to_arcsec;
 use core::f64::consts::TAU;
 use firmware::sample::TurnaroundKind;
@@ -107,29 +107,17 @@ fn binomial_row(n: usize) -> [f64; MAX_JET] {
 }
 
 impl SineDither {
-    /// Builds the dither of `params` (no dither: amplitude 0, every value 0).
-    pub fn new(params: &GyroParams, derived: &Derived) -> Self {
+    /// Builds the dither of `spec` (no dither: amplitude 0, every value 0).
+    pub fn new(spec: &DitherSpec) -> Self {
         let mut tones = Vec::new();
-        if params.has_dither() {
-            draw_tones(
-                &params.amplitude_jitter,
-                params.seed ^ 0x6a09_e667_f3bc_c908,
-                &mut tones,
-            );
-            draw_tones(
-                &params.random_noise_dither,
-                params.seed ^ 0xbb67_ae85_84ca_a73b,
-                &mut tones,
-            );
+        if spec.on {
+            draw_tones(&spec.jitter, spec.seed ^ 0x6a09_e667_f3bc_c908, &mut tones);
+            draw_tones(&spec.noise, spec.seed ^ 0xbb67_ae85_84ca_a73b, &mut tones);
         }
         Self {
-            freq_hz: if params.has_dither() {
-                params.dither_hz
-            } else {
-                0.0
-            },
-            w_rad_per_s: derived.dither_w_rad_per_s,
-            amp0_rad: derived.dither_amp_rad,
+            freq_hz: if spec.on { spec.hz } else { 0.0 },
+            w_rad_per_s: spec.w_rad_per_s,
+            amp0_rad: spec.amp_rad,
             window_s: {
                 let f_max = tones.iter().map(|t| t.nu_rad_per_s).fold(0.0, f64::max);
                 if f_max > 0.0 {
@@ -139,7 +127,7 @@ impl SineDither {
                 }
             },
             tones,
-            scale_factor_arcsec: derived.scale_factor_arcsec,
+            scale_factor_arcsec: spec.scale_factor_arcsec,
             cache: RefCell::new([None; CACHE_SLOTS]),
         }
     }
@@ -164,7 +152,7 @@ impl SineDither {
             const MAGIC: f64 = 6_755_399_441_055_744.0;
             let x = tone.nu_rad_per_s * t_s + tone.phase_rad;
             let n = (x * (1.0 / TAU) + MAGIC) - MAGIC;
-            let (c, s) = crate::phase::trig::fast_cos_sin(x - n * TAU);
+            let (c, s) = crate::trig::fast_cos_sin(x - n * TAU);
             crate::input::add_sinusoid_derivs_sc(tone.a, tone.nu_rad_per_s, s, c, out);
         }
     }
@@ -238,7 +226,7 @@ impl SineDither {
             return;
         }
         // -cos(x) = -sin(x + pi/2): pass sin and cos of x + pi/2, i.e. cos x and -sin x.
-        let (c, s) = crate::phase::trig::fast_cos_sin(reduced_phase(self.freq_hz, t_s));
+        let (c, s) = crate::trig::fast_cos_sin(reduced_phase(self.freq_hz, t_s));
         if self.tones.is_empty() {
             // A0 times the derivatives of -cos(w t), straight into `out` (no scratch to zero).
             crate::input::add_sinusoid_derivs_sc(-self.amp0_rad, self.w_rad_per_s, c, -s, out);
@@ -322,13 +310,14 @@ impl SineDither {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::params::GyroParams;
 
     fn dither(jitter: f64) -> SineDither {
         let p = GyroParams {
             amplitude_jitter: AmplitudeModulation::jitter(jitter),
             ..Default::default()
         };
-        SineDither::new(&p, &p.derive().unwrap())
+        SineDither::new(&p.dither_spec(&p.derive().unwrap()))
     }
 
     #[test]
@@ -366,7 +355,7 @@ mod tests {
             random_noise_dither: AmplitudeModulation::random_noise_dither(0.2),
             ..Default::default()
         };
-        let d = SineDither::new(&p, &p.derive().unwrap());
+        let d = SineDither::new(&p.dither_spec(&p.derive().unwrap()));
         for i in 0..2000 {
             let t = 3.7 * ((i as f64 * 0.618_033_988_749_895) % 1.0);
             let mut a = [0.0; 8];

@@ -14,7 +14,7 @@ fn random_walk_variance_matches_arw() {
     };
     let d = p.derive().unwrap();
     let n = Noise::new(&p, &d);
-    let dither = Dither::new(&p, &d);
+    let dither = Dither::new(&p.dither_spec(&d));
     assert!(!n.snaps());
     // Increments over 1 s windows: variance ARW^2 * 1 s. 2000 windows: 3 % rel. std.
     let mut s2 = 0.0;
@@ -37,7 +37,7 @@ fn angle_is_continuous_and_reproducible() {
         ..Default::default()
     };
     let d = p.derive().unwrap();
-    let dither = Dither::new(&p, &d);
+    let dither = Dither::new(&p.dither_spec(&d));
     let n1 = Noise::new(&p, &d);
     let n2 = Noise::new(&p, &d);
     for k in [1u64, 5, 1023, 1024, 5000] {
@@ -63,7 +63,7 @@ fn driven(arw_deg_per_rt_h: f64) -> (GyroParams, Dither, Noise) {
     }
     .with_steady_driven_dither(ResonatorParams::default());
     let d = p.derive().unwrap();
-    (p, Dither::new(&p, &d), Noise::new(&p, &d))
+    (p, Dither::new(&p.dither_spec(&d)), Noise::new(&p, &d))
 }
 
 /// Drive segments starting every 2 to 41 ticks (25 us), pseudo-randomly: many starts per

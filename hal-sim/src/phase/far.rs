@@ -73,7 +73,7 @@ impl Oscillation {
     pub fn derivatives(&self, psi: f64) -> [f64; 5] {
         // The fast pair is exact enough below 1e5 rad (its reduction's range); beyond, libm.
         let (c1, s1) = if psi.abs() < 1e5 {
-            super::trig::fast_cos_sin(psi)
+            crate::trig::fast_cos_sin(psi)
         } else {
             let (s, c) = psi.sin_cos();
             (c, s)

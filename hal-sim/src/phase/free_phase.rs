@@ -52,7 +52,7 @@ impl FreePhase {
         Self {
             input,
             input_scale: TAU / derived.scale_factor_arcsec,
-            dither: Dither::new(params, derived),
+            dither: Dither::new(&params.dither_spec(derived)),
             noise: Noise::new(params, derived),
         }
     }

@@ -58,4 +58,3 @@ pub mod near;
 pub mod plan;
 pub mod reference;
 pub mod theory;
-pub mod trig;

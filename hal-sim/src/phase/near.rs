@@ -34,7 +34,7 @@
 //! error is ~1e-12 rad. Working relative to `theta(t_c)` keeps the cos argument small.
 
 use super::free_phase::{FreePhase, PieceId};
-use super::trig::fast_cos_sin;
+use crate::trig::fast_cos_sin;
 use core::f64::consts::TAU;
 
 /// Degree of the Taylor polynomial of `theta`.
