@@ -377,14 +377,19 @@ fn every_protected_command_needs_the_unlock() {
     assert_eq!(field(&ask(&mut dev, "status"), "coeffs"), "defaults:erased");
 }
 
-/// The rotation during a `store`'s flash stall is not lost: the encoder counts on, and the
-/// first cycle after the stall carries the whole angle since the last cycle before it (flagged
-/// `TURNAROUND_MISSED`). So the streamed increments add up to the total phase the board
-/// reports (exactly: both are the same Q32 count), and the durations to the time elapsed
-/// (to one capture-timer tick per frame).
+/// The rotation during an erasing `store`'s pause of the readout is not lost: the encoder
+/// counts on, and the first cycle after the pause carries the whole angle since the last cycle
+/// before it (flagged `TURNAROUND_MISSED`). So the streamed increments add up to the total
+/// phase the board reports (exactly: both are the same Q32 count), and the durations to the
+/// time elapsed (to one capture-timer tick per frame). (Sector 0 is filled with damage, so the
+/// store erases sector 1 first; a store without an erase does not pause the readout:
+/// `store_stall.rs`.)
 #[test]
 fn the_angle_turned_during_a_store_stall_is_carried_into_the_stream() {
-    let mut dev = boot(CalibrationFlash::default(), 13.888, 0);
+    use embedded_storage::nor_flash::NorFlash;
+    let mut flash = CalibrationFlash::default();
+    flash.write(0, &vec![0u8; 128 * 1024]).unwrap();
+    let mut dev = boot(flash, 13.888, 0);
     assert!(ask(&mut dev, &format!("unlock {KEY}")).starts_with("OK unlocked"));
     dev.receive(b"stream on 1\n");
     dev.run_for(0.5);

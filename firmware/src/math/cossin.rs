@@ -20,8 +20,9 @@
 const DEPTH: usize = 7;
 
 /// `cos(z) * 2 - 1` in the low 16 bits (less one LSB), `sin(z)` in the high 16 bits, both
-/// scaled by 65535, at `z = pi/4 (i + 1/2) / 128`: idsp's `build.rs` formula. A `static`, so
-/// it is initialised data (in RAM on the board), never a constant read from flash.
+/// scaled by 65535, at `z = pi/4 (i + 1/2) / 128`: idsp's `build.rs` formula. On the board it
+/// is initialised data (`.data`: in RAM, copied at start-up), never a constant read from flash.
+#[cfg_attr(target_os = "none", link_section = ".data.cossin_table")]
 static COSSIN: [u32; 1 << DEPTH] = [
     0x00C9FFFD, 0x025BFFF8, 0x03EDFFEF, 0x057FFFE0, 0x0711FFCC, 0x08A3FFB3, 0x0A35FF96, 0x0BC7FF73,
     0x0D58FF4C, 0x0EEAFF1F, 0x107BFEEE, 0x120DFEB8, 0x139EFE7D, 0x152EFE3D, 0x16BFFDF8, 0x184FFDAE,

@@ -60,7 +60,7 @@ use crate::signal::output::record::OutputRecord;
 use crate::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use crate::storage::{
     CalibrationRecord, CalibrationStore, DitherSetpoints, Geometry, GeometryError, LoadReport,
-    StoreError, StripCoefficients,
+    StoreError, Stored, StripCoefficients,
 };
 use ports::{Clock, DitherAccess, ReadoutAccess, Secrets, SerialTx};
 
@@ -403,11 +403,11 @@ impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess + Secrets> DeviceLink
             .with_readout(|readout| readout.stage_compensation(settings));
     }
 
-    /// Stores with the readout paused for exactly the store's duration (the guard's lifetime).
-    fn store(&mut self, record: &CalibrationRecord) -> Result<u32, StoreError<F::Error>> {
-        let paused = ports::pause(self.ports);
-        self.store
-            .store_while_paused(self.flash, paused.token(), record)
+    /// Stores, with the readout paused from right before a sector erase to the end of the
+    /// store (the guard's lifetime), and not at all without an erase.
+    fn store(&mut self, record: &CalibrationRecord) -> Result<Stored, StoreError<F::Error>> {
+        let ports = &mut *self.ports;
+        self.store.store(self.flash, record, || ports::pause(ports))
     }
 
     fn load(&mut self) -> (CalibrationRecord, LoadReport) {

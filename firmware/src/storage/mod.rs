@@ -47,14 +47,17 @@
 //! and 1 later, or any later decay (the F4 has no ECC). Such a record fails its CRC and is
 //! ignored, so bit rot in R brings back the record before it, the nearest survivor.
 //!
-//! # Stalls: storing pauses the readout
+//! # Stalls: an erase pauses the readout
 //! The F405 has a single flash bank: while a sector is erased (up to [`SECTOR_ERASE_MAX_MS`]
-//! for a 128 KiB sector) or a word programmed, any instruction fetch or data read from flash
-//! waits, so the CPU and every interrupt handler in flash stall. Turnarounds would be missed and
-//! the fringe count lose track. Storing therefore takes a [`ReadoutPaused`] token: the caller
-//! stops the readout first, stores, and re-synchronises the readout after (the calibration is
-//! stored on an explicit command only, never from the signal chain). `load` only reads: it
-//! runs at boot, before the readout starts, and reads both sectors once.
+//! for a 128 KiB sector) or a word programmed (up to [`WORD_PROGRAM_MAX_US`]), any instruction
+//! fetch or data read from flash waits, so everything in flash stalls; the board keeps its
+//! dither drive, serial link and millisecond clock in RAM (`board::ram`). A word's stall only
+//! delays the readout's handlers. An erase would make them miss turnarounds and the fringe
+//! count lose track for a second, so [`CalibrationStore::store`] pauses the readout for a store
+//! that erases (its caller's pause, re-synchronising the readout after), and only for one: the
+//! first store after a sector is full, once per sector's worth of records. (The calibration is stored on an explicit command only,
+//! never from the signal chain.) `load` only reads: it runs at boot, before the readout
+//! starts, and reads both sectors once.
 
 // No panics on the product path: no unwrap, expect, panic or slice indexing here; integer
 // arithmetic is checked, wrapping or saturating where an input could overflow it (each
@@ -80,7 +83,7 @@ pub mod store;
 pub use record::{CalibrationRecord, DitherSetpoints, FitSummary, RecordError, StripCoefficients};
 pub use store::{
     CalibrationStore, DefaultsReason, Geometry, GeometryError, LoadOutcome, LoadReport,
-    SkippedFrame, StoreError,
+    SkippedFrame, StoreError, Stored,
 };
 
 /// Worst-case erase time of one 128 KiB sector, ms (STM32F405 datasheet, x32 parallelism at
