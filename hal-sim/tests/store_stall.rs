@@ -56,7 +56,7 @@ fn ready(flash: CalibrationFlash) -> SimDevice {
         dev.run_for(0.1);
     }
     dev.run_for(1.0);
-    assert_eq!(field(&ask(&mut dev, "status"), "strip"), "converged");
+    assert_eq!(field(&ask(&mut dev, "output status"), "strip"), "converged");
     assert!(ask(&mut dev, &format!("unlock {KEY}")).starts_with("OK unlocked"));
     for line in [
         format!("set a {}", omega_l * phase.cos()),
