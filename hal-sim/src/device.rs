@@ -27,9 +27,9 @@
 //! whose contents survive; [`SimDevice::boot`] starts again from it).
 //!
 //! While streaming, cycle frames (COBS, ending in 0x00) and text answers share the line: a text
-//! answer to a line sent while streaming (`stream off` included) is wrapped in 0x00 delimiters,
-//! so a host splitting at 0x00 sees either a frame or a line starting with `OK`/`ERR` (text
-//! never contains 0x00); the answer to `stream on` is still plain text.
+//! answer is wrapped in 0x00 delimiters when a stream is on before or after its line (`stream
+//! on`, `stream output` and `stream off` included), so a host splitting at 0x00 sees either a
+//! frame or a line starting with `OK`/`ERR` (text never contains 0x00).
 //!
 //! The board watches itself as the real one does (`firmware::board_timing`): at power-up the
 //! self-test's clock, timer and trigger checks (measured on the simulated board,

@@ -237,8 +237,9 @@ impl<F: NorFlash> Service<F> {
         byte: u8,
         ports: &mut P,
     ) -> bool {
-        // Framing follows the mode the host was in when it sent the line.
-        let streaming = self.executor.streaming();
+        // Framing: an answer is wrapped in 0x00 when a stream is on before or after the line
+        // (`endpoint::send_answer`).
+        let streaming_before = self.executor.streaming();
         let mut line = String::<MAX_LINE>::new();
         let event = match self.line.push(byte) {
             None => return false,
@@ -274,7 +275,8 @@ impl<F: NorFlash> Service<F> {
             ports.save_wrong_keys(wrong_keys);
             self.saved_wrong_keys = wrong_keys;
         }
-        endpoint::send_answer(streaming, &answer, |bytes| ports.send(bytes));
+        let wrapped = streaming_before || self.executor.streaming();
+        endpoint::send_answer(wrapped, &answer, |bytes| ports.send(bytes));
         true
     }
 

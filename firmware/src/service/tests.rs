@@ -308,7 +308,7 @@ fn a_failed_store_is_reported_and_still_restarts_the_readout() {
 #[test]
 fn frames_without_room_are_dropped_whole_and_counted() {
     let (mut s, mut p) = boot(Flash::new());
-    assert!(ask(&mut s, &mut p, "stream on").starts_with("OK "));
+    assert!(ask(&mut s, &mut p, "stream on").starts_with("\0OK stream=on"));
     p.out.clear();
     s.on_cycle(&record(CycleFlags::empty()), &mut p);
     let frame = p.out.len();
