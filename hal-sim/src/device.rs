@@ -13,7 +13,8 @@
 //! word, 1 s per sector). The stall model follows the silicon (`firmware::board::ram`):
 //! - what runs from RAM goes on: the dither drive's tick coasts on the drive in force
 //!   ([`crate::drive_loop::FirmwareDrive::coast_until`]) and the controller takes over again
-//!   after; the serial link queues what arrives; the millisecond clock keeps time;
+//!   after; the serial link queues what arrives (on the board 511 bytes, here without a
+//!   limit); the millisecond clock keeps time;
 //! - the peripherals go on (the gyro, the counter, the latches' hardware, the pick-off stream);
 //! - the main loop is stalled: the answer to `store` comes when the store is over, then the
 //!   bytes received meanwhile are taken, then the records the readout made meanwhile;
