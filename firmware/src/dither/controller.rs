@@ -273,8 +273,9 @@ impl DitherController {
         }
     }
 
-    /// Starts again from listening (drive off at the next tick; not a fault): after the ticks
-    /// were interrupted (a flash store stalls the CPU). Does nothing while `Off` or in a fault;
+    /// Starts again from listening (drive off at the next tick; not a fault): for a drive whose
+    /// ticks were interrupted without coasting (a flash stall the drive tick coasts through is
+    /// [`Self::coast`] instead). Does nothing while `Off` or in a fault;
     /// the self-test's sweep starts over. A request not yet taken (an enable, the self-test)
     /// stays: it starts afresh anyway.
     pub fn restart(&mut self) {

@@ -819,7 +819,7 @@ fn a_refused_stored_record_keeps_its_enabled() {
     assert_eq!(ctrl.setpoints(), good);
 }
 
-/// A restart (the end of a store's pause) before the first tick keeps the pending start: an
+/// A restart before the first tick keeps the pending start: an
 /// enable still starts the drive, a self-test still runs; a restart during the self-test's
 /// sweep starts the sweep over (the drive was at mid-scale during the pause).
 #[test]
