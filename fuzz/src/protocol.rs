@@ -42,7 +42,7 @@ use firmware::signal::lockin::LockinTerms;
 use firmware::signal::lockin::{CycleFlags, CycleOutput};
 use firmware::storage::{
     CalibrationRecord, DefaultsReason, DitherSetpoints, LoadOutcome, LoadReport, StoreError,
-    StripCoefficients,
+    Stored, StripCoefficients,
 };
 
 pub use super::events::{BLANK_OTP, CYCLES, FAIL_STORE, NEW_SESSION, TICK, TICK_SHORT};
@@ -104,12 +104,15 @@ impl DeviceLink for MemDevice {
         self.staged = Some(settings);
     }
 
-    fn store(&mut self, record: &CalibrationRecord) -> Result<u32, StoreError<()>> {
+    fn store(&mut self, record: &CalibrationRecord) -> Result<Stored, StoreError<()>> {
         if core::mem::take(&mut self.fail_next_store) {
             return Err(StoreError::Flash(()));
         }
         self.stored.push(*record);
-        Ok(self.stored.len() as u32)
+        Ok(Stored {
+            sequence: self.stored.len() as u32,
+            erased: false,
+        })
     }
 
     fn load(&mut self) -> (CalibrationRecord, LoadReport) {

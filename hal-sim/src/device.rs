@@ -8,17 +8,29 @@
 //! firmware's own `Readout`; only the peripherals are simulated, behind the service's ports
 //! (simulated time, an output buffer, the readout in plain memory) and the NOR flash model.
 //!
-//! Like the board, a `store` stalls: the flash model books the erase and programming time, the
-//! simulated gyro runs on meanwhile without the readout seeing it, and the readout is
-//! re-synchronised afterwards. The answer to `store` comes when the stall is over (up to
-//! about 2 s after the command with an erase, as on the board), and bytes received meanwhile
-//! are taken after it. Power can be cut ([`SimDevice::power_off`] returns the flash,
+//! Like the board, a `store` stalls its fetches from flash for as long as the flash model books
+//! the programming and, when a sector is full, the erase (typical datasheet times: 16 us per
+//! word, 1 s per sector). The stall model follows the silicon (`firmware::board::ram`):
+//! - what runs from RAM goes on: the dither drive's tick coasts on the drive in force
+//!   ([`crate::drive_loop::FirmwareDrive::coast_until`]) and the controller takes over again
+//!   after; the serial link queues what arrives (on the board 511 bytes, here without a
+//!   limit); the millisecond clock keeps time;
+//! - the peripherals go on (the gyro, the counter, the latches' hardware, the pick-off stream);
+//! - the main loop is stalled: the answer to `store` comes when the store is over, then the
+//!   bytes received meanwhile are taken, then the records the readout made meanwhile;
+//! - the readout's handlers (in flash) are only delayed by a word's programming: a store
+//!   without an erase leaves the readout running (what a handler delayed by at most one word,
+//!   16 us, changes is not modelled: an output latch armed that much later); a store that
+//!   erases pauses the readout from the command to the end of the store, and re-synchronises
+//!   it after (`store` answers `readout=resynchronised`).
+//!
+//! Power can be cut ([`SimDevice::power_off`] returns the flash,
 //! whose contents survive; [`SimDevice::boot`] starts again from it).
 //!
 //! While streaming, cycle frames (COBS, ending in 0x00) and text answers share the line: a text
-//! answer to a line sent while streaming (`stream off` included) is wrapped in 0x00 delimiters,
-//! so a host splitting at 0x00 sees either a frame or a line starting with `OK`/`ERR` (text
-//! never contains 0x00); the answer to `stream on` is still plain text.
+//! answer is wrapped in 0x00 delimiters when a stream is on before or after its line (`stream
+//! on`, `stream output` and `stream off` included), so a host splitting at 0x00 sees either a
+//! frame or a line starting with `OK`/`ERR` (text never contains 0x00).
 //!
 //! The board watches itself as the real one does (`firmware::board_timing`): at power-up the
 //! self-test's clock, timer and trigger checks (measured on the simulated board,
@@ -77,15 +89,27 @@ pub struct SimDevice {
     drive_taken_off: bool,
 }
 
-/// A flash stall: the CPU is stalled until `until_s` (simulated time), and what waits for it.
-/// An absolute deadline, so the time a step overshoots it is never carried into the next stall.
+/// A flash stall: the main loop is stalled until `until_s` (simulated time), and what waits for
+/// it. An absolute deadline, so the time a step overshoots it is never carried into the next
+/// stall.
 struct Stall {
     until_s: f64,
+    /// The store erased a sector: the readout is paused until `until_s` and re-synchronised
+    /// then. Without an erase it runs on, and its records wait in `held_records`.
+    readout_paused: bool,
+    /// Output records and closed cycles the readout made during the stall, for the main loop.
+    held_records: Vec<Held>,
     /// The answer of the command that stalled, sent when the stall is over (as on the board,
     /// whose main loop sends it after the store returns).
     held_output: Vec<u8>,
     /// Bytes that arrived during the stall, taken when it is over.
     held_input: Vec<u8>,
+}
+
+/// A record the readout made while the main loop was stalled.
+enum Held {
+    Output(OutputRecord),
+    Cycle(firmware::signal::lockin::CycleRecord),
 }
 
 /// An identity for simulated boards: unprovisioned. A simulated board with a key is
@@ -230,6 +254,13 @@ impl SimDevice {
         self.harness.readout()
     }
 
+    /// The dither drive's state now (the firmware's controller: `status`'s `drive=`).
+    pub fn dither_state(&self) -> DitherState {
+        self.harness
+            .firmware_drive()
+            .map_or(DitherState::Off, |d| d.controller().state())
+    }
+
     /// Simulated time, s.
     pub fn time_s(&self) -> f64 {
         self.harness.time_s()
@@ -247,18 +278,25 @@ impl SimDevice {
     /// the main loop's cycle work (the service).
     fn half_cycle(&mut self) {
         if let Some(stall) = &self.stall {
-            // The CPU is stalled by the flash: the peripherals run on, the firmware sees nothing.
-            self.harness.step_with(Feed::Stalled);
-            if self.harness.time_s() >= stall.until_s {
-                let Some(stall) = self.stall.take() else {
-                    return;
-                };
-                self.harness.readout_mut().resynchronise();
-                // The events stopped on purpose: the monitors start afresh.
-                self.watch.restart();
-                // The store returned: its answer goes out, then the bytes that waited.
-                self.output.extend_from_slice(&stall.held_output);
-                self.receive(&stall.held_input);
+            if stall.readout_paused {
+                // An erase: the readout's handlers are masked, the peripherals run on.
+                self.harness.step_with(Feed::Stalled);
+            } else {
+                // The readout runs; the main loop is stalled: its records wait.
+                let record = self.harness.step().record;
+                self.watch_pass();
+                let outputs = self.harness.outputs().iter().map(|(_, r)| Held::Output(*r));
+                let held: Vec<Held> = outputs.chain(record.map(Held::Cycle)).collect();
+                if let Some(stall) = &mut self.stall {
+                    stall.held_records.extend(held);
+                }
+            }
+            if self
+                .stall
+                .as_ref()
+                .is_some_and(|stall| self.harness.time_s() >= stall.until_s)
+            {
+                self.end_stall();
             }
             return;
         }
@@ -279,6 +317,34 @@ impl SimDevice {
         }
         if let Some(record) = record {
             self.service.on_cycle(&record, &mut ports);
+        }
+    }
+
+    /// The store returned: after an erase the readout re-synchronises (the rate monitors start
+    /// afresh: the events stopped on purpose); its answer goes out, then the bytes that waited
+    /// are taken, then the records the readout made meanwhile.
+    fn end_stall(&mut self) {
+        let Some(stall) = self.stall.take() else {
+            return;
+        };
+        if stall.readout_paused {
+            self.harness.readout_mut().resynchronise();
+            self.watch.restart();
+        }
+        self.output.extend_from_slice(&stall.held_output);
+        self.receive(&stall.held_input);
+        let health = self.board_health();
+        let mut ports = SimPorts::new(
+            &mut self.harness,
+            &mut self.output,
+            &mut self.otp_key,
+            health,
+        );
+        for held in &stall.held_records {
+            match held {
+                Held::Output(output) => self.service.on_output(output, &mut ports),
+                Held::Cycle(record) => self.service.on_cycle(record, &mut ports),
+            }
         }
     }
 
@@ -340,18 +406,21 @@ impl SimDevice {
                 health,
             );
             self.service.on_byte(byte, &mut ports);
-            if ports.paused {
-                // The stall: the readout misses what happens meanwhile and re-synchronises
-                // after it (`half_cycle`); the drive is paused for it as on the board.
-                let busy_s = self.service.flash().stats().busy_s - busy_before_s;
-                let until_s = self.harness.time_s() + busy_s.max(1e-3);
-                // The answer comes when the store is over, not before.
+            let readout_paused = ports.paused;
+            let busy_s = self.service.flash().stats().busy_s - busy_before_s;
+            if busy_s > 0.0 {
+                // The flash stalled the main loop (module docs): the drive coasts, the readout
+                // runs on (or, for an erase, pauses until the end of the store), and the
+                // answer comes when the store is over, not before.
+                let until_s = self.harness.time_s() + busy_s;
                 self.stall = Some(Stall {
                     until_s,
+                    readout_paused,
+                    held_records: Vec::new(),
                     held_output: self.output.split_off(output_before),
                     held_input: Vec::new(),
                 });
-                self.harness.stall_drive(until_s);
+                self.harness.coast_drive(until_s);
             }
         }
     }
@@ -376,9 +445,9 @@ impl SimDevice {
 }
 
 /// The simulated board's ports for one service call: simulated time, the output buffer, the
-/// readout and the dither controller in plain memory. A pause only marks itself: the flash
-/// model books the stall's length, which the device then lets pass with the readout deaf and
-/// the drive paused.
+/// readout and the dither controller in plain memory. A pause (an erase) only marks itself:
+/// the flash model books the stall's length, which the device then lets pass with the readout
+/// deaf and the drive coasting.
 struct SimPorts<'a> {
     readout: &'a mut Readout,
     drive: &'a mut FirmwareDrive,
@@ -462,7 +531,8 @@ impl ReadoutAccess for SimPorts<'_> {
         self.paused = true;
     }
 
-    /// Nothing to do now: the device re-synchronises the readout when the stall has passed.
+    /// Nothing to do now: the device re-synchronises the readout when the stall has passed
+    /// (`SimDevice::end_stall`).
     fn restart_readout(&mut self) {}
 
     /// The self-test and the rate monitors, as the device holds them.

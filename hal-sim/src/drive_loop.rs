@@ -25,6 +25,13 @@
 //! anything later than the pick-off, so a caller may run the drive ahead of the readout by any
 //! lead (`crate::gyro::Gyro::drive_lead_s`).
 //!
+//! # A flash stall
+//! On the board the drive tick runs from RAM: while a flash operation stalls every fetch from
+//! flash it coasts (`firmware::dither::Coast`: the drive in force continued, the controller
+//! not run) and hands the ticks it missed to the controller at its first tick after
+//! ([`FirmwareDrive::coast_until`]). The DAC's codes meanwhile are the drive segment already
+//! pushed, so a coast pushes nothing; it only counts the ticks.
+//!
 //! # The lock flag
 //! [`FirmwareDrive::locked_at`] tells whether the controller was locked at a given instant (the
 //! last tick at or before it): the board's latch copies the drive tick's state into every
@@ -33,7 +40,9 @@
 use crate::board::SimBoard;
 use crate::dither::drive::{DacParams, DriveError, DriveSegment};
 use firmware::board_timing::selftest::SelfTestReport;
-use firmware::dither::{CommandError, DitherConfig, DitherController, DitherState, Drive, Tick};
+use firmware::dither::{
+    Coast, CommandError, DitherConfig, DitherController, DitherState, Drive, Tick,
+};
 use firmware::profile::BoardProfile;
 use firmware::signal::lockin::CycleRecord;
 use firmware::storage::DitherSetpoints;
@@ -48,10 +57,13 @@ pub struct FirmwareDrive {
     config: DitherConfig,
     controller: DitherController,
     dac: DacParams,
-    /// The next tick to run (absolute, from t = 0).
+    /// The next tick to run (absolute, from t = 0; the controller's tick index is its low 32
+    /// bits).
     next_tick: u64,
-    /// Ticks the controller did not see (CPU stalls): absolute tick = controller tick + this.
-    missed_ticks: u64,
+    /// The drive tick's coast state (the drive in force, the ticks the controller missed).
+    coast: Coast,
+    /// Ticks before this one coast (a flash operation under way).
+    coast_until_tick: u64,
     /// (first tick, locked) at every change of the lock state, oldest first.
     locked_since: VecDeque<(u64, bool)>,
     /// The DAC code the last tick wrote.
@@ -76,11 +88,12 @@ impl FirmwareDrive {
         let mut controller = DitherController::new(&config);
         controller.enable();
         Ok(Self {
+            coast: Coast::new(&controller),
             controller,
             config,
             dac,
             next_tick: 0,
-            missed_ticks: 0,
+            coast_until_tick: 0,
             locked_since: VecDeque::from([(0, false)]),
             last_code: profile.dac_full_scale / 2 + 1,
             handled: 0,
@@ -95,6 +108,7 @@ impl FirmwareDrive {
     /// no self-test (the controller as [`Self::new`] left it, but with the stored setpoints).
     pub fn power_up(&mut self, stored: Option<DitherSetpoints>, selftest: Option<&SelfTestReport>) {
         self.controller = DitherController::new(&self.config);
+        self.coast = Coast::new(&self.controller);
         self.controller.apply_stored(&self.config, stored);
         match selftest {
             Some(report) if report.hardware_passed() => self.controller.start_self_test(),
@@ -205,14 +219,25 @@ impl FirmwareDrive {
         Ok(())
     }
 
-    /// One tick: sample the pick-off, run the controller, pass a new DDS on as a segment.
+    /// One tick: sample the pick-off, run the controller (or coast: [`Self::coast_until`]),
+    /// pass a new DDS on as a segment.
     fn tick(&mut self, board: &mut SimBoard) -> Result<(), DriveError> {
         let n = self.next_tick;
         // The DAC holds this tick's code until the next edge at least.
         board.extend_drive_until(self.tick_time_s(n + 1))?;
         // The board's pick-off stream: the conversion an aperture delay after the edge.
         let code = board.drive_tick_code(n);
+        if n < self.coast_until_tick {
+            // The controller's code is in flash: the drive in force goes on (the segment
+            // already pushed describes it).
+            self.last_code = self.coast.code();
+            self.next_tick = n + 1;
+            self.handled += 1;
+            return Ok(());
+        }
+        self.coast.hand_over(&mut self.controller, &self.config);
         let tick: Tick = self.controller.on_tick(&self.config, code);
+        self.coast.follow(&self.controller);
         if tick.drive_changed {
             let segment = self.segment(self.controller.drive(), n + 1)?;
             board.push_drive(segment)?;
@@ -234,36 +259,19 @@ impl FirmwareDrive {
         }
     }
 
-    /// The CPU stalls (a flash erase) from the next tick until `until_s`, as the board handles
-    /// it (`board::resources::pause_dither`/`resume_dither`): the drive is zero (mid-scale)
-    /// from the next edge, the drive tick does not run meanwhile (the timer does: the
-    /// controller's tick count falls behind), and the controller restarts, listening first,
-    /// at the first tick after the stall. The dither rings down meanwhile.
-    pub fn stall(&mut self, board: &mut SimBoard, until_s: f64) -> Result<(), DriveError> {
-        if self.stopped {
-            // TIM4 is not running: nothing loads the DAC, nothing ticks.
-            return Ok(());
-        }
-        // The main loop wrote mid-scale into the DAC's holding register before the stall: the
-        // next edge outputs it.
-        let first = self.next_tick;
-        let mid = f64::from(self.config.dac_mid_code);
-        let off = DriveSegment::from_codes(self.tick_time_s(first), 0.0, 0.0, 0.0, mid, &self.dac);
-        board.extend_drive_until(self.tick_time_s(first))?;
-        board.push_drive(off)?;
-        let resume = ((until_s * self.dac.tick_hz).ceil() as u64).max(first);
-        board.extend_drive_until(self.tick_time_s(resume))?;
-        self.missed_ticks += resume - self.next_tick;
-        self.next_tick = resume;
-        self.note_lock(first, false);
-        self.controller.restart();
-        Ok(())
+    /// A flash operation stalls the board's fetches from flash from the next tick until
+    /// `until_s`: the ticks meanwhile coast (module docs), the controller takes over again at
+    /// the first tick after. (The drive runs ahead of the board's time, so the coast starts at
+    /// the drive's next tick, up to its lead after the instant of the command.)
+    pub fn coast_until(&mut self, until_s: f64) {
+        let resume = (until_s * self.dac.tick_hz).ceil() as u64;
+        self.coast_until_tick = self.coast_until_tick.max(resume);
     }
 
     /// The segment of `drive`, whose first sample is written at the edge of absolute tick
     /// `first` (the controller's wrapping tick count must agree).
     fn segment(&self, drive: Drive, first: u64) -> Result<DriveSegment, DriveError> {
-        if drive.start_tick != (first - self.missed_ticks) as u32 {
+        if drive.start_tick != first as u32 {
             return Err(DriveError::Invalid(
                 "the controller's drive does not start at the next tick",
             ));

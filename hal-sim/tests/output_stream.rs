@@ -1,7 +1,7 @@
 //! The fixed-rate output over the serial protocol on the simulated board (issue 13): `stream
 //! output` sends one frame per output period (the board's internal 1 kHz output latch here),
 //! numbered by the records' own 64-bit sequence, decoded by the host's
-//! `protocol::output_frame`; `status` reports the stripping's K and its convergence.
+//! `protocol::output_frame`; `output status` reports the stripping's K and its convergence.
 
 mod device_support;
 
@@ -48,7 +48,7 @@ fn stream_output_sends_every_record_numbered_and_valid() {
         dev.run_for(0.1);
     }
     dev.run_for(1.0);
-    let status = ask(&mut dev, "status");
+    let status = ask(&mut dev, "output status");
     assert_eq!(field(&status, "strip"), "converged", "{status}");
     let k: f64 = field(&status, "strip_k").parse().unwrap();
     assert!((k / (0.4 / 1.8655) - 1.0).abs() < 1e-3, "{status}");
@@ -105,9 +105,9 @@ fn stream_output_sends_every_record_numbered_and_valid() {
     let rate_deg_h = sty / stt; // arcsec/s = deg/h
     eprintln!("rate {rate_deg_h:.4} deg/h from {n} records");
     assert!((rate_deg_h - 50.0).abs() < 0.5, "{rate_deg_h} deg/h");
-    // The status counts the records made.
-    let status = ask(&mut dev, "status");
-    let made: u64 = field(&status, "output_records").parse().unwrap();
+    // `output status` counts the records made.
+    let status = ask(&mut dev, "output status");
+    let made: u64 = field(&status, "records").parse().unwrap();
     assert!(made > last.sequence, "{status}");
 }
 
@@ -118,17 +118,17 @@ fn stream_output_sends_every_record_numbered_and_valid() {
 fn k_is_stored_with_the_calibration_and_restored_at_power_up() {
     let mut dev = boot(78, 20.0, CalibrationFlash::default(), 0);
     assert!(ask(&mut dev, &format!("unlock {KEY}")).starts_with("OK"));
-    assert_eq!(field(&ask(&mut dev, "status"), "strip"), "learning");
+    assert_eq!(field(&ask(&mut dev, "output status"), "strip"), "learning");
     assert!(ask(&mut dev, "store").starts_with("OK"));
     assert_eq!(field(&ask(&mut dev, "reload"), "strip"), "kept");
     // Converged (standard error below 1e-4) within about 3 s of latches at 1 kHz.
     dev.run_for(4.0);
-    let status = ask(&mut dev, "status");
+    let status = ask(&mut dev, "output status");
     assert_eq!(field(&status, "strip"), "converged", "{status}");
     let k: f64 = field(&status, "strip_k").parse().unwrap();
     assert!(ask(&mut dev, "store").starts_with("OK"));
     let mut dev = boot(78, 20.0, dev.power_off(), 1);
-    let status = ask(&mut dev, "status");
+    let status = ask(&mut dev, "output status");
     let restored: f64 = field(&status, "strip_k").parse().unwrap();
     assert!((restored - k).abs() < 1e-6, "{restored} vs {k}: {status}");
     assert_eq!(field(&status, "strip"), "learning", "{status}");

@@ -14,7 +14,8 @@
 //!   earlier session) before it are skipped: anything up to a 0x00, and lines that are neither
 //!   printable nor start with `OK`/`ERR`; so are notice lines starting with `#` (the board's
 //!   start-up banner `# rlg-readout ready`).
-//! - Stream mode (after `OK stream=on`): the board interleaves frames (COBS, 0x00-terminated)
+//! - Stream mode (after `OK stream=on` or `OK stream=output`, which come wrapped in 0x00 like
+//!   every answer while a stream is on): the board interleaves frames (COBS, 0x00-terminated)
 //!   with answers wrapped in 0x00 delimiters; the client splits at 0x00 and keeps the frames
 //!   for [`Client::take_frames`]. A frame never starts with `O` or `E` (its first COBS code is
 //!   at most 46), so the two cannot be confused. `OK stream=off` returns to text mode.
@@ -535,6 +536,10 @@ impl<L: Link> Client<L> {
             if let Some(zero) = line.iter().rposition(|&b| b == 0) {
                 self.skipped_bytes += zero + 1;
                 line.drain(..=zero);
+                // A wrapped answer (the one that starts a stream): its closing delimiter too.
+                if self.inbox.first() == Some(&0) {
+                    self.inbox.remove(0);
+                }
             }
             let printable = is_printable_line(&line);
             if (printable && !line.starts_with(b"#")) || starts_like_answer(&line) {

@@ -48,9 +48,11 @@
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use super::pac;
+use super::ram::FLASH_BUSY;
 use super::resources::DITHER;
 use super::turnaround::DRIVE_LOCKED;
-use crate::dither::DitherState;
+use super::Owned;
+use crate::dither::{Coast, DitherState};
 use crate::profile::BoardProfile;
 use crate::signal::output::dither_model::PickoffSample;
 
@@ -71,6 +73,9 @@ const PICKOFF_CHANNEL: u32 = 12;
 pub static SAMPLES_MISSED: AtomicU32 = AtomicU32::new(0);
 /// Drive ticks handled, wrapping: the rate monitor's count.
 pub static TICKS: AtomicU32 = AtomicU32::new(0);
+/// The drive in force and the ticks coasted (owner: the drive tick; set by
+/// `resources::start_dither` before its interrupt is unmasked).
+pub static COAST: Owned<Coast> = Owned::new();
 
 // TIMx_CR2: MMS[6:4] = 010 (update -> TRGO)
 const TIM_CR2_MMS_UPDATE: u32 = 0b010 << 4;
@@ -142,10 +147,13 @@ pub fn force_mid(dac: &pac::dac::RegisterBlock, mid_code: u16) {
     dac.dhr12r1().write(|w| unsafe { w.bits(mid_code as u32) });
 }
 
-/// The drive tick: the pick-off code to the controller, its DAC code to the holding register;
+/// The drive tick: the pick-off code to the controller, its DAC code to the holding register
+/// (or, while a flash operation is under way, the drive in force continued: [`Coast`]);
 /// returns the code stamped with TIM2's time of this tick's update edge (the pick-off stream's
 /// sample, on the output latches' time base: their stamps are their compare edges, and both
-/// conversions follow their edge by the same aperture).
+/// conversions follow their edge by the same aperture). Runs from RAM (`super::ram::tim4`):
+/// everything here is inlined there, except [`controller_tick`], called only while the flash
+/// is idle.
 #[inline(always)]
 pub fn on_tick(
     tim: &pac::tim3::RegisterBlock,
@@ -161,15 +169,32 @@ pub fn on_tick(
         cortex_m::interrupt::free(|_| (tim2.cnt().read().bits(), tim.cnt().read().bits()));
     let code = take_pickoff(tim, adc3);
     TICKS.fetch_add(1, Ordering::Relaxed);
-    DITHER.lock(|task| {
-        let tick = task.controller.on_tick(&task.config, code);
-        dac.dhr12r1()
-            .write(|w| unsafe { w.bits(tick.dac_code as u32) });
-        let locked = task.controller.state() == DitherState::Locked;
-        DRIVE_LOCKED.store(locked, Ordering::Relaxed);
-    });
+    // SAFETY: the drive tick owns the coast state.
+    if let Some(coast) = unsafe { COAST.get() } {
+        if FLASH_BUSY.load(Ordering::Relaxed) {
+            let next = coast.code();
+            dac.dhr12r1().write(|w| unsafe { w.bits(next as u32) });
+        } else {
+            controller_tick(code, dac, coast);
+        }
+    }
     PickoffSample {
         timestamp_ticks: tim2_now.wrapping_sub(tim4_now),
         code,
     }
+}
+
+/// The controller's tick (in flash, reached only while the flash is idle): first the ticks it
+/// missed, then this one; its DAC code to the holding register, its drive to the coast state.
+#[inline(never)]
+pub fn controller_tick(code: u16, dac: &pac::dac::RegisterBlock, coast: &mut Coast) {
+    DITHER.lock(|task| {
+        coast.hand_over(&mut task.controller, &task.config);
+        let tick = task.controller.on_tick(&task.config, code);
+        dac.dhr12r1()
+            .write(|w| unsafe { w.bits(tick.dac_code as u32) });
+        coast.follow(&task.controller);
+        let locked = task.controller.state() == DitherState::Locked;
+        DRIVE_LOCKED.store(locked, Ordering::Relaxed);
+    });
 }

@@ -20,18 +20,21 @@
 //!
 //! # The stall
 //! The F405 has a single flash bank. While `BSY` is set, every instruction fetch and data read
-//! from flash waits: the CPU, and every interrupt handler (they all live in flash), stop for up
-//! to 2 s per sector erase and ~16-100 us per word. Turnarounds are missed, the USART overruns,
-//! the encoder count goes on in hardware unobserved. Hence the store runs only from the main loop
-//! with the readout paused (`storage::ReadoutPaused`, see `app`), and the watchdog timeout is
-//! longer than the worst erase (see `watchdog`). Polling `BSY` from flash code is fine: the
-//! poll itself is what stalls.
+//! from flash waits: 16 us typical (100 us at most) per word, 1 s typical (2 s at most) per
+//! sector erase. So each operation is started and waited for from RAM
+//! (`super::ram::start_and_wait`, `program_and_wait`), with every interrupt whose handler is
+//! in flash masked for it (`super::ram::with_flash_handlers_masked`): the drive tick, the
+//! serial link and the millisecond tick, which run from RAM, go on (the drive coasting on the
+//! drive in force); the rest is delayed by one word's programming, or, for an erase, paused
+//! by the caller (`storage::CalibrationStore::store`'s pause, `resources::pause_readout`) and
+//! re-synchronised after. The watchdog's timeout is longer than the worst erase (see
+//! `watchdog`).
 
 use embedded_storage::nor_flash::{
     ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
 
-use super::pac;
+use super::{pac, ram};
 
 /// First byte of the flash.
 const FLASH_BASE: u32 = 0x0800_0000;
@@ -50,13 +53,11 @@ const SR_PGAERR: u32 = 1 << 5;
 const SR_PGPERR: u32 = 1 << 6;
 const SR_PGSERR: u32 = 1 << 7;
 const SR_ERRORS: u32 = SR_OPERR | SR_WRPERR | SR_PGAERR | SR_PGPERR | SR_PGSERR;
-const SR_BSY: u32 = 1 << 16;
 // FLASH_CR
 const CR_PG: u32 = 1 << 0;
 const CR_SER: u32 = 1 << 1;
 const CR_PSIZE_X32: u32 = 0b10 << 8;
 const CR_PSIZE_X8: u32 = 0b00 << 8;
-const CR_STRT: u32 = 1 << 16;
 const CR_LOCK: u32 = 1 << 31;
 // FLASH_ACR
 const ACR_DCEN: u32 = 1 << 10;
@@ -115,10 +116,8 @@ impl InternalFlash {
         }
     }
 
-    /// Waits for the end of the operation (the CPU stalls here) and collects its errors.
-    fn finish(&mut self) -> Result<(), FlashError> {
-        while self.regs.sr().read().bits() & SR_BSY != 0 {}
-        let sr = self.regs.sr().read().bits();
+    /// Collects the errors of an operation that ended with `sr` and clears the flags.
+    fn check(&mut self, sr: u32) -> Result<(), FlashError> {
         self.regs
             .sr()
             .write(|w| unsafe { w.bits(SR_ERRORS | SR_EOP) });
@@ -126,6 +125,16 @@ impl InternalFlash {
             0 => Ok(()),
             errors => Err(FlashError::Controller(errors)),
         }
+    }
+
+    /// Programs `value` at `address` (32 bits, or a byte with x8 parallelism), from RAM with
+    /// the flash-resident handlers masked; `PG` cleared after.
+    fn program(&mut self, address: u32, value: u32, byte: bool) -> Result<(), FlashError> {
+        let cr = if byte { CR_PSIZE_X8 } else { CR_PSIZE_X32 } | CR_PG;
+        let sr =
+            ram::with_flash_handlers_masked(|| ram::program_and_wait(cr, address, value, byte));
+        self.regs.cr().write(|w| unsafe { w.bits(0) });
+        self.check(sr)
     }
 
     /// Runs `op` unlocked, locking again whatever happens.
@@ -141,20 +150,13 @@ impl InternalFlash {
 
     fn erase_sector(&mut self, sector: u32) -> Result<(), FlashError> {
         let cr = CR_PSIZE_X32 | CR_SER | (sector << 3);
-        self.regs.cr().write(|w| unsafe { w.bits(cr) });
-        self.regs.cr().write(|w| unsafe { w.bits(cr | CR_STRT) });
-        self.finish()
+        let sr = ram::with_flash_handlers_masked(|| ram::start_and_wait(cr));
+        self.check(sr)
     }
 
     fn program_word(&mut self, offset: u32, word: u32) -> Result<(), FlashError> {
-        self.regs
-            .cr()
-            .write(|w| unsafe { w.bits(CR_PSIZE_X32 | CR_PG) });
-        // SAFETY: an aligned word inside sectors 10-11 (checked by the caller), PG set.
-        unsafe { ((FLASH_BASE + offset) as *mut u32).write_volatile(word) };
-        let result = self.finish();
-        self.regs.cr().write(|w| unsafe { w.bits(0) });
-        result
+        // An aligned word inside sectors 10-11 (checked by the caller).
+        self.program(FLASH_BASE + offset, word, false)
     }
 
     /// Programs one word of OTP block `block` (16 blocks of 8 words at 0x1FFF_7800). Each bit
@@ -170,16 +172,8 @@ impl InternalFlash {
             return Err(FlashError::OutOfBounds);
         }
         let address = OTP_BASE + 32 * block + 4 * word;
-        self.unlocked(|f| {
-            f.regs
-                .cr()
-                .write(|w| unsafe { w.bits(CR_PSIZE_X32 | CR_PG) });
-            // SAFETY: an aligned word of OTP block `block` (checked above), PG set.
-            unsafe { (address as *mut u32).write_volatile(value) };
-            let result = f.finish();
-            f.regs.cr().write(|w| unsafe { w.bits(0) });
-            result
-        })
+        // An aligned word of OTP block `block` (checked above).
+        self.unlocked(|f| f.program(address, value, false))
     }
 
     /// Writes OTP block `block`'s lock byte (0x1FFF_7A00 + block) to 0x00: no word of the block
@@ -188,16 +182,8 @@ impl InternalFlash {
         if block >= OTP_BLOCKS {
             return Err(FlashError::OutOfBounds);
         }
-        self.unlocked(|f| {
-            f.regs
-                .cr()
-                .write(|w| unsafe { w.bits(CR_PSIZE_X8 | CR_PG) });
-            // SAFETY: the lock byte of block `block`, PG set with byte parallelism.
-            unsafe { ((OTP_LOCK_BASE + block) as *mut u8).write_volatile(0x00) };
-            let result = f.finish();
-            f.regs.cr().write(|w| unsafe { w.bits(0) });
-            result
-        })
+        // The lock byte of block `block`, with byte parallelism.
+        self.unlocked(|f| f.program(OTP_LOCK_BASE + block, 0x00, true))
     }
 }
 

@@ -61,7 +61,9 @@ pub fn adc() {
     NVIC::pend(READOUT_TASK_IRQ);
 }
 
-/// `TIM4` (CC1): the dither drive tick, and the pick-off stream's sample.
+/// `TIM4` (CC1): the dither drive tick, and the pick-off stream's sample. Runs from RAM
+/// (`super::ram`): inlined there whole.
+#[inline(always)]
 pub fn tim4() {
     // SAFETY: TIM4's SR, ADC3's SR/JDR1 and the DAC's DHR12R1 are used by this handler only
     // after start-up (and by the main loop's store pause, with this interrupt masked); TIM2's
@@ -94,7 +96,8 @@ pub fn tim2() {
     }
 }
 
-/// `USART1`.
+/// `USART1`. Runs from RAM (`super::ram`): inlined there whole.
+#[inline(always)]
 pub fn usart1() {
     usart::on_interrupt();
 }
@@ -113,7 +116,8 @@ pub fn nmi() {
     super::clocks::on_nmi();
 }
 
-/// `SysTick`: 1 ms.
+/// `SysTick`: 1 ms. Runs from RAM (`super::ram`): inlined there whole.
+#[inline(always)]
 pub fn systick() {
     resources::tick_ms();
 }
@@ -171,8 +175,10 @@ pub fn readout_task() {
     });
 }
 
-/// Binds the board's handlers to the vector table. Invoke once, at the top level of the binary
-/// that runs the board (`board::app::run`, or `board::app::serve` in the QEMU serial example).
+/// Binds the board's flash-resident handlers to the vector table. Invoke once, at the top level
+/// of the binary that runs the board (`board::app::run`, or `board::app::serve` in the QEMU
+/// serial example). `TIM4`, `USART1` and `SysTick` are not here: their handlers are in RAM,
+/// put into the RAM copy of the table by `super::ram::install_vectors` (`resources::init_core`).
 #[macro_export]
 macro_rules! bind_board_interrupts {
     () => {
@@ -188,24 +194,12 @@ macro_rules! bind_board_interrupts {
                 $crate::board::isr::tim2()
             }
             #[cortex_m_rt::interrupt]
-            fn TIM4() {
-                $crate::board::isr::tim4()
-            }
-            #[cortex_m_rt::interrupt]
-            fn USART1() {
-                $crate::board::isr::usart1()
-            }
-            #[cortex_m_rt::interrupt]
             fn DMA2_STREAM0() {
                 $crate::board::isr::dma2_stream0()
             }
             #[cortex_m_rt::interrupt]
             fn EXTI1() {
                 $crate::board::isr::readout_task()
-            }
-            #[cortex_m_rt::exception]
-            fn SysTick() {
-                $crate::board::isr::systick()
             }
             // SAFETY: the NMI preempts critical sections: its handler touches only RCC_CIR
             // and an atomic flag, nothing a critical section guards.

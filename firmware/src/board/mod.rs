@@ -25,13 +25,14 @@
 //! [`watch`] (the rate monitors' counts and reactions), whose judgements are the host-tested
 //! `crate::board_timing`.
 //!
-//! and the contexts around them, in three files that import one way (`app` -> `ports` ->
-//! `resources` <- `isr`):
+//! and the contexts around them, in files that import one way (`app` -> `ports` ->
+//! `resources` <- `isr` <- `ram`):
 //!
 //! | file | job |
 //! |---|---|
 //! | [`resources`] | NVIC priorities, the queues and the priority lock the contexts share, SysTick; the readout's start, pause and resume |
 //! | [`isr`] | the thin interrupt handlers (registers -> plain structs -> queues or plain logic) and the macro binding them to the vectors |
+//! | [`ram`] | what runs from RAM while a flash store stalls every fetch from flash: the vector table, the drive tick, the serial link, the millisecond tick, the flash operation's wait |
 //! | [`ports`] | the board's implementation of the command service's ports (clock, serial, readout access, the pause) |
 //! | [`app`] | start-up ([`app::run`]) and the main loop ([`app::serve`]) running `crate::service::Service` |
 //!
@@ -53,6 +54,7 @@ pub mod flash;
 pub mod isr;
 pub mod otp;
 pub mod ports;
+pub mod ram;
 pub mod resources;
 pub mod selftest;
 pub mod sync;
@@ -111,6 +113,7 @@ impl<T> Owned<T> {
     /// # Safety
     /// Only the one owning context may call this, and never re-entrantly.
     #[allow(clippy::mut_from_ref)]
+    #[inline(always)]
     pub unsafe fn get(&self) -> Option<&mut T> {
         if self.set.load(Ordering::Acquire) {
             Some(unsafe { (*self.value.get()).assume_init_mut() })

@@ -264,9 +264,10 @@ pub fn tick_ms() {
     MILLIS.tick();
 }
 
-/// Sets the priorities of every board context and starts the 1 ms tick. Interrupt lines stay
-/// masked; the callers unmask what they use.
+/// Puts the vector table in RAM (`super::ram`), sets the priorities of every board context and
+/// starts the 1 ms tick. Interrupt lines stay masked; the callers unmask what they use.
 pub fn init_core(scb: &mut SCB, nvic: &mut NVIC, syst: &mut SYST) {
+    super::ram::install_vectors(scb);
     // SAFETY: priorities are set before any of these interrupts is unmasked.
     unsafe {
         nvic.set_priority(Interrupt::ADC, priority::TURNAROUND_LATCH);
@@ -316,40 +317,18 @@ pub fn start_dither(
         Some(_) => controller.inhibit(),
         None => {}
     }
+    super::dither::COAST.init(crate::dither::Coast::new(&controller));
     DITHER.init(DitherTask { config, controller });
     // SAFETY: the tick's state was initialised just above.
     unsafe { NVIC::unmask(Interrupt::TIM4) };
 }
 
-/// Stops the dither drive for a flash store (the erase stalls the CPU for 1-2 s, during which
-/// the tick could not run and the DAC would hold one drive sample: a DC force): the tick is
-/// masked and the DAC set to zero drive. The dither rings down (tau = 2Q / w0, 0.8 s at
-/// Q = 1000) until [`resume_dither`].
-pub fn pause_dither() {
-    NVIC::mask(Interrupt::TIM4);
-    // SAFETY: the tick is masked: the main loop may write the DAC.
-    let dac = unsafe { &*pac::DAC::ptr() };
-    let mid = DITHER.lock(|task| task.config.dac_mid_code).unwrap_or(2048);
-    // TIM4 keeps running (and its TRGO loading the DAC) while the CPU is stalled.
-    dac.dhr12r1().write(|w| unsafe { w.bits(mid as u32) });
-}
-
-/// Resumes the drive after a store: the controller starts again by listening (a dither still
-/// ringing is caught without a sweep), its tick unmasked.
-pub fn resume_dither() {
-    if DITHER.lock(|task| task.controller.restart()).is_some() {
-        NVIC::unpend(Interrupt::TIM4);
-        // SAFETY: the controller is initialised (the lock found it).
-        unsafe { NVIC::unmask(Interrupt::TIM4) };
-    }
-}
-
-/// Stops every readout interrupt for a flash store (`ports::BoardPorts::stop_readout`), and
-/// the dither drive ([`pause_dither`]): producers first, then the readout task is
-/// run once to empty the sample queue (it preempts the caller at once), then masked too.
+/// Stops every readout interrupt for a flash erase (`ports::BoardPorts::stop_readout`):
+/// producers first, then the readout task is run once to empty the sample queue (it preempts
+/// the caller at once), then masked too. The dither drive goes on: its tick runs from RAM and
+/// coasts through the erase (`super::ram`).
 pub fn pause_readout(hardware: bool) {
     if hardware {
-        pause_dither();
         NVIC::mask(Interrupt::ADC);
         NVIC::mask(Interrupt::TIM2);
         NVIC::mask(Interrupt::DMA2_STREAM0);
@@ -373,7 +352,6 @@ pub fn resume_readout(hardware: bool) {
         adc::discard_injected(unsafe { &*pac::ADC1::ptr() });
         NVIC::unpend(Interrupt::ADC);
         NVIC::unpend(Interrupt::TIM2);
-        resume_dither();
     }
     unmask_readout(hardware);
 }

@@ -6,8 +6,8 @@
 //! handlers only), which moves it from `DR` into the RX queue ([`RX_QUEUE_BYTES`]); the main loop
 //! consumes it. The F405's USART has no FIFO: a byte must be read within one character time
 //! (21.7 us at 460 800 Bd) or the next overwrites nothing and is lost with `ORE` set. The
-//! handler's worst-case latency is the two turnaround handlers (< 2 us), so an overrun means a
-//! stall: a flash erase (the host must wait for the answer to `store`) or a fault. `ORE` (and
+//! handler's worst-case latency is the two turnaround handlers (< 2 us), and it runs from RAM
+//! (`super::ram`), so a flash store does not stall it either: an overrun means a fault. `ORE` (and
 //! `FE`/`NF`) are counted; `ORE` is cleared by the SR-then-DR read the handler does anyway. A
 //! full RX queue drops the byte and counts it; the line assembler then reports the damaged line
 //! (`ERR 7`/`ERR 8`/checksum), so the host sees an answer for every line it sent.
@@ -112,7 +112,9 @@ pub fn init(usart: pac::USART1) -> SerialPort {
     }
 }
 
-/// The USART1 handler's work: received bytes into the RX queue, queued bytes out.
+/// The USART1 handler's work: received bytes into the RX queue, queued bytes out. Runs from RAM
+/// (`super::ram`): inlined there whole.
+#[inline(always)]
 pub fn on_interrupt() {
     // SAFETY: only this handler uses the ISR side (set in `init` before the IRQ was unmasked).
     let Some(side) = (unsafe { ISR_SIDE.get() }) else {

@@ -180,6 +180,9 @@ pub struct DitherController {
     saturated: Run,
     out_of_range: Run,
     in_lock: Run,
+    /// The window under way lost samples to a coast ([`Self::coast`]): it is closed without
+    /// an update.
+    discard_window: bool,
 }
 
 impl DitherController {
@@ -213,6 +216,7 @@ impl DitherController {
             saturated: Run::default(),
             out_of_range: Run::default(),
             in_lock: Run::default(),
+            discard_window: false,
         }
     }
 
@@ -269,13 +273,47 @@ impl DitherController {
         }
     }
 
-    /// Starts again from listening (drive off at the next tick; not a fault): after the ticks
-    /// were interrupted (a flash store stalls the CPU). Does nothing while `Off` or in a fault;
+    /// Starts again from listening (drive off at the next tick; not a fault): for a drive whose
+    /// ticks were interrupted without coasting (a flash stall the drive tick coasts through is
+    /// [`Self::coast`] instead). Does nothing while `Off` or in a fault;
     /// the self-test's sweep starts over. A request not yet taken (an enable, the self-test)
     /// stays: it starts afresh anyway.
     pub fn restart(&mut self) {
         if self.request.is_none() {
             self.request = Some(Request::Restart);
+        }
+    }
+
+    /// The drive ran on unseen for `ticks` ticks: the board's drive tick went on writing the
+    /// DAC codes of [`Self::drive`] (its RAM-resident part, while a flash operation stalled
+    /// every fetch from flash: `crate::board::ram`) without the controller, which saw none of
+    /// those ticks' pick-off samples. Its time and the DDS phase advance by `ticks` (so the next
+    /// tick's code continues the drive that was output), the state stays (a locked drive stays
+    /// locked: it ran on the drive its loops had set), and the half cycle the gap fell into,
+    /// measured only in part, is closed without a loop update. The start-up's listener, which
+    /// times a ring from consecutive samples, starts listening again.
+    pub fn coast(&mut self, config: &DitherConfig, ticks: u32) {
+        if ticks == 0 {
+            return;
+        }
+        let advance = Phase::from_bits(ticks.wrapping_mul(self.drive.step.to_bits()));
+        self.tick = self.tick.wrapping_add(ticks);
+        self.prev_phase = self.prev_phase + advance;
+        self.next_phase = self.next_phase + advance;
+        match self.mode {
+            Mode::Off | Mode::Fault { .. } => {}
+            Mode::Listen { resume_up, .. } => {
+                // The drive is off while listening: `listen` keeps it as it is.
+                self.listen(config, self.tick.wrapping_sub(1), resume_up);
+            }
+            Mode::Sweep { .. }
+            | Mode::SelfTest { .. }
+            | Mode::Probe { .. }
+            | Mode::Acquire { .. }
+            | Mode::Locked { .. } => {
+                self.window = Window::new();
+                self.discard_window = true;
+            }
         }
     }
 
@@ -509,8 +547,14 @@ impl DitherController {
         let quarter = Phase::QUARTER_TURN;
         let crossed = ((self.prev_phase + quarter).to_bits() ^ (theta + quarter).to_bits()) >> 31;
         if self.next_phase == theta && (crossed != 0 || self.window.len() >= MAX_WINDOW) {
-            changed |= self.update(config, k, theta);
-            half_cycle = true;
+            if self.discard_window {
+                // Part of this half cycle was coasted through, unseen (`coast`).
+                self.window = Window::new();
+                self.discard_window = false;
+            } else {
+                changed |= self.update(config, k, theta);
+                half_cycle = true;
+            }
         }
         let sin = if self.next_phase == theta {
             sin
@@ -599,6 +643,7 @@ impl DitherController {
             resume_up,
         };
         self.window = Window::new();
+        self.discard_window = false;
     }
 
     /// A ring was timed: start the ring-up at its frequency, 90 degrees ahead of it.

@@ -1,5 +1,6 @@
-//! The drive synthesis: a phase accumulator (DDS) whose sine is `idsp::cossin`, scaled to DAC
-//! codes. [`Drive`] is the exact description of every DAC sample between two loop updates; the
+//! The drive synthesis: a phase accumulator (DDS) whose sine is `idsp::cossin` (the firmware's
+//! bit-identical copy with its table in RAM, `crate::math::cossin`), scaled to DAC codes.
+//! [`Drive`] is the exact description of every DAC sample between two loop updates; the
 //! controller computes its output with the same function the simulator calls
 //! ([`Drive::code_at`]), so "exact" is by construction, not by a tolerance.
 //!

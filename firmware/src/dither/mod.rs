@@ -38,7 +38,7 @@
 //! # How it works (one file per part, in the order a sample meets them)
 //! | file | part |
 //! |---|---|
-//! | `dds` | phase accumulator ([`crate::units::Phase`], Q32 turns) and `idsp::cossin` -> [`Drive`], the DAC code |
+//! | `dds` | phase accumulator ([`crate::units::Phase`], Q32 turns) and `cossin` (`crate::math::cossin`: idsp's, its table in RAM) -> [`Drive`], the DAC code |
 //! | `measure` | the half-cycle window: least-squares fit of offset + cos + sin of the drive's phase (exact for any window length), extremes, rail count |
 //! | `frequency` | PI (`idsp` clamped biquad) from the pick-off's phase lag (90 degrees at resonance) to the DDS step, clamped to the search range |
 //! | `amplitude` | PI (`idsp` clamped biquad) from the amplitude to the drive, gain normalised by the measured plant gain, clamped at the drive limit (guard and anti-windup) |
@@ -48,6 +48,7 @@
 //! | `noise` | random-noise dither: the drive's amplitude times 1 + depth r every half cycle (seeded xorshift32) |
 //! | `estimate` | the per-half-cycle [`DitherEstimate`] for the readout |
 //! | `controller` | [`DitherController`]: the tick, the half-cycle update, the commands, the status |
+//! | `coast` | [`Coast`]: the drive tick without the controller (a flash stall): the drive in force continued, the gap handed over |
 //! | `config` | [`DitherConfig`] assembled from the parts' settings |
 //!
 //! Trade-offs: the fit costs five more 64-bit accumulations per tick than a plain lock-in sum
@@ -59,7 +60,8 @@
 //!
 //! # idsp: what is used, what not (measured)
 //! - **`cossin`** for the DDS and the demodulation's regressors (one call per tick serves
-//!   both): 47 Cortex-M4 instructions; the drive's harmonics (2..10) are at -114 dBc, set by
+//!   both; the firmware's bit-identical copy, `crate::math::cossin`, whose table is in RAM so
+//!   the drive tick can run while the flash stalls): 47 Cortex-M4 instructions; the drive's harmonics (2..10) are at -114 dBc, set by
 //!   the DAC's 12-bit rounding, not by cossin's -120 dBc spurs (`dds` tests).
 //! - **`iir::BiquadClamp`** (`Q32<30>` coefficients, `DirectForm1Wide` state) for both PI
 //!   loops: its clamp is the anti-windup and the drive guard; 82 (frequency) and 99
@@ -98,6 +100,7 @@
 //!   168 MHz (docs/board.md has the total with the readout).
 
 mod amplitude;
+mod coast;
 mod config;
 mod controller;
 mod dds;
@@ -123,6 +126,7 @@ pub fn count_amplitude_arcsec(
 }
 
 pub use amplitude::{AmplitudeLoop, AmplitudeLoopConfig, PlantGainProbe};
+pub use coast::Coast;
 pub use config::{drive_limit_codes, DitherConfig};
 pub use controller::{CommandError, DitherController, DitherStatus, StartPhase, Tick};
 pub use dds::{cos_sin_q31, hz_to_step, step_to_hz, Drive};

@@ -189,6 +189,28 @@ impl Bench {
         self.tick_with(|g, dac| g.pickoff(dac))
     }
 
+    /// `n` ticks coasted, as the board's RAM-resident drive tick runs them while the flash
+    /// stalls: the DAC goes on with the drive in force, the controller sees nothing, then
+    /// [`DitherController::coast`].
+    fn coast(&mut self, n: u32) {
+        let mut coast = Coast::new(&self.ctrl);
+        let first = self.ctrl.tick();
+        for i in 0..n {
+            let _unseen = self.gyro.pickoff(self.dac);
+            self.gyro.advance(self.dac);
+            self.dac = coast.code();
+            assert_eq!(
+                self.dac,
+                self.drive.dac_code_at_tick(first.wrapping_add(i + 1))
+            );
+            self.ticks += 1;
+        }
+        assert_eq!(coast.coasted(), n);
+        coast.hand_over(&mut self.ctrl, &self.config);
+        assert_eq!(coast.coasted(), 0);
+        assert_eq!(self.ctrl.tick(), first.wrapping_add(n));
+    }
+
     fn seconds(&self) -> f64 {
         self.ticks as f64 / self.config.tick_hz as f64
     }
@@ -798,7 +820,7 @@ fn a_refused_stored_record_keeps_its_enabled() {
     assert_eq!(ctrl.setpoints(), good);
 }
 
-/// A restart (the end of a store's pause) before the first tick keeps the pending start: an
+/// A restart before the first tick keeps the pending start: an
 /// enable still starts the drive, a self-test still runs; a restart during the self-test's
 /// sweep starts the sweep over (the drive was at mid-scale during the pause).
 #[test]
@@ -822,6 +844,72 @@ fn a_restart_keeps_a_pending_start_and_restarts_the_self_test() {
     assert_eq!(b.ctrl.pickoff_check(), PickoffCheck::Running);
     assert!(b.run_until(DitherState::Locked, 3.0).is_some());
     assert_eq!(b.ctrl.pickoff_check(), PickoffCheck::Pass);
+}
+
+/// A store with the drive coasting through its stalls: 20 words programmed (a coasted tick
+/// every other tick, as the 16 us word stalls meet the 25 us ticks), then a whole sector erase
+/// (2 s, the datasheet's maximum: 80 000 ticks unseen), then 20 words again. The drive stays
+/// locked throughout and after, no fault, the amplitude within 0.5 % of the setpoint (the
+/// locked loop's own band is 1 %; measured: printed), and the ticks' DAC codes continue the
+/// drive in force (the bench checks every code against `Drive`).
+#[test]
+fn coasting_through_a_store_keeps_the_lock() {
+    let mut b = Bench::new(389.0, 1000.0);
+    b.ctrl.enable();
+    assert!(b.run_until(DitherState::Locked, 3.0).is_some());
+    b.run(2.0);
+    let setpoint = 450.0;
+    let faults = b.ctrl.status(&b.config).faults;
+    let mut worst = 0.0f64;
+    let mut watch = |b: &Bench| {
+        assert_eq!(
+            b.ctrl.state(),
+            DitherState::Locked,
+            "at {:.4} s",
+            b.seconds()
+        );
+        worst = worst.max((b.gyro.amplitude() / setpoint - 1.0).abs());
+    };
+    for _ in 0..20 {
+        b.coast(1);
+        b.tick();
+        watch(&b);
+    }
+    b.coast(80_000);
+    watch(&b);
+    for _ in 0..20 {
+        b.coast(1);
+        b.tick();
+        watch(&b);
+    }
+    let end = b.seconds() + 1.0;
+    while b.seconds() < end {
+        b.tick();
+        watch(&b);
+    }
+    println!(
+        "coasted store: worst amplitude error {:.3} %",
+        worst * 100.0
+    );
+    assert!(worst < 0.005, "{worst}");
+    assert!(worst < 0.0005, "regression: measured 0.02 %, now {worst}");
+    assert_eq!(b.ctrl.status(&b.config).faults, faults);
+}
+
+/// A coast during the start-up: the sweep goes on, the listener listens again, and the drive
+/// still finds the resonance and locks.
+#[test]
+fn coasting_during_the_start_up_still_locks() {
+    for at_s in [0.05, 0.2, 0.4, 0.6] {
+        let mut b = Bench::new(389.0, 1000.0);
+        b.ctrl.enable();
+        b.run(at_s);
+        b.coast(4000);
+        assert!(
+            b.run_until(DitherState::Locked, 3.0).is_some(),
+            "coast at {at_s} s"
+        );
+    }
 }
 
 /// Random-noise dither, closed loop: depth 30 %, the drive's amplitude changes at every half

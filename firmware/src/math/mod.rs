@@ -44,9 +44,11 @@
 //!
 //! The least-squares fit of offset + cos + sin of a known regressor phase, in exact integer
 //! sums ([`sine_fit::SineSums`]), shared by the dither drive's half-cycle measurement and the
-//! output stage's dither model; `idsp::cossin` makes the regressors.
+//! output stage's dither model; [`cossin`] (`idsp::cossin` bit for bit, its table in RAM)
+//! makes the regressors.
 
 mod atan2;
+pub mod cossin;
 mod linear;
 mod scalar;
 pub mod sine_fit;

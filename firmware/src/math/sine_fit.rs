@@ -12,7 +12,7 @@
 //!
 //! # Formats
 //! Samples are centred codes (`x = code - mid`, |x| <= 2^12); the regressors are
-//! `idsp::cossin`'s Q31 shifted to Q15; sums are exact integers (`i32` for the plain sums, `i64`
+//! [`super::cossin`]'s Q31 shifted to Q15; sums are exact integers (`i32` for the plain sums, `i64`
 //! for the products), so windows add without rounding ([`SineSums::merge`]). A fit is capped at
 //! [`MAX_SAMPLES`] = 2^10 samples, so every term of the centred normal equations,
 //! n * sum - sum * sum, stays below 2^51. The 2x2 solve after centring is `f32` (condition
@@ -25,11 +25,11 @@ use crate::units::Phase;
 /// The most samples one set of sums may hold.
 pub const MAX_SAMPLES: u32 = 1 << 10;
 
-/// `(cos, sin)` of `phase` in Q31 (`idsp::cossin`: ~40 Cortex-M4 instructions, spurs at
-/// -120 dBc).
-#[inline]
+/// `(cos, sin)` of `phase` in Q31 ([`super::cossin`]: `idsp::cossin` bit for bit, ~40
+/// Cortex-M4 instructions, spurs at -120 dBc).
+#[inline(always)]
 pub fn cos_sin_q31(phase: Phase) -> (i32, i32) {
-    idsp::cossin(phase.to_signed())
+    super::cossin::cossin(phase.to_signed())
 }
 
 /// The running sums of the normal equations of one window (or of several, merged).

@@ -25,6 +25,8 @@ pub fn needs_confirmation(command: &Command) -> bool {
         Command::Help
             | Command::Identify
             | Command::Status
+            | Command::SelfTest
+            | Command::OutputStatus
             | Command::Get(_)
             | Command::CalStatus
             | Command::CalResult
@@ -55,6 +57,7 @@ impl fmt::Display for Canonical<'_> {
             Command::Help => f.write_str("help"),
             Command::Identify => f.write_str("id"),
             Command::Status => f.write_str("status"),
+            Command::OutputStatus => f.write_str("output status"),
             Command::SelfTest => f.write_str("selftest"),
             Command::Get(None) => f.write_str("get coeffs"),
             Command::Get(Some(Coefficient::A)) => f.write_str("get a"),

@@ -47,14 +47,17 @@ fn refused(executor: &mut Executor, code: ErrorCode, with_crc: bool) -> String<M
     Response::err(code).finish(with_crc)
 }
 
-/// Sends an answer: as it is in text mode; wrapped in 0x00 delimiters when it answers a line
-/// sent while streaming, so the host's frame splitter sees it as one chunk (text has no 0x00).
-pub fn send_answer(streaming: bool, answer: &str, mut send: impl FnMut(&[u8])) {
-    if streaming {
+/// Sends an answer: as it is in text mode; wrapped in 0x00 delimiters (`wrapped`) when a
+/// stream is on before or after its line: an answer sent while streaming, and the answer that
+/// starts a stream. So a host that splits at 0x00 from the first byte after its `stream`
+/// command sees the answer as one chunk (text has no 0x00), then the frames; and a host in
+/// text mode reads every other answer as a plain line.
+pub fn send_answer(wrapped: bool, answer: &str, mut send: impl FnMut(&[u8])) {
+    if wrapped {
         send(&[0]);
     }
     send(answer.as_bytes());
-    if streaming {
+    if wrapped {
         send(&[0]);
     }
 }

@@ -168,7 +168,8 @@ impl Executor {
             };
         }
         // `cal result` is a read once solved, a state change while it would close the runs.
-        if !with_crc && (needs_confirmation(&command) || self.takes_time_or_work(&command)) {
+        let solving = command == Command::CalResult && self.calibration.run_done();
+        if !with_crc && (needs_confirmation(&command) || solving) {
             self.pending = Some(command);
             let mut r = Response::err(ErrorCode::Confirm);
             r.field(format_args!("cmd={}", Canonical(&command)));
@@ -195,7 +196,11 @@ impl Executor {
         command: Command,
     ) -> Response {
         let now_ms = device.now_ms();
-        let needs_unlock = protected(&command) || self.takes_time_or_work(&command);
+        let needs_unlock = match unlock_rule(&command) {
+            UnlockRule::Never => false,
+            UnlockRule::Always => true,
+            UnlockRule::WhileItWouldSolve => self.calibration.run_done(),
+        };
         if needs_unlock && !self.access.is_unlocked(now_ms) {
             return Response::err(ErrorCode::Locked);
         }
@@ -210,18 +215,6 @@ impl Executor {
             self.access.touch(now_ms);
         }
         answer.unwrap_or_else(Response::err)
-    }
-
-    /// Calibration commands that take the board's time or discard work: `cal start` (a run of
-    /// up to an hour, and it discards a finished fit), `cal abort` (drops the runs), and `cal
-    /// result` while it would close the pooled runs (solving ends pooling; reading a solved
-    /// result is a read).
-    fn takes_time_or_work(&self, command: &Command) -> bool {
-        match command {
-            Command::CalStart { .. } | Command::CalAbort => true,
-            Command::CalResult => self.calibration.run_done(),
-            _ => false,
-        }
     }
 
     /// One command to its group.
@@ -246,6 +239,7 @@ impl Executor {
                 Ok(info::status(id, device, flags))
             }
             Command::SelfTest => Ok(info::selftest(device)),
+            Command::OutputStatus => Ok(info::output_status(device)),
             Command::Get(which) => Ok(info::get(id, device, which)),
             Command::Set(which, value) => settings::set(device, p, which, value),
             Command::Compensation(on) => Ok(settings::compensation(device, p, on)),
@@ -294,7 +288,33 @@ fn overridden_by_tracking(command: &Command) -> bool {
     )
 }
 
-/// Commands that change coefficients, compensation, the dither drive or flash.
+/// When a command needs an unlock ([`unlock_rule`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UnlockRule {
+    /// A read, `stream`, `unlock`, `lock`, `yes`, `key provision`.
+    Never,
+    /// It changes coefficients, compensation, the dither drive or flash, or it takes the
+    /// board's time or discards work (`cal start`: a run of up to an hour, discarding a
+    /// finished fit; `cal abort`: drops the runs).
+    Always,
+    /// `cal result`: while it would close the pooled runs (solving ends pooling); reading a
+    /// solved result is a read.
+    WhileItWouldSolve,
+}
+
+/// Whether `command` needs an unlock (docs/protocol.md's command table, checked against this
+/// by `hal-sim/tests/protocol_doc.rs`).
+pub fn unlock_rule(command: &Command) -> UnlockRule {
+    match command {
+        c if protected(c) => UnlockRule::Always,
+        Command::CalStart { .. } | Command::CalAbort => UnlockRule::Always,
+        Command::CalResult => UnlockRule::WhileItWouldSolve,
+        _ => UnlockRule::Never,
+    }
+}
+
+/// Commands that change coefficients, compensation, the dither drive or flash: refused while a
+/// calibration run collects cycles, besides needing an unlock.
 fn protected(command: &Command) -> bool {
     matches!(
         command,

@@ -13,7 +13,7 @@ use crate::dither::{CommandError, DitherStatus};
 use crate::signal::compensation::CompensationSettings;
 use crate::signal::output::strip::StripStatus;
 use crate::storage::{
-    CalibrationRecord, DitherSetpoints, LoadReport, StoreError, StripCoefficients,
+    CalibrationRecord, DitherSetpoints, LoadReport, StoreError, Stored, StripCoefficients,
 };
 
 /// What the device is, for `id` (constants of the build and of the board's OTP block).
@@ -79,8 +79,10 @@ pub trait DeviceLink {
     fn active_settings(&mut self) -> CompensationSettings;
     /// Hands settings to the readout; they take effect whole at the next cycle boundary.
     fn stage_settings(&mut self, settings: CompensationSettings);
-    /// Pauses the readout, stores the record (read back), resumes; returns its sequence number.
-    fn store(&mut self, record: &CalibrationRecord) -> Result<u32, StoreError<Self::FlashError>>;
+    /// Stores the record (read back), pausing and re-synchronising the readout only if a sector
+    /// is erased for it; returns its sequence number and whether it erased.
+    fn store(&mut self, record: &CalibrationRecord)
+        -> Result<Stored, StoreError<Self::FlashError>>;
     /// Reads the newest valid record (or the defaults) with the store's report.
     fn load(&mut self) -> (CalibrationRecord, LoadReport);
     /// The dither drive's status, in physical units.

@@ -42,6 +42,8 @@ pub enum Command {
     Identify,
     /// `status`: signal, dither, rate, counters, compensation, tracking, source, lock, board.
     Status,
+    /// `output status`: the fixed-rate output's dither stripping and its record count.
+    OutputStatus,
     /// `selftest`: the power-up self-test's checks, the timing faults raised now.
     SelfTest,
     /// `get a` | `get b` | `get coeffs`: one coefficient, or both with Omega_L and eps.
@@ -180,6 +182,11 @@ pub fn parse(text: &str) -> Result<Command, ErrorCode> {
         Command::Status
     } else if is("selftest") {
         Command::SelfTest
+    } else if is("output") {
+        match words.next() {
+            Some(w) if w.eq_ignore_ascii_case("status") => Command::OutputStatus,
+            _ => return Err(ErrorCode::Syntax),
+        }
     } else if is("get") {
         match words.next() {
             Some(w) if w.eq_ignore_ascii_case("coeffs") => Command::Get(None),
@@ -355,6 +362,8 @@ mod tests {
         assert_eq!(parse("key"), Err(ErrorCode::Syntax));
         assert_eq!(parse("  status\t"), Ok(Command::Status));
         assert_eq!(parse("SelfTest"), Ok(Command::SelfTest));
+        assert_eq!(parse("output status"), Ok(Command::OutputStatus));
+        assert_eq!(parse("output"), Err(ErrorCode::Syntax));
         assert_eq!(
             parse("dither amp 420.5"),
             Ok(Command::Dither(DitherCommand::Amplitude(420.5)))

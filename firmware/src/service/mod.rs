@@ -49,7 +49,7 @@ use crate::signal::output::record::OutputRecord;
 use crate::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use crate::storage::{
     CalibrationRecord, CalibrationStore, DitherSetpoints, Geometry, GeometryError, LoadReport,
-    StoreError, StripCoefficients,
+    StoreError, Stored, StripCoefficients,
 };
 use ports::{Clock, DitherAccess, ReadoutAccess, Secrets, SerialTx};
 
@@ -226,8 +226,9 @@ impl<F: NorFlash> Service<F> {
         byte: u8,
         ports: &mut P,
     ) -> bool {
-        // Framing follows the mode the host was in when it sent the line.
-        let streaming = self.executor.streaming();
+        // Framing: an answer is wrapped in 0x00 when a stream is on before or after the line
+        // (`endpoint::send_answer`).
+        let streaming_before = self.executor.streaming();
         let mut line = String::<MAX_LINE>::new();
         let event = match self.line.push(byte) {
             None => return false,
@@ -263,7 +264,8 @@ impl<F: NorFlash> Service<F> {
             ports.save_wrong_keys(wrong_keys);
             self.saved_wrong_keys = wrong_keys;
         }
-        endpoint::send_answer(streaming, &answer, |bytes| ports.send(bytes));
+        let wrapped = streaming_before || self.executor.streaming();
+        endpoint::send_answer(wrapped, &answer, |bytes| ports.send(bytes));
         true
     }
 
@@ -392,11 +394,11 @@ impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess + Secrets> DeviceLink
             .with_readout(|readout| readout.stage_compensation(settings));
     }
 
-    /// Stores with the readout paused for exactly the store's duration (the guard's lifetime).
-    fn store(&mut self, record: &CalibrationRecord) -> Result<u32, StoreError<F::Error>> {
-        let paused = ports::pause(self.ports);
-        self.store
-            .store_while_paused(self.flash, paused.token(), record)
+    /// Stores, with the readout paused from right before a sector erase to the end of the
+    /// store (the guard's lifetime), and not at all without an erase.
+    fn store(&mut self, record: &CalibrationRecord) -> Result<Stored, StoreError<F::Error>> {
+        let ports = &mut *self.ports;
+        self.store.store(self.flash, record, || ports::pause(ports))
     }
 
     fn load(&mut self) -> (CalibrationRecord, LoadReport) {

@@ -1,6 +1,6 @@
 //! The service against plain-memory ports and a RAM flash: what the board and the simulator both
-//! rely on (one answer per line, settings staged into the readout, the store inside the pause,
-//! dropped frames counted, status folding).
+//! rely on (one answer per line, settings staged into the readout, an erasing store inside the
+//! pause and no pause without an erase, dropped frames counted, status folding).
 
 use super::ports::{Clock, DitherAccess, ReadoutAccess, Secrets, SerialTx};
 use super::*;
@@ -182,8 +182,10 @@ fn every_line_gets_exactly_one_answer_and_partial_lines_none() {
     assert!(p.out.is_empty(), "no answer before the line ends");
 }
 
+/// A store without an erase leaves the readout running; the store that erases (the first after
+/// a sector is full) runs inside one pause of the readout, and says so.
 #[test]
-fn set_stages_into_the_readout_and_store_runs_inside_one_pause() {
+fn set_stages_into_the_readout_and_only_an_erasing_store_pauses_it() {
     let (mut s, mut p) = boot(Flash::new());
     assert!(ask(&mut s, &mut p, "set a 1.5").starts_with("ERR 9 "));
     assert_eq!(
@@ -199,7 +201,29 @@ fn set_stages_into_the_readout_and_store_runs_inside_one_pause() {
     assert_eq!(staged.coefficients.a_rad_per_s(), 1.5);
     assert!(p.log.is_empty(), "nothing paused the readout yet");
     let stored = ask(&mut s, &mut p, "store");
-    assert!(stored.starts_with("OK "), "{stored:?}");
+    assert_eq!(stored, "OK stored seq=1 readout=continuous\r\n");
+    assert!(
+        p.log.is_empty(),
+        "a store without an erase does not pause the readout"
+    );
+    // 8 KiB sectors: the first fills, the store after it erases the second (blank) sector.
+    let per_sector = 8192 / crate::storage::record::RECORD_BYTES;
+    for seq in 2..=per_sector {
+        let stored = ask(&mut s, &mut p, "store");
+        assert_eq!(
+            stored,
+            format!("OK stored seq={seq} readout=continuous\r\n")
+        );
+    }
+    assert!(p.log.is_empty());
+    let stored = ask(&mut s, &mut p, "store");
+    assert_eq!(
+        stored,
+        format!(
+            "OK stored seq={} readout=resynchronised\r\n",
+            per_sector + 1
+        )
+    );
     assert_eq!(p.log, "sr", "stopped once, restarted once");
     // The record survives a power cycle and the next boot starts the readout with it.
     let (s2, _) = boot(s.into_flash());
@@ -247,13 +271,24 @@ impl NorFlash for FailingFlash {
     }
 }
 
+/// A store that erases and then fails to program: `ERR 13`, and the pause still ends.
 #[test]
 fn a_failed_store_is_reported_and_still_restarts_the_readout() {
     use embedded_storage::nor_flash::ReadNorFlash;
-    let flash = FailingFlash {
-        inner: Flash::new(),
-        fail: true,
-    };
+    // Sector 0 full: the next store erases sector 1 first.
+    let mut inner = Flash::new();
+    let store = crate::storage::CalibrationStore::new(&inner, config().geometry).unwrap();
+    let per_sector = 8192 / crate::storage::record::RECORD_BYTES;
+    for _ in 0..per_sector {
+        store
+            .store(
+                &mut inner,
+                &crate::storage::CalibrationRecord::DEFAULTS,
+                || (),
+            )
+            .unwrap();
+    }
+    let flash = FailingFlash { inner, fail: true };
     let booted = Service::boot(config(), flash, None).unwrap();
     let mut s = booted.service;
     let mut p = TestPorts::new(Readout::new(&s.config().readout, booted.settings));
@@ -266,14 +301,14 @@ fn a_failed_store_is_reported_and_still_restarts_the_readout() {
     assert!(answers.contains("ERR 13 "), "{answers:?}");
     assert_eq!(p.log, "sr", "the pause ended with the failed store");
     let mut first = [0u8; 4];
-    s.flash_mut().read(0, &mut first).unwrap();
+    s.flash_mut().read(8192, &mut first).unwrap();
     assert_eq!(first, [0xFF; 4], "nothing programmed");
 }
 
 #[test]
 fn frames_without_room_are_dropped_whole_and_counted() {
     let (mut s, mut p) = boot(Flash::new());
-    assert!(ask(&mut s, &mut p, "stream on").starts_with("OK "));
+    assert!(ask(&mut s, &mut p, "stream on").starts_with("\0OK stream=on"));
     p.out.clear();
     s.on_cycle(&record(CycleFlags::empty()), &mut p);
     let frame = p.out.len();

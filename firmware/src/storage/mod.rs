@@ -1,19 +1,19 @@
 //! Calibration storage: the compensation settings and their metadata in the two reserved flash
 //! sectors (10 and 11 of the STM32F405, 128 KiB each), surviving a power cut at any moment.
 //!
-//! Rooms: [`crc`] (CRC-32/ISO-HDLC), [`record`] (the 80-byte record, its byte layout and
-//! checks), [`store`] (the two-sector log), [`ram_flash`] (NOR flash in RAM, for QEMU and host
-//! tests). Flash access goes only through
+//! Rooms: [`crc`] (CRC-32/ISO-HDLC), [`record`] (the record, [`record::RECORD_BYTES`] long,
+//! its byte layout and checks), [`store`] (the two-sector log), [`ram_flash`] (NOR flash in
+//! RAM, for QEMU and host tests). Flash access goes only through
 //! `embedded_storage::nor_flash::NorFlash`; everything else is plain logic, tested on the host
 //! against hal-sim's NOR flash model with power cuts at every byte.
 //!
 //! # Scheme: an append-only log over two sectors
 //! Each store appends one record, with a sequence number one above the highest valid one in
 //! either sector, to the sector written last, at the end of its used part. When that sector is
-//! full (1638 records of 80 bytes per 128 KiB sector) the other sector is erased and the record
+//! full (1365 records of 96 bytes per 128 KiB sector) the other sector is erased and the record
 //! goes to its start. `load` scans both sectors and takes the valid record with the highest
 //! sequence number. Erases alternate between the sectors, so they wear evenly: one erase per
-//! 1638 stores, against the F405's 10 000 cycles.
+//! 1365 stores, against the F405's 10 000 cycles.
 //!
 //! A record is *valid* when its magic, length, CRC-32 and commit marker check, its format
 //! version is this firmware's and its contents are plausible. Anything else in the sectors is
@@ -47,14 +47,17 @@
 //! and 1 later, or any later decay (the F4 has no ECC). Such a record fails its CRC and is
 //! ignored, so bit rot in R brings back the record before it, the nearest survivor.
 //!
-//! # Stalls: storing pauses the readout
+//! # Stalls: an erase pauses the readout
 //! The F405 has a single flash bank: while a sector is erased (up to [`SECTOR_ERASE_MAX_MS`]
-//! for a 128 KiB sector) or a word programmed, any instruction fetch or data read from flash
-//! waits, so the CPU and every interrupt handler in flash stall. Turnarounds would be missed and
-//! the fringe count lose track. Storing therefore takes a [`ReadoutPaused`] token: the caller
-//! stops the readout first, stores, and re-synchronises the readout after (the calibration is
-//! stored on an explicit command only, never from the signal chain). `load` only reads: it
-//! runs at boot, before the readout starts, and reads both sectors once.
+//! for a 128 KiB sector) or a word programmed (up to [`WORD_PROGRAM_MAX_US`]), any instruction
+//! fetch or data read from flash waits, so everything in flash stalls; the board keeps its
+//! dither drive, serial link and millisecond clock in RAM (`board::ram`). A word's stall only
+//! delays the readout's handlers. An erase would make them miss turnarounds and the fringe
+//! count lose track for a second, so [`CalibrationStore::store`] pauses the readout for a store
+//! that erases (its caller's pause, re-synchronising the readout after), and only for one: the
+//! first store after a sector is full, once per sector's worth of records. (The calibration is stored on an explicit command only,
+//! never from the signal chain.) `load` only reads: it runs at boot, before the readout
+//! starts, and reads both sectors once.
 
 // Input from outside the board passes here: integer arithmetic is checked, wrapping or
 // saturating where an input could overflow it (the crate denies the panicking calls,
@@ -69,7 +72,7 @@ pub mod store;
 pub use record::{CalibrationRecord, DitherSetpoints, FitSummary, RecordError, StripCoefficients};
 pub use store::{
     CalibrationStore, DefaultsReason, Geometry, GeometryError, LoadOutcome, LoadReport,
-    SkippedFrame, StoreError,
+    SkippedFrame, StoreError, Stored,
 };
 
 /// Worst-case erase time of one 128 KiB sector, ms (STM32F405 datasheet, x32 parallelism at

@@ -63,6 +63,17 @@ pub enum GeometryError {
     UnsupportedFlash,
 }
 
+/// What a store did: the record's sequence number, and whether a sector was erased for it
+/// (the readout was then paused and re-synchronised: [`CalibrationStore::store`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Stored {
+    /// The record's sequence number.
+    pub sequence: u32,
+    /// A sector was erased first.
+    pub erased: bool,
+}
+
 /// Why a store failed. Whatever the error, `load` returns the record that loaded before, or the
 /// new one if its commit marker was programmed before the failure (a power cut in the last
 /// word, or a read-back mismatch after the marker): never anything else.
@@ -320,36 +331,56 @@ impl CalibrationStore {
         }
     }
 
-    /// Appends `record` and returns its sequence number, after reading it back.
-    ///
-    /// Stalls the CPU: programming takes 20 words x up to 100 us, and when the written sector
-    /// is full the other one is erased first, up to [`super::SECTOR_ERASE_MAX_MS`] on the
-    /// single-bank F405, during which no instruction is fetched from flash and no interrupt
-    /// served. Hence the [`ReadoutPaused`] token: the readout must be stopped first and
-    /// re-synchronised after.
+    /// Appends `record` and returns its sequence number, after reading it back, with the
+    /// readout paused for the whole store ([`ReadoutPaused`]): [`Self::store`] pausing
+    /// whether it erases or not.
     pub fn store_while_paused<F: NorFlash>(
         &self,
         flash: &mut F,
         _paused: &ReadoutPaused,
         record: &CalibrationRecord,
     ) -> Result<u32, StoreError<F::Error>> {
+        self.store(flash, record, || ())
+            .map(|stored| stored.sequence)
+    }
+
+    /// Appends `record` after reading it back; returns its sequence number and whether a
+    /// sector was erased for it.
+    ///
+    /// Stalls the CPU's fetches from flash: each of the record's words
+    /// ([`record::RECORD_BYTES`] / 4) for 16 us typical (100 us at most), and, when the written sector is full, the other one's erase first, 1 s
+    /// typical ([`super::SECTOR_ERASE_MAX_MS`] at most) on the single-bank F405. What runs from
+    /// RAM goes on meanwhile (on the board: the dither drive, `board::ram`). A word's stall
+    /// only delays the rest; an erase's would make the readout miss turnarounds for a second,
+    /// so `pause_for_erase` is called right before an erase, and the pause it returns (a guard
+    /// that restarts and re-synchronises the readout when dropped) is held until the record is
+    /// programmed. A store without an erase never calls it.
+    pub fn store<F: NorFlash, P>(
+        &self,
+        flash: &mut F,
+        record: &CalibrationRecord,
+        pause_for_erase: impl FnOnce() -> P,
+    ) -> Result<Stored, StoreError<F::Error>> {
         record.check().map_err(StoreError::Record)?;
         let scan = self.scan(flash).map_err(StoreError::Flash)?;
         let sequence = match scan.max_sequence() {
             None => 1,
             Some(last) => last.checked_add(1).ok_or(StoreError::SequenceExhausted)?,
         };
-        let (sector, at) = match self.append_position(&scan) {
-            Some(position) => position,
+        let (sector, at, pause) = match self.append_position(&scan) {
+            Some((sector, at)) => (sector, at, None),
             None => {
+                let pause = pause_for_erase();
                 let sector = Self::sector_to_erase(&scan);
                 self.erase(flash, sector)?;
-                (sector, 0)
+                (sector, 0, Some(pause))
             }
         };
         let address = self.geometry.sector_start(sector).saturating_add(at);
         program(flash, address, &record::encode(record, sequence))?;
-        Ok(sequence)
+        let erased = pause.is_some();
+        drop(pause);
+        Ok(Stored { sequence, erased })
     }
 
     /// Stores a record that marks the defaults as chosen (compensation off, a = b = 0), like

@@ -202,8 +202,8 @@ pub enum Feed {
     Everything,
     /// The conversions only: the turnaround interrupt was missed.
     MissTurnaround,
-    /// Nothing: the CPU is stalled (a flash erase) while the peripherals run on. The firmware
-    /// calls [`Readout::resynchronise`] when it runs again.
+    /// Nothing: the readout is paused for a flash erase while the peripherals run on. The
+    /// firmware calls [`Readout::resynchronise`] when it runs again.
     Stalled,
 }
 
@@ -382,14 +382,13 @@ impl Harness {
         }
     }
 
-    /// The CPU stalls until `until_s` (a flash erase): the firmware's drive pauses as on the
-    /// board ([`FirmwareDrive::stall`]); the caller steps with [`Feed::Stalled`] meanwhile.
-    /// Nothing happens to an open-loop or external drive.
-    pub fn stall_drive(&mut self, until_s: f64) {
+    /// A flash operation stalls the board's fetches from flash until `until_s`: the firmware's
+    /// drive coasts as on the board ([`FirmwareDrive::coast_until`]). Nothing happens to an
+    /// open-loop or external drive. (Whether the readout pauses too is the caller's: it steps
+    /// with [`Feed::Stalled`] through an erase.)
+    pub fn coast_drive(&mut self, until_s: f64) {
         if let DriveSource::Firmware(drive) = &mut self.drive {
-            drive
-                .stall(&mut self.board, until_s)
-                .expect("the stall's drive segments are valid");
+            drive.coast_until(until_s);
         }
     }
 

@@ -33,7 +33,8 @@ pub fn boot_with_key(
 }
 
 /// Sends `bytes` and runs the board until it answers (up to 3 simulated seconds: a `store`
-/// answers when its flash stall is over); the answer as text.
+/// answers when its flash stall is over); the answer as text, without the 0x00 delimiters an
+/// answer has when a stream is on before or after its line.
 pub fn exchange(dev: &mut SimDevice, bytes: &[u8]) -> String {
     dev.receive(bytes);
     let mut out = dev.take_output();
@@ -42,7 +43,10 @@ pub fn exchange(dev: &mut SimDevice, bytes: &[u8]) -> String {
         dev.run_for(0.001);
         out = dev.take_output();
     }
-    String::from_utf8(out).expect("text answer")
+    String::from_utf8(out)
+        .expect("text answer")
+        .trim_matches('\0')
+        .to_owned()
 }
 
 /// The value of `key=` in an answer.

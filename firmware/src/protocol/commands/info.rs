@@ -14,7 +14,7 @@ use crate::protocol::respond::Response;
 use crate::signal::compensation::Coefficients;
 
 const HELP: &str =
-    "commands: id status selftest get{a|b|coeffs} set{a|b}<rad/s> comp{on|off} track{on|off} \
+    "commands: id status selftest output{status} get{a|b|coeffs} set{a|b}<rad/s> comp{on|off} track{on|off} \
 cal{start<n>[<warmup>]|status|abort|result|accept} store reload defaults stream{on[<n>]|output|off} \
 dither{on|off|amp<arcsec>|noise<percent>|status} unlock<key> lock key{provision<key>} help";
 
@@ -58,8 +58,7 @@ pub fn status<D: DeviceLink>(id: &Identity, device: &mut D, flags: StatusFlags) 
     ok_with(format_args!(
         "signal={} drive={} board={} dither_hz={:.3} dither_amp_arcsec={:.2} rate_deg_h={:.4} turnarounds={} \
 cycles={} counter_glitches={} phase_glitches={} signal_lost={} missed={} dropped={} comp={} track={} \
-coeffs={} locked={} key={} strip_k={:.7} strip_k_quad={:.7} strip_k_std_rel={:.1e} strip={} \
-output_records={}",
+coeffs={} locked={} key={}",
         if s.signal_ok { "ok" } else { "lost" },
         drive,
         device.board_health().word(),
@@ -82,14 +81,25 @@ output_records={}",
         } else {
             "unprovisioned"
         },
-        s.strip.k,
-        s.strip.k_quadrature,
-        s.strip.k_std_rel,
+    ))
+}
+
+/// `output status`: the fixed-rate output's dither stripping (`strip=converged|learning`, the
+/// taps on the modelled dither in phase and in quadrature in fringes per pick-off code, the
+/// fit's relative standard deviation) and the records made since boot (the next record's
+/// sequence number).
+pub fn output_status<D: DeviceLink>(device: &mut D) -> Response {
+    let s = device.status();
+    ok_with(format_args!(
+        "strip={} strip_k={:.7} strip_k_quad={:.7} strip_k_std_rel={:.1e} records={}",
         if s.strip.converged {
             "converged"
         } else {
             "learning"
         },
+        s.strip.k,
+        s.strip.k_quadrature,
+        s.strip.k_std_rel,
         s.output_records,
     ))
 }
@@ -254,9 +264,72 @@ mod tests {
             text(status(&ID, &mut device, flags)).trim_end(),
             "OK signal=ok drive=locked board=untested dither_hz=389.000 dither_amp_arcsec=200.00 rate_deg_h=15.0000 \
 turnarounds=10 cycles=5 counter_glitches=1 phase_glitches=2 signal_lost=3 missed=4 dropped=6 \
-comp=off track=on coeffs=flash:3 locked=yes key=unprovisioned strip_k=0.2144199 \
-strip_k_quad=-0.0001234 strip_k_std_rel=2.1e-5 strip=converged output_records=12345"
+comp=off track=on coeffs=flash:3 locked=yes key=unprovisioned"
         );
+        assert_eq!(
+            text(output_status(&mut device)).trim_end(),
+            "OK strip=converged strip_k=0.2144199 strip_k_quad=-0.0001234 strip_k_std_rel=2.1e-5 \
+records=12345"
+        );
+    }
+
+    /// `status` and `output status` at their longest (every counter at its maximum, the longest
+    /// word of each field, a rate of 1000 deg/s, the longest source) fit the answer buffer with
+    /// the CRC suffix: never cut. Measured: printed.
+    #[test]
+    fn status_at_its_longest_fits_the_answer_buffer() {
+        use crate::protocol::respond::MAX_RESPONSE;
+        use crate::storage::DefaultsReason;
+        let mut device = MemDevice {
+            status: DeviceStatus {
+                signal_ok: false,
+                dither_hz: -9999.999,
+                dither_amplitude_rad: -core::f32::consts::TAU * 9999.0,
+                turnarounds: u32::MAX,
+                cycles: u32::MAX,
+                counter_glitches: u32::MAX,
+                phase_glitches: u32::MAX,
+                signal_lost: u32::MAX,
+                missed_turnarounds: u32::MAX,
+                rate_deg_per_h: -3.6e6,
+                cycles_dropped: u32::MAX,
+                strip: crate::signal::output::strip::StripStatus {
+                    k: -1234.5678,
+                    k_quadrature: -1234.5678,
+                    k_std_rel: -1.0e-30,
+                    updates: u32::MAX,
+                    converged: false,
+                },
+                output_records: u64::MAX,
+            },
+            ..MemDevice::default()
+        };
+        device.drive.controller.inhibit();
+        device.health.timing = TimingFaults::of(Event::OutputLatch);
+        let flags = StatusFlags {
+            tracking: false,
+            source: Source::Defaults(DefaultsReason::OtherGyro {
+                stored_serial: u32::MAX,
+            }),
+            unlocked: false,
+            key_provisioned: false,
+        };
+        for (name, answer) in [
+            ("status", status(&ID, &mut device, flags)),
+            ("output status", output_status(&mut device)),
+        ] {
+            let line = answer.finish(true);
+            println!(
+                "{name} at its longest: {} bytes of {MAX_RESPONSE}",
+                line.len()
+            );
+            assert!(!line.contains('~'), "{name} was cut: {line}");
+            assert!(
+                line.len() <= MAX_RESPONSE - 8,
+                "{name}: {} bytes",
+                line.len()
+            );
+        }
     }
 
     /// `selftest` without a board: every check not run; with a board's report, each check's

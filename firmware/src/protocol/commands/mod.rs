@@ -103,6 +103,8 @@ pub(crate) mod testing {
         pub staged: u32,
         pub stored: Vec<CalibrationRecord>,
         pub fail_store: bool,
+        /// `store` reports an erase (the readout paused and re-synchronised).
+        pub store_erases: bool,
         pub drive: MemDrive,
         pub strip: Option<crate::storage::StripCoefficients>,
         /// The key `program_key` wrote (OTP); `fail_store` makes the write fail too.
@@ -126,12 +128,18 @@ pub(crate) mod testing {
             self.settings = settings;
             self.staged += 1;
         }
-        fn store(&mut self, record: &CalibrationRecord) -> Result<u32, StoreError<()>> {
+        fn store(
+            &mut self,
+            record: &CalibrationRecord,
+        ) -> Result<crate::storage::Stored, StoreError<()>> {
             if self.fail_store {
                 return Err(StoreError::Flash(()));
             }
             self.stored.push(*record);
-            Ok(self.stored.len() as u32)
+            Ok(crate::storage::Stored {
+                sequence: self.stored.len() as u32,
+                erased: self.store_erases,
+            })
         }
         fn load(&mut self) -> (CalibrationRecord, LoadReport) {
             let outcome = match self.stored.last() {

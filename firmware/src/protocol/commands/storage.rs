@@ -1,6 +1,6 @@
 //! `store` and `reload`: the coefficients in force to flash and back. The device pauses the
-//! readout around the flash write ([`DeviceLink::store`]); here only the record is assembled
-//! and the [`Provenance`] updated.
+//! readout only around a sector erase ([`DeviceLink::store`]); here only the record is
+//! assembled, the [`Provenance`] updated and the answer says which it was.
 
 use super::provenance::{Provenance, Source, SourceText};
 use super::{ok_with, Answer};
@@ -10,7 +10,9 @@ use crate::protocol::ErrorCode;
 use crate::storage::CalibrationRecord;
 
 /// `store`: the settings in force with the fit behind them; a flash failure is `ERR 13` and
-/// leaves the provenance as it was.
+/// leaves the provenance as it was. `readout=continuous`: no sector was erased, the readout
+/// went on through the store; `readout=resynchronised`: an erase paused it (its output marks
+/// the pause: a restart record).
 pub fn store<D: DeviceLink>(device: &mut D, provenance: &mut Provenance, id: &Identity) -> Answer {
     let record = CalibrationRecord {
         serial_number: id.serial_number,
@@ -21,10 +23,18 @@ pub fn store<D: DeviceLink>(device: &mut D, provenance: &mut Provenance, id: &Id
         dither: Some(device.dither_setpoints()),
         strip: device.strip_coefficients(),
     };
-    let sequence = device.store(&record).map_err(|_| ErrorCode::FlashError)?;
-    provenance.source = Source::Flash { sequence };
+    let stored = device.store(&record).map_err(|_| ErrorCode::FlashError)?;
+    provenance.source = Source::Flash {
+        sequence: stored.sequence,
+    };
+    let readout = if stored.erased {
+        "resynchronised"
+    } else {
+        "continuous"
+    };
     Ok(ok_with(format_args!(
-        "stored seq={sequence} readout=resynchronised"
+        "stored seq={} readout={readout}",
+        stored.sequence
     )))
 }
 
@@ -79,7 +89,7 @@ mod tests {
         device.settings.coefficients = Coefficients::from_rad_per_s(3.0, 4.0).unwrap();
         let mut p = unsaved();
         let answer = text(store(&mut device, &mut p, &ID).unwrap());
-        assert_eq!(answer.trim_end(), "OK stored seq=1 readout=resynchronised");
+        assert_eq!(answer.trim_end(), "OK stored seq=1 readout=continuous");
         let record = device.stored[0];
         assert_eq!(
             (record.serial_number, record.boot_count),
@@ -89,6 +99,17 @@ mod tests {
         assert_eq!(record.fit, unsaved().fit);
         assert!(!record.reset_to_defaults);
         assert_eq!(p.source, Source::Flash { sequence: 1 });
+    }
+
+    /// A store that erased a sector says the readout was re-synchronised.
+    #[test]
+    fn an_erasing_store_says_the_readout_was_resynchronised() {
+        let mut device = MemDevice {
+            store_erases: true,
+            ..MemDevice::default()
+        };
+        let answer = text(store(&mut device, &mut unsaved(), &ID).unwrap());
+        assert_eq!(answer.trim_end(), "OK stored seq=1 readout=resynchronised");
     }
 
     #[test]

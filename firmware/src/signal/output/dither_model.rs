@@ -48,7 +48,7 @@
 //! | one conversion at the latch (before) | 1.27 codes, 0.51 arcsec | ~0 | the floor this replaces |
 //! | a burst of conversions around the latch (ADC3's regular sequence, 16 at most, 1.3 us each) | 1.27 / sqrt(16) = 0.32 code, *if* the noise is white at 0.8 MHz | ~20 instructions, a DMA stream | 3x short of 0.1 arcsec; a preamplifier's noise is band-limited, so conversions 1.3 us apart share most of it and the burst averages far less than sqrt(16); the burst collides with the drive tick's injected conversion (the keep-out window) |
 //! | the optical phase at the turnarounds (amplitude to 1e-3 fringe) with the pick-off's phase | the amplitude 10x better than the pick-off's, the phase still the pick-off's, which dominates at the dither's zero crossings | a second model, the turnarounds' timing | no gain where the error is largest, and couples the output to the lock-in errors of the turnaround latches |
-//! | **a sine fitted to the drive tick's stream (this module)** | sqrt(2 / 384) x 1.27 = 0.092 code at every phase; measured 0.097 with the offset (tests) | 136 instructions per sample (2 % of the CPU at 40 kHz with the exception-free batching in the readout task), 1 168 at a window's close, `cargo fw-icount --example cost` | a model: a dither that changes its sine within 10 ms (a random-noise dither of 25 %) leaves a model error (0.24 arcsec rms per record there) |
+//! | **a sine fitted to the drive tick's stream (this module)** | sqrt(2 / 384) x 1.27 = 0.092 code at every phase; measured 0.097 with the offset (tests) | 138 instructions per sample (2 % of the CPU at 40 kHz with the exception-free batching in the readout task), 1 190 at a window's close, `cargo fw-icount --example cost` | a model: a dither that changes its sine within 10 ms (a random-noise dither of 25 %) leaves a model error (0.24 arcsec rms per record there) |
 //!
 //! # Trade-offs (measured: docs/physics.md section 12)
 //!
@@ -304,9 +304,19 @@ impl DitherModel {
     }
 
     /// The modelled dither at capture-timer instant `at_ticks` (an output latch's timestamp;
-    /// `None` unless valid).
+    /// `None` unless valid, or when the instant is more than a fit's span past the last
+    /// sample: the same limit a gap in the stream is bridged over, so a latch taken after a
+    /// stall, before the stream's backlog has told the model of the gap, is not stripped with
+    /// an extrapolated sine).
     pub fn estimate(&self, config: &DitherModelConfig, at_ticks: u32) -> Option<DitherEstimate> {
         if !self.is_valid(config) {
+            return None;
+        }
+        let span_ticks = config
+            .span_samples()
+            .saturating_mul(config.timer_ticks_per_sample);
+        let age_ticks = at_ticks.wrapping_sub(self.last_ticks?) as i32;
+        if age_ticks > 0 && age_ticks.unsigned_abs() > span_ticks {
             return None;
         }
         let (step, fit) = (self.step?, self.fit?);
@@ -502,7 +512,8 @@ mod tests {
     /// windows is in (9.6 ms plus a window to measure the frequency), then valid again. A gap
     /// of a few milliseconds (a flash program, samples lost on a full queue) is bridged: the
     /// model stays valid and still gives the dither (within 0.3 code of the truth after 5 ms
-    /// without samples: the noise of the fit, extrapolated).
+    /// without samples: the noise of the fit, extrapolated). A latch more than a fit past the
+    /// last sample gets no estimate.
     #[test]
     fn a_long_gap_restarts_the_model_a_short_one_is_bridged() {
         let c = config();
@@ -527,6 +538,10 @@ mod tests {
         let t = (tick - 1) as f64 / 40_000.0;
         let err = f64::from(e.in_phase_codes + e.offset_codes) - p.angle(t);
         assert!(err.abs() < 0.3, "{err}");
+        // A latch after a stall whose samples the model has not seen yet: 5 ms past the last
+        // sample is bridged, a second past it is no estimate (the stall's backlog restarts it).
+        assert!(m.estimate(&c, stamp(tick - 1 + 200)).is_some());
+        assert!(m.estimate(&c, stamp(tick - 1 + 40_000)).is_none());
         // 10 ms without samples: longer than a fit.
         let tick = feed(&mut m, &mut p, tick + 400, 0.005);
         assert!(!m.is_valid(&c));

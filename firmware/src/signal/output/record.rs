@@ -75,6 +75,22 @@ impl OutputStatus {
     /// stream, a re-seed): the dither angle there is not known to the output's precision.
     pub const NO_DITHER_MODEL: Self = Self(1 << 10);
 
+    /// Every bit with its name, in bit order: the output frame's status table
+    /// (docs/protocol.md, checked against this list by `hal-sim/tests/protocol_doc.rs`).
+    pub const NAMED: [(&'static str, Self); 11] = [
+        ("VALID", Self::VALID),
+        ("DITHER_LOCKED", Self::DITHER_LOCKED),
+        ("COMPENSATION_ON", Self::COMPENSATION_ON),
+        ("TRACKING", Self::TRACKING),
+        ("K_CONVERGED", Self::K_CONVERGED),
+        ("COUNTER_GLITCH", Self::COUNTER_GLITCH),
+        ("SIGNAL_LOST", Self::SIGNAL_LOST),
+        ("PICKOFF_FAULT", Self::PICKOFF_FAULT),
+        ("RESTART", Self::RESTART),
+        ("TIMING_FAULT", Self::TIMING_FAULT),
+        ("NO_DITHER_MODEL", Self::NO_DITHER_MODEL),
+    ];
+
     /// Bits that make a period invalid.
     pub const FAULTS: Self = Self(
         Self::COUNTER_GLITCH.0

@@ -69,6 +69,16 @@ impl CycleFlags {
     /// output is invalid. Its P1/P2 are still measured (compensable as far as they go).
     pub const DRIVE_UNLOCKED: Self = Self(1 << 4);
 
+    /// Every flag with its name, in bit order: the stream's flag table (docs/protocol.md,
+    /// checked against this list by `hal-sim/tests/protocol_doc.rs`).
+    pub const NAMED: [(&'static str, Self); 5] = [
+        ("SIGNAL_LOST", Self::SIGNAL_LOST),
+        ("COUNTER_GLITCH", Self::COUNTER_GLITCH),
+        ("TURNAROUND_MISSED", Self::TURNAROUND_MISSED),
+        ("DITHER_INVALID", Self::DITHER_INVALID),
+        ("DRIVE_UNLOCKED", Self::DRIVE_UNLOCKED),
+    ];
+
     /// The cycle's P1/P2 can be trusted for compensation: the levels were seen at every
     /// turnaround and k was measured (neither [`Self::SIGNAL_LOST`] nor
     /// [`Self::DITHER_INVALID`]). A counter glitch or a missed turnaround leaves P1/P2 valid.
