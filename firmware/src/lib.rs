@@ -31,6 +31,7 @@ pub mod units;
 pub mod storage;
 #[cfg(test)]
 mod test_rng;
+pub mod thermal;
 
 #[cfg(target_os = "none")]
 pub mod board;

@@ -39,7 +39,10 @@ pub struct PoweredUp<F: NorFlash> {
 /// The serial number (0 when not programmed) and the key (`None`: unprovisioned, or only
 /// spent blocks) in the OTP `cells` (`crate::otp_record`).
 pub fn otp_identity(cells: &impl OtpCells) -> (u32, Option<Key>) {
-    (otp_record::serial(cells).unwrap_or(0), otp_record::key(cells))
+    (
+        otp_record::serial(cells).unwrap_or(0),
+        otp_record::key(cells),
+    )
 }
 
 /// Powers up on `flash` (see the module docs); `kept_wrong_keys` is what the backup domain
