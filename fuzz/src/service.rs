@@ -227,6 +227,8 @@ impl Harness {
                 angle_q16: self.output_sequence as i64 * 3,
                 rate_deg_per_h: 13.9,
                 status: OutputStatus::VALID,
+                temperature_q7: firmware::thermal::state::NO_VALUE,
+                temperature_rate_centi_c_per_min: firmware::thermal::state::NO_VALUE,
             });
         }
         let mut remaining = cycles;

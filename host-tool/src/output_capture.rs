@@ -238,6 +238,8 @@ mod tests {
             angle_q16: sequence as i64 * 65536,
             rate_deg_per_h: 0.0,
             status: OutputStatus::VALID.union(OutputStatus::DITHER_LOCKED),
+            temperature_q7: firmware::thermal::state::NO_VALUE,
+            temperature_rate_centi_c_per_min: firmware::thermal::state::NO_VALUE,
         }
     }
 

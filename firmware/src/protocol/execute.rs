@@ -555,6 +555,8 @@ mod tests {
             angle_q16: 5,
             rate_deg_per_h: 6.0,
             status: OutputStatus::VALID,
+            temperature_q7: crate::thermal::state::NO_VALUE,
+            temperature_rate_centi_c_per_min: crate::thermal::state::NO_VALUE,
         };
         assert_eq!(e.on_output(&record), None);
         assert!(run(&mut e, &mut d, "stream output").starts_with("OK stream=output"));

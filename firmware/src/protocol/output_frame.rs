@@ -11,16 +11,38 @@
 //!  24  i64  angle           Q16 fringes, integrated over the valid periods
 //!  32  f32  rate            deg/h over the period
 //!  36  u16  status          OutputStatus bits (bit 0 VALID)
+//!  38  i16  thermal         even sequence: the temperature, 1/128 °C (the TMP117's own LSB);
+//!                           odd sequence: its rate, 0.01 °C/min; -32768: none
 //! ```
 //!
-//! 38 bytes of payload, 44 on the wire: 44 kB/s at a 1 kHz sync, which 460800 baud (46 kB/s)
-//! carries; a 2 kHz sync needs 1 Mbaud or more (the F405's USART1 does 10.5 Mbit/s).
+//! 40 bytes of payload, 46 on the wire: 46.0 kB/s at a 1 kHz sync, which 460800 baud
+//! (46.08 kB/s of 8N1 bytes) carries; a 2 kHz sync needs 1 Mbaud or more (the F405's USART1
+//! does 10.5 Mbit/s).
+//!
+//! # The thermal word: one field, two quantities
+//!
+//! The temperature and its rate need 16 bits each, but four more bytes would make the frame
+//! 48 bytes, 48 kB/s at the default 1 kHz output: more than 460800 baud carries. So one word
+//! alternates by the record's sequence number: the temperature in even records, the rate in odd
+//! ones. Both change far slower than the records come (the sensor gives 8 results a second), so
+//! a receiver has both, each at most one record old; the sequence number in the same frame
+//! says which it is, a lost record included. The status word carries the sensor's fault and
+//! whether the model corrected the record (bits 11 and 12) in every record.
+//!
+//! # Older frames
+//!
+//! A receiver accepts both lengths: a 38-byte payload is an older firmware's frame (no
+//! thermal word: both quantities none). The frame's CRC covers its own length, so one cannot
+//! be taken for the other.
 
 use super::cobs::{self, FrameError};
 use crate::signal::output::record::{OutputRecord, OutputStatus};
+use crate::thermal::state::NO_VALUE;
 
 /// Payload bytes.
-pub const OUTPUT_PAYLOAD: usize = 38;
+pub const OUTPUT_PAYLOAD: usize = 40;
+/// Payload bytes of an older firmware's frame (no thermal word).
+pub const OUTPUT_PAYLOAD_V1: usize = 38;
 /// The most output records a board makes per second: five times the fastest sync it is
 /// documented for (2 kHz, which already needs 1 Mbaud). A receiver believes no gap that would
 /// need records faster than this.
@@ -37,10 +59,20 @@ fn to_bytes(r: &OutputRecord) -> [u8; OUTPUT_PAYLOAD] {
     b[24..32].copy_from_slice(&r.angle_q16.to_le_bytes());
     b[32..36].copy_from_slice(&r.rate_deg_per_h.to_le_bytes());
     b[36..38].copy_from_slice(&r.status.0.to_le_bytes());
+    b[38..40].copy_from_slice(&thermal_word(r).to_le_bytes());
     b
 }
 
-fn from_bytes(b: &[u8; OUTPUT_PAYLOAD]) -> OutputRecord {
+/// The thermal word of a record: the temperature in even records, the rate in odd ones.
+pub fn thermal_word(r: &OutputRecord) -> i16 {
+    if r.sequence % 2 == 0 {
+        r.temperature_q7
+    } else {
+        r.temperature_rate_centi_c_per_min
+    }
+}
+
+fn from_bytes(b: &[u8; OUTPUT_PAYLOAD], thermal: bool) -> OutputRecord {
     // The fields' offsets lie inside the payload (a fixed layout): `get` never misses.
     let u64_at = |i: usize| {
         u64::from_le_bytes(
@@ -60,7 +92,7 @@ fn from_bytes(b: &[u8; OUTPUT_PAYLOAD]) -> OutputRecord {
         )
     };
     let (period_ticks, delta, rate) = (u32_at(16), u32_at(20), u32_at(32));
-    OutputRecord {
+    let mut record = OutputRecord {
         sequence,
         time_ticks,
         period_ticks,
@@ -68,7 +100,18 @@ fn from_bytes(b: &[u8; OUTPUT_PAYLOAD]) -> OutputRecord {
         angle_q16: angle as i64,
         rate_deg_per_h: f32::from_bits(rate),
         status: OutputStatus(u16::from_le_bytes([b[36], b[37]])),
+        temperature_q7: NO_VALUE,
+        temperature_rate_centi_c_per_min: NO_VALUE,
+    };
+    if thermal {
+        let word = i16::from_le_bytes([b[38], b[39]]);
+        if sequence % 2 == 0 {
+            record.temperature_q7 = word;
+        } else {
+            record.temperature_rate_centi_c_per_min = word;
+        }
     }
+    record
 }
 
 /// Encodes a record's frame into `out`; returns its length (delimiter included).
@@ -76,11 +119,23 @@ pub fn encode_output_frame(record: &OutputRecord, out: &mut [u8; MAX_OUTPUT_FRAM
     cobs::encode(&to_bytes(record), out)
 }
 
-/// Decodes one frame (without its 0x00 delimiter).
+/// Decodes one frame (without its 0x00 delimiter): this firmware's, or an older one's
+/// without the thermal word. A decoded record holds the one thermal quantity its frame
+/// carries; the other is `NO_VALUE`.
 pub fn decode_output_frame(encoded: &[u8]) -> Result<OutputRecord, FrameError> {
     let mut payload = [0u8; OUTPUT_PAYLOAD];
-    cobs::decode(encoded, &mut payload)?;
-    Ok(from_bytes(&payload))
+    match cobs::decode(encoded, &mut payload) {
+        Ok(()) => Ok(from_bytes(&payload, true)),
+        Err(FrameError::Malformed) => {
+            let mut older = [0u8; OUTPUT_PAYLOAD_V1];
+            cobs::decode(encoded, &mut older)?;
+            if let Some(head) = payload.get_mut(..OUTPUT_PAYLOAD_V1) {
+                head.copy_from_slice(&older);
+            }
+            Ok(from_bytes(&payload, false))
+        }
+        Err(e) => Err(e),
+    }
 }
 
 /// Counts the records lost on the way from the 64-bit sequence numbers a host receives.
@@ -137,9 +192,13 @@ mod tests {
             angle_q16: -(1 << 40) + 7,
             rate_deg_per_h: -13.888,
             status: OutputStatus::VALID.union(OutputStatus::DITHER_LOCKED),
+            temperature_q7: -20 * 128 + 3,
+            temperature_rate_centi_c_per_min: -150,
         }
     }
 
+    /// A frame carries the temperature in even records and the rate in odd ones: the decoded
+    /// record holds that one (the other none), and everything else exactly.
     #[test]
     fn round_trip_and_no_zero_inside_a_frame() {
         for seq in [0, 1, 255, 256, 1 << 40, u64::MAX] {
@@ -149,8 +208,30 @@ mod tests {
             assert_eq!(n, MAX_OUTPUT_FRAME);
             assert_eq!(buf[n - 1], 0);
             assert!(buf[..n - 1].iter().all(|&b| b != 0));
-            assert_eq!(decode_output_frame(&buf[..n - 1]), Ok(r));
+            let mut want = r;
+            if seq % 2 == 0 {
+                want.temperature_rate_centi_c_per_min = NO_VALUE;
+                assert_eq!(want.temperature_c(), Some(-20.0 + 3.0 / 128.0));
+            } else {
+                want.temperature_q7 = NO_VALUE;
+                assert_eq!(want.temperature_rate_c_per_min(), Some(-1.5));
+            }
+            assert_eq!(decode_output_frame(&buf[..n - 1]), Ok(want));
         }
+    }
+
+    /// An older firmware's 38-byte frame decodes, with no thermal quantities.
+    #[test]
+    fn an_older_frame_without_the_thermal_word_decodes() {
+        let r = record(6);
+        let mut older = [0u8; OUTPUT_PAYLOAD_V1 + 6];
+        let n = cobs::encode(&to_bytes(&r)[..OUTPUT_PAYLOAD_V1], &mut older);
+        let want = OutputRecord {
+            temperature_q7: NO_VALUE,
+            temperature_rate_centi_c_per_min: NO_VALUE,
+            ..r
+        };
+        assert_eq!(decode_output_frame(&older[..n - 1]), Ok(want));
     }
 
     /// Any single corrupted byte is caught (COBS structure or CRC), never misread.

@@ -209,7 +209,7 @@ impl BiasFit {
         }
         let n = self.records as f64;
         let mean = self.rate_sum / n;
-        let spread = (self.rate_sq / n - mean * mean).max(0.0).sqrt();
+        let spread = libm::sqrt((self.rate_sq / n - mean * mean).max(0.0));
         let rate_fitted = spread >= MIN_RATE_SPREAD_C_PER_MIN;
         // Without the rate term: drop unknown 4 (move the offsets down by one).
         let keep: [usize; UNKNOWNS] = core::array::from_fn(|i| {
@@ -231,7 +231,13 @@ impl BiasFit {
         let x = solve(a, b, unknowns).ok_or(FitError::Singular)?;
         let mut bias = [0.0; 4];
         for (k, c) in bias.iter_mut().enumerate() {
-            *c = x[k] / X_SCALE_C.powi(k as i32);
+            *c = x[k]
+                / [
+                    1.0,
+                    X_SCALE_C,
+                    X_SCALE_C * X_SCALE_C,
+                    X_SCALE_C * X_SCALE_C * X_SCALE_C,
+                ][k];
         }
         Ok(BiasResult {
             bias_deg_h: bias,

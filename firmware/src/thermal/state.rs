@@ -79,7 +79,7 @@ impl Default for ThermalInput {
 
 /// The rate word of `rate_c_per_s`: 0.01 °C/min, saturated short of [`NO_VALUE`].
 pub fn rate_word(rate_c_per_s: f32) -> i16 {
-    let centi = (rate_c_per_s * 6000.0).round();
+    let centi = libm::roundf(rate_c_per_s * 6000.0);
     centi.clamp(-32767.0, 32767.0) as i16
 }
 

@@ -149,6 +149,8 @@ mod tests {
             angle_q16: 2,
             rate_deg_per_h: 3.0,
             status: Default::default(),
+            temperature_q7: crate::thermal::state::NO_VALUE,
+            temperature_rate_centi_c_per_min: crate::thermal::state::NO_VALUE,
         };
         assert_eq!(s.on_output(&out), None);
         assert_eq!(
