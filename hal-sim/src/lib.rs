@@ -26,6 +26,8 @@ pub mod param_error;
 pub mod params;
 pub mod phase;
 pub mod random_gyro;
+pub mod thermal;
+pub mod tmp117;
 pub mod units;
 
 pub mod clock;

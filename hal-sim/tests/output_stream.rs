@@ -54,7 +54,7 @@ fn stream_output_sends_every_record_numbered_and_valid() {
     assert!((k / (0.4 / 1.8655) - 1.0).abs() < 1e-3, "{status}");
     let answer = ask(&mut dev, "stream output");
     assert!(
-        answer.starts_with("OK stream=output frame_bytes=44"),
+        answer.starts_with("OK stream=output frame_bytes=46"),
         "{answer}"
     );
     dev.run_for(1.0);
