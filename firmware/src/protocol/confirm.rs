@@ -56,6 +56,7 @@ impl fmt::Display for Canonical<'_> {
             Command::Identify => f.write_str("id"),
             Command::Status => f.write_str("status"),
             Command::SelfTest => f.write_str("selftest"),
+            Command::Thermal => f.write_str("thermal"),
             Command::Get(None) => f.write_str("get coeffs"),
             Command::Get(Some(Coefficient::A)) => f.write_str("get a"),
             Command::Get(Some(Coefficient::B)) => f.write_str("get b"),

@@ -246,6 +246,7 @@ impl Executor {
                 Ok(info::status(id, device, flags))
             }
             Command::SelfTest => Ok(info::selftest(device)),
+            Command::Thermal => Ok(info::thermal(device)),
             Command::Get(which) => Ok(info::get(id, device, which)),
             Command::Set(which, value) => settings::set(device, p, which, value),
             Command::Compensation(on) => Ok(settings::compensation(device, p, on)),

@@ -104,6 +104,14 @@ pub trait DeviceLink {
     fn board_health(&mut self) -> BoardHealth {
         BoardHealth::UNTESTED
     }
+    /// The thermal state (`thermal`); a device without a sensor: nothing known.
+    fn thermal(&mut self) -> crate::thermal::state::ThermalState {
+        crate::thermal::state::ThermalState::new()
+    }
+    /// The scale factor the thermal corrections are in, arcsec per fringe.
+    fn thermal_scale_factor_arcsec(&mut self) -> f32 {
+        1.0
+    }
 }
 
 /// Why the key could not be written to OTP.

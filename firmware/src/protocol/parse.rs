@@ -44,6 +44,8 @@ pub enum Command {
     Status,
     /// `selftest`: the power-up self-test's checks, the timing faults raised now.
     SelfTest,
+    /// `thermal`: the block's temperature, its rate, the sensor and the thermal model.
+    Thermal,
     /// `get a` | `get b` | `get coeffs`: one coefficient, or both with Omega_L and eps.
     Get(Option<Coefficient>),
     /// `set a <rad/s>` | `set b <rad/s>`.
@@ -180,6 +182,8 @@ pub fn parse(text: &str) -> Result<Command, ErrorCode> {
         Command::Status
     } else if is("selftest") {
         Command::SelfTest
+    } else if is("thermal") {
+        Command::Thermal
     } else if is("get") {
         match words.next() {
             Some(w) if w.eq_ignore_ascii_case("coeffs") => Command::Get(None),

@@ -62,6 +62,9 @@ use crate::storage::{
     CalibrationRecord, CalibrationStore, DitherSetpoints, Geometry, GeometryError, LoadReport,
     StoreError, StripCoefficients,
 };
+use crate::thermal::model::ThermalModel;
+use crate::thermal::sensor::SensorUpdate;
+use crate::thermal::state::ThermalState;
 use ports::{Clock, DitherAccess, ReadoutAccess, Secrets, SerialTx};
 
 /// Lines a main-loop pass executes at most ([`Service::pass`]).
@@ -137,6 +140,8 @@ pub struct Service<F: NorFlash> {
     frames_dropped: u32,
     /// The wrong-key count last handed to [`Secrets::save_wrong_keys`].
     saved_wrong_keys: u32,
+    /// The block's temperature, its rate and the thermal model (`crate::thermal`).
+    thermal: ThermalState,
 }
 
 impl<F: NorFlash> Service<F> {
@@ -159,6 +164,7 @@ impl<F: NorFlash> Service<F> {
             status: DeviceStatus::default(),
             frames_dropped: 0,
             saved_wrong_keys: 0,
+            thermal: ThermalState::new(),
             config,
             flash,
             store,
@@ -260,6 +266,7 @@ impl<F: NorFlash> Service<F> {
             store: &self.store,
             serial_number: self.config.identity.serial_number,
             status: self.status,
+            thermal: self.thermal,
             ports,
         };
         let answer = endpoint::answer(
@@ -316,6 +323,31 @@ impl<F: NorFlash> Service<F> {
                 self.frames_dropped = self.frames_dropped.saturating_add(1);
             }
         }
+    }
+
+    /// What the temperature sensor's monitor found (the main loop polls it,
+    /// `thermal::sensor::SensorMonitor::poll`): the thermal state follows, and the output
+    /// stage gets the temperature, its rate and the correction for its next records.
+    pub fn on_sensor<P: ReadoutAccess>(&mut self, update: SensorUpdate, ports: &mut P) {
+        let sf = self.config.readout.output.scale_factor_arcsec;
+        let input = self.thermal.on_sensor(update, sf);
+        ports.with_readout(|r| r.set_thermal(input));
+    }
+
+    /// Puts a thermal model in force (`None`: none), applied to the next records.
+    pub fn set_thermal_model<P: ReadoutAccess>(
+        &mut self,
+        model: Option<ThermalModel>,
+        ports: &mut P,
+    ) {
+        let sf = self.config.readout.output.scale_factor_arcsec;
+        let input = self.thermal.set_model(model, sf);
+        ports.with_readout(|r| r.set_thermal(input));
+    }
+
+    /// The thermal state.
+    pub fn thermal(&self) -> &ThermalState {
+        &self.thermal
     }
 
     /// Whether the binary stream is on.
@@ -377,6 +409,7 @@ struct ServiceDevice<'a, F, P> {
     /// This board's gyro: records of another are not loaded.
     serial_number: u32,
     status: DeviceStatus,
+    thermal: ThermalState,
     ports: &'a mut P,
 }
 
@@ -444,6 +477,14 @@ impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess + Secrets> DeviceLink
 
     fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError> {
         self.ports.program_key(key)
+    }
+
+    fn thermal(&mut self) -> ThermalState {
+        self.thermal
+    }
+
+    fn thermal_scale_factor_arcsec(&mut self) -> f32 {
+        self.readout.output.scale_factor_arcsec
     }
 
     fn board_health(&mut self) -> crate::board_timing::health::BoardHealth {
