@@ -229,14 +229,12 @@ mod tests {
         Tmp117::new(SimTmp117::new(profile, 0.02, 0.0078, 7), ADDRESS)
     }
 
+    /// The states a run reported with their times (ms), and its readings (ms, °C).
+    type Seen = (Vec<(u64, SensorState)>, Vec<(u64, f32)>);
+
     /// Runs the monitor every 10 ms from `from_ms` to `to_ms`: the states it reported with
     /// their times, and the readings.
-    fn run(
-        m: &mut SensorMonitor,
-        s: &mut Tmp117<SimTmp117>,
-        from_ms: u64,
-        to_ms: u64,
-    ) -> (Vec<(u64, SensorState)>, Vec<(u64, f32)>) {
+    fn run(m: &mut SensorMonitor, s: &mut Tmp117<SimTmp117>, from_ms: u64, to_ms: u64) -> Seen {
         let (mut states, mut readings) = (Vec::new(), Vec::new());
         for ms in (from_ms..to_ms).step_by(10) {
             s.i2c_mut().set_time_s(ms as f64 * 1e-3);

@@ -455,6 +455,7 @@ fn thermal_reports_the_sensor_and_its_faults() {
     let mut dev = boot(CalibrationFlash::default(), 13.888, 0);
     dev.run_for(3.0);
     let answer = ask(&mut dev, "thermal");
+    eprintln!("{answer}");
     assert!(answer.starts_with("OK temp_c="), "{answer}");
     let temp: f64 = field(&answer, "temp_c").parse().unwrap();
     assert!((temp - 25.02).abs() < 0.04, "{answer}");

@@ -65,7 +65,7 @@ fn to_bytes(r: &OutputRecord) -> [u8; OUTPUT_PAYLOAD] {
 
 /// The thermal word of a record: the temperature in even records, the rate in odd ones.
 pub fn thermal_word(r: &OutputRecord) -> i16 {
-    if r.sequence % 2 == 0 {
+    if r.sequence.is_multiple_of(2) {
         r.temperature_q7
     } else {
         r.temperature_rate_centi_c_per_min
@@ -105,7 +105,7 @@ fn from_bytes(b: &[u8; OUTPUT_PAYLOAD], thermal: bool) -> OutputRecord {
     };
     if thermal {
         let word = i16::from_le_bytes([b[38], b[39]]);
-        if sequence % 2 == 0 {
+        if sequence.is_multiple_of(2) {
             record.temperature_q7 = word;
         } else {
             record.temperature_rate_centi_c_per_min = word;

@@ -76,18 +76,19 @@ impl FitError {
 fn solve<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N], n: usize) -> Option<[f64; N]> {
     for col in 0..n {
         let pivot = (col..n).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        if !(a[pivot][col].abs() > 1e-12) {
+        if a[pivot][col].abs() <= 1e-12 || a[pivot][col].is_nan() {
             return None;
         }
         a.swap(col, pivot);
         b.swap(col, pivot);
-        for row in 0..n {
+        let (pivot_row, pivot_b) = (a[col], b[col]);
+        for (row, (values, rhs)) in a.iter_mut().zip(b.iter_mut()).enumerate().take(n) {
             if row != col {
-                let f = a[row][col] / a[col][col];
-                for k in col..n {
-                    a[row][k] -= f * a[col][k];
+                let f = values[col] / pivot_row[col];
+                for (v, p) in values.iter_mut().zip(pivot_row.iter()).take(n).skip(col) {
+                    *v -= f * p;
                 }
-                b[row] -= f * b[col];
+                *rhs -= f * pivot_b;
             }
         }
     }
