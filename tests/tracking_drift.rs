@@ -25,6 +25,7 @@ use firmware::signal::compensation::{Coefficients, CompensationSettings};
 use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use hal_sim::harness::HarnessOptions;
 use hal_sim::input::InputProfile;
+use hal_sim::params::AmplitudeModulation;
 
 const DRIFT_END_S: f64 = 60.0;
 const EPS_DRIFT_RAD: f64 = 0.15;
@@ -33,11 +34,68 @@ const INSIDE_DEG_H: f64 = 2.0;
 const MEASURE_FROM_S: f64 = 65.0;
 const END_S: f64 = 80.0;
 
+/// What one run of the scenario gave.
+struct Outcome {
+    /// |compensated rate - input| inside the band, deg/h: static and tracked.
+    static_err_deg_h: f64,
+    tracked_err_deg_h: f64,
+    /// The tracked coefficients at the end of the drift against the drifted truth, over Omega_L.
+    coefficient_error: f64,
+}
+
 #[test]
 fn tracking_beats_a_static_fit_when_lock_in_and_eps_drift() {
+    let o = scenario(AmplitudeModulation::OFF);
+    assert!(
+        o.coefficient_error < 0.01,
+        "tracked coefficients {}",
+        o.coefficient_error
+    );
+    assert!(
+        o.tracked_err_deg_h < o.static_err_deg_h / 3.0,
+        "tracked {} vs static {}",
+        o.tracked_err_deg_h,
+        o.static_err_deg_h
+    );
+    assert!(
+        o.tracked_err_deg_h < 0.03,
+        "regression: tracked error {} deg/h",
+        o.tracked_err_deg_h
+    );
+}
+
+/// The same with the dither amplitude wandering 0.1 % rms at 0.1-2 Hz: the tracker sees the
+/// cycle increments the calibration does (docs/physics.md section 8), which a wandering
+/// amplitude does not move, so it tracks as well as with a steady dither: the coefficients
+/// within 1 % of Omega_L of the drifted truth and the error inside the band within 0.03 deg/h,
+/// as above. Measured (seed 41): coefficients 0.42 % off (0.34 % with a steady dither), error
+/// 0.004 deg/h (0.011); regression bound 0.6 %.
+#[test]
+fn tracking_holds_under_a_wandering_dither() {
+    let o = scenario(AmplitudeModulation::jitter(0.001));
+    assert!(
+        o.coefficient_error < 0.01,
+        "tracked coefficients {}",
+        o.coefficient_error
+    );
+    assert!(
+        o.coefficient_error < 0.006,
+        "regression: tracked coefficients {}",
+        o.coefficient_error
+    );
+    assert!(
+        o.tracked_err_deg_h < 0.03,
+        "tracked error {} deg/h",
+        o.tracked_err_deg_h
+    );
+}
+
+/// The scenario of the module docs with `jitter` on the dither's amplitude.
+fn scenario(jitter: AmplitudeModulation) -> Outcome {
     let params = hal_sim::params::GyroParams {
         lock_in_drift_per_s: LOCK_IN_DRIFT / DRIFT_END_S,
         lock_in_drift_until_s: DRIFT_END_S,
+        amplitude_jitter: jitter,
         ..paper_gyro(41)
     };
     let input = InputProfile::steps(13.888, &[(DRIFT_END_S, INSIDE_DEG_H)]);
@@ -113,21 +171,15 @@ fn tracking_beats_a_static_fit_when_lock_in_and_eps_drift() {
     let fixed_err = (fixed_rate.flush(&averager_config).rate_deg_per_h - INSIDE_DEG_H).abs();
     let tracked_err = (tracked_rate.flush(&averager_config).rate_deg_per_h - INSIDE_DEG_H).abs();
     eprintln!(
-        "inside the band: static error {fixed_err:.4} deg/h, tracked {tracked_err:.4} deg/h; \
-         tracked coefficients off by {:.3} % of Omega_L (static: {:.1} %)",
+        "jitter {:?}: inside the band: static error {fixed_err:.4} deg/h, tracked \
+         {tracked_err:.4} deg/h; tracked coefficients off by {:.3} % of Omega_L (static: {:.1} %)",
+        jitter.relative_rms,
         100.0 * coefficient_error,
         100.0 * (a0 - a_end).hypot(b0 - b_end) / omega_l
     );
-    assert!(
-        coefficient_error < 0.01,
-        "tracked coefficients {coefficient_error}"
-    );
-    assert!(
-        tracked_err < fixed_err / 3.0,
-        "tracked {tracked_err} vs static {fixed_err}"
-    );
-    assert!(
-        tracked_err < 0.03,
-        "regression: tracked error {tracked_err} deg/h"
-    );
+    Outcome {
+        static_err_deg_h: fixed_err,
+        tracked_err_deg_h: tracked_err,
+        coefficient_error,
+    }
 }

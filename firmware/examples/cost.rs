@@ -9,9 +9,13 @@
 //! - one turnaround (`Readout::on_turnaround`: count extension, normalisation, CORDIC, fringe
 //!   phase, P1/P2 share), averaged over "-" turnarounds, and one cycle-closing "+" turnaround
 //!   (adds cycle assembly and compensation);
+//! - one sample of the pick-off stream (`Readout::on_pickoff_sample`: the dither model's
+//!   oscillator, regressors and sums; averaged over the samples, and the most, a window's
+//!   close with its fit and frequency loop), 40 000 a second;
 //! - one output latch (`Readout::on_output_latch`: count extension, normalisation, CORDIC,
-//!   dither stripping and K's fit, the record) and its wire frame (`encode_output_frame`: COBS
-//!   and CRC-32): the work between a sync edge and the record's first byte on the UART.
+//!   the dither model at the latch, dither stripping and K's fit, the record) and its wire
+//!   frame (`encode_output_frame`: COBS and CRC-32): the work between a sync edge and the
+//!   record's first byte on the UART.
 //!
 //! These are instructions, not cycles: on the M4 at 168 MHz with flash wait states a cycle
 //! count is some 1.2 to 1.6 times higher; the board's DWT.CYCCNT gives the real figure.
@@ -24,6 +28,7 @@ mod app {
     use firmware::readout::Readout;
     use firmware::sample::{OutputSample, TurnaroundKind, TurnaroundSample};
     use firmware::signal::compensation::{Coefficients, CompensationSettings};
+    use firmware::signal::output::dither_model::PickoffSample;
     use micromath::F32Ext;
 
     const TIMER_HZ: f64 = 84e6;
@@ -99,11 +104,31 @@ mod app {
                 }
             }
         }
-        // Output latches at 1 kHz on the same steady dither (the count and pick-off follow it).
+        // Output latches at 1 kHz on the same steady dither (the count and pick-off follow it),
+        // the pick-off stream at 40 kHz before each.
         let (mut latch_total, mut frame_total, mut latch_n) = (0u32, 0u32, 0u32);
+        let (mut stream_total, mut stream_n, mut stream_max) = (0u32, 0u32, 0u32);
         let mut frame = [0u8; MAX_OUTPUT_FRAME];
+        let pickoff = |k: u32| {
+            let t = k as f32 / 40_000.0;
+            (2048.0 + 1125.0 * (core::f32::consts::TAU * DITHER_HZ as f32 * t).sin()) as u16
+        };
         for i in 0..300u32 {
-            let t = i as f32 * 1e-3;
+            for k in 40 * i..40 * i + 40 {
+                let sample = PickoffSample {
+                    timestamp_ticks: k * 2100,
+                    code: pickoff(k),
+                };
+                let n = counter.count(|| readout.on_pickoff_sample(&config, sample));
+                if i >= 100 {
+                    stream_total += n;
+                    stream_n += 1;
+                    stream_max = stream_max.max(n);
+                }
+            }
+            // The latch half a stream period after a sample (its own conversion agrees with
+            // the model there).
+            let t = (i * 84_000 + 1_050) as f32 / TIMER_HZ as f32;
             let dither = (core::f32::consts::TAU * DITHER_HZ as f32 * t).sin();
             let count = 100_000 + (dither * EXCURSION_COUNTS as f32 / 2.0) as i32 as u32;
             let (a, b) = codes(count as f32 * core::f32::consts::FRAC_PI_2 + 0.3);
@@ -112,7 +137,7 @@ mod app {
                 adc_a_code: a,
                 adc_b_code: b,
                 pickoff_code: (2048.0 + 1125.0 * dither) as u16,
-                timestamp_ticks: i * 84_000,
+                timestamp_ticks: i * 84_000 + 1_050,
                 drive_locked: true,
             };
             let mut record = None;
@@ -130,6 +155,7 @@ mod app {
             }
         }
         let per_latch = latch_total / latch_n.max(1);
+        let per_stream_sample = stream_total / stream_n.max(1);
         let per_frame = frame_total / latch_n.max(1);
 
         let per_minus = minus_total / minus_n.max(1);
@@ -144,8 +170,19 @@ mod app {
         defmt::info!("turnaround (-): {=u32} instructions; cycle-closing turnaround (+): {=u32} instructions ({=u32} cycles closed)", per_minus, per_plus, plus_n);
         let per_cycle = per_minus + per_plus;
         defmt::info!("per dither cycle: {=u32} instructions = {=u32} per mille of 168 M instructions/s at 389 Hz, {=u32} per mille at 1 kHz", per_cycle, per_cycle * 389 / 168_000, per_cycle * 1000 / 168_000);
-        defmt::info!("output latch: {=u32} instructions; its frame (COBS + CRC-32): {=u32}; sync edge to frame ready: {=u32} instructions = {=u32} ns at 168 MHz and 1 instruction per cycle", per_latch, per_frame, per_latch + per_frame, (per_latch + per_frame) * 1000 / 168);
-        semihosting::process::exit(if plus_n > 100 && latch_n == 200 { 0 } else { 1 })
+        defmt::info!("pick-off stream sample: {=u32} instructions on average, {=u32} at most (a window's close); at 40 kHz {=u32} per mille of 168 M instructions/s", per_stream_sample, stream_max, per_stream_sample * 40_000 / 168_000);
+        let modelled = record_status_model(&readout, &config);
+        defmt::info!("output latch: {=u32} instructions; its frame (COBS + CRC-32): {=u32}; sync edge to frame ready: {=u32} instructions = {=u32} ns at 168 MHz and 1 instruction per cycle (dither model valid: {=bool})", per_latch, per_frame, per_latch + per_frame, (per_latch + per_frame) * 1000 / 168, modelled);
+        semihosting::process::exit(if plus_n > 100 && latch_n == 200 && modelled {
+            0
+        } else {
+            1
+        })
+    }
+
+    /// The dither model was valid for the latches measured.
+    fn record_status_model(readout: &Readout, config: &firmware::readout::ReadoutConfig) -> bool {
+        readout.dither_model_status(config).valid
     }
 }
 

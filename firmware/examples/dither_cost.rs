@@ -29,6 +29,7 @@ mod app {
     use firmware::dither::{DitherConfig, DitherController, DitherState};
     use firmware::icount::{InstructionCounter, Timer};
     use firmware::profile::BoardProfile;
+    use firmware::signal::output::dither_model::PickoffSample;
 
     firmware::bind_board_interrupts!();
 
@@ -85,6 +86,22 @@ mod app {
         });
         let dac_write = counter.count(|| {
             dac.dhr12r1().write(|w| unsafe { w.bits(2048) });
+        });
+        // The pick-off stream's part (`board::dither::on_tick` and `isr::tim4`): both counters
+        // read together for the sample's stamp, the sample into its queue.
+        let tim2 = unsafe { &*pac::TIM2::ptr() };
+        let queue = cortex_m::singleton!(: heapless::spsc::Queue<PickoffSample, 129> =
+            heapless::spsc::Queue::new())
+        .unwrap();
+        let (mut producer, _consumer) = queue.split();
+        let stream = counter.count(|| {
+            let (t2, t4) =
+                cortex_m::interrupt::free(|_| (tim2.cnt().read().bits(), tim4.cnt().read().bits()));
+            let sample = PickoffSample {
+                timestamp_ticks: t2.wrapping_sub(t4),
+                code: 2048,
+            };
+            core::hint::black_box(producer.enqueue(sample).is_ok());
         });
 
         // 389 Hz, tau = 2Q / w0 = 0.818 s, ring-up rate 1650 arcsec/s = 4125 codes/s at the limit.
@@ -237,9 +254,10 @@ mod app {
             dac_code
         );
         defmt::info!(
-            "TIM4 handler register part: {=u32} (pick-off) + {=u32} (DAC write) instructions",
+            "TIM4 handler register part: {=u32} (pick-off) + {=u32} (DAC write) instructions; the pick-off stream's stamp and queue: {=u32}",
             registers,
-            dac_write
+            dac_write,
+            stream
         );
         defmt::info!(
             "on_tick in the DITHER lock, locked: common {=u32} mean / {=u32} max ({=u32} ticks), half cycle {=u32} mean / {=u32} max ({=u32})",

@@ -11,6 +11,23 @@
 //! Q32 fringes, the wrapping [`units::Phase`]); generic bit-exact maths in [`math`].
 #![cfg_attr(not(test), no_std)]
 #![warn(missing_docs)]
+// No panics on the product path, in every module (the board's register code included): no
+// unwrap, expect, panic, unreachable or slice indexing. Where the input comes from outside the
+// board (the protocol, the service, the storage), integer arithmetic is checked, wrapping or
+// saturating too (`clippy::arithmetic_side_effects` in those modules); the signal chain's
+// integers are bounded codes and sums, and its phases wrap by design (`wrapping_*`). Each
+// exception is allowed where it stands, with its reason. Tests may panic.
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::panic,
+        clippy::indexing_slicing,
+        clippy::unreachable,
+        clippy::todo
+    )
+)]
 
 mod flags;
 

@@ -17,9 +17,11 @@
 //! - The output latch (a sync edge, or the internal output rate) latches an [`OutputSample`]
 //!   and calls [`Readout::on_output_latch`]: stages 1 and 3 as for a turnaround, less the
 //!   lock-in corrections of the cycles closed so far, then stage 6's dither stripping with the
-//!   modelled dither at the latch and the fixed-rate [`OutputRecord`]. The pick-off samples up
-//!   to the latch must have been handed over first (the board's readout task drains the
-//!   stream up to the latch's tick).
+//!   modelled dither at the latch and the fixed-rate [`OutputRecord`]. The model is the one
+//!   the stream handed over so far made (the board's readout task takes each output latch
+//!   before the pick-off samples queued behind it, so a record waits for no backlog; the model
+//!   evaluates its sine at the latch's own instant, and a fit a millisecond older is the same
+//!   sine).
 //!
 //! Coefficients (immutable, `Copy`) live in [`ReadoutConfig`]; the state in [`Readout`]. New
 //! compensation settings are staged with [`Readout::stage_compensation`] and take effect whole
@@ -286,9 +288,7 @@ impl Readout {
             status = status.union(OutputStatus::COMPENSATION_ON);
         }
         let model = &config.output.model;
-        let dither = self
-            .model
-            .estimate(model, sample.pickoff_tick, sample.pickoff_offset_ticks);
+        let dither = self.model.estimate(model, sample.timestamp_ticks);
         match &dither {
             None => status = status.union(OutputStatus::NO_DITHER_MODEL),
             Some(d) => {

@@ -49,14 +49,9 @@ pub struct OutputSample {
     /// Photodiode channel B (~sin psi_H), 12-bit ADC code.
     pub adc_b_code: u16,
     /// The dither pick-off, 12-bit ADC code, converted at the latch (checked against the model
-    /// of the pick-off stream, `signal::output::dither_model`, which gives the dither angle).
+    /// of the pick-off stream, `signal::output::dither_model`, which gives the dither angle at
+    /// `timestamp_ticks`).
     pub pickoff_code: u16,
-    /// The drive tick of the last pick-off stream sample at or before the latch (wrapping;
-    /// the `tick` of `signal::output::dither_model::PickoffSample`).
-    pub pickoff_tick: u32,
-    /// Capture-timer ticks from that sample's sampling instant to the latch's (0 to one
-    /// drive tick: 2100 on the F405).
-    pub pickoff_offset_ticks: u32,
     /// Capture timer value at the latch (free-running, wraps; extended to 64 bits downstream).
     pub timestamp_ticks: u32,
     /// The dither drive was locked and its supervisor saw no fault (as in

@@ -658,15 +658,16 @@ fn feed_readout(
     }
     let mut stream = fed.pickoff.iter().peekable();
     for latch in fed.latches {
-        let last = latch.sample.pickoff_tick;
-        // Up to the latch's tick (wrapping ticks: at or before it).
-        while let Some(s) = stream.next_if(|s| last.wrapping_sub(s.tick) < u32::MAX / 2) {
-            readout.on_pickoff_sample(config, *s);
-        }
         if !fed.mark.is_empty() {
             readout.mark_output(fed.mark);
         }
+        // As the board's readout task: the latch with the model as the stream so far made it,
+        // then the stream up to the latch (wrapping timer ticks: at or before it).
         on_output(latch, readout.on_output_latch(config, latch.sample));
+        let at = latch.sample.timestamp_ticks;
+        while let Some(s) = stream.next_if(|s| at.wrapping_sub(s.timestamp_ticks) < u32::MAX / 2) {
+            readout.on_pickoff_sample(config, *s);
+        }
     }
     for s in stream {
         readout.on_pickoff_sample(config, *s);

@@ -444,8 +444,8 @@ pub struct AllanArgs {
     pub confidence: f64,
     /// Fit the noise terms to the taus from this one on, s (0..=1e6; 0: every tau). A dithered
     /// gyro's output holds what is left of the dither at taus of a few dither periods, which is
-    /// none of the IEEE 952 noises: ten periods is a safe start.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    /// none of the IEEE 952 noises: the default, 0.03 s, is ten periods of a 330 Hz dither.
+    #[arg(long, default_value_t = 0.03, allow_negative_numbers = true)]
     pub min_fit_tau_s: f64,
     /// Write the deviation as CSV (tau_s,adev_deg_h,ci_low_deg_h,ci_high_deg_h).
     #[arg(long)]

@@ -155,6 +155,7 @@ pub fn boot<F: NorFlash>(
 /// timer and trigger checks, [`super::selftest`]), the dither drive (its pick-off check first,
 /// then, enabled, it finds the resonance and locks by itself; inhibited if a check failed),
 /// interrupts, then the main loop. Needs [`crate::bind_board_interrupts`] in the binary.
+#[allow(clippy::unwrap_used)] // at reset, once: the peripherals and the static queues are taken for the first time
 pub fn run() -> ! {
     let profile = BoardProfile::F405;
     let mut cp = cortex_m::Peripherals::take().unwrap();

@@ -52,6 +52,7 @@ use super::resources::DITHER;
 use super::turnaround::DRIVE_LOCKED;
 use crate::dither::DitherState;
 use crate::profile::BoardProfile;
+use crate::signal::output::dither_model::PickoffSample;
 
 /// TIM4 reload: 84 MHz / 2100 = 40 kHz, the profile's drive tick.
 pub const TIM4_ARR: u32 = BoardProfile::F405.drive_tick_period_timer_ticks() - 1;
@@ -141,13 +142,23 @@ pub fn force_mid(dac: &pac::dac::RegisterBlock, mid_code: u16) {
     dac.dhr12r1().write(|w| unsafe { w.bits(mid_code as u32) });
 }
 
-/// The drive tick: the pick-off code to the controller, its DAC code to the holding register.
+/// The drive tick: the pick-off code to the controller, its DAC code to the holding register;
+/// returns the code stamped with TIM2's time of this tick's update edge (the pick-off stream's
+/// sample, on the output latches' time base: their stamps are their compare edges, and both
+/// conversions follow their edge by the same aperture).
 #[inline(always)]
 pub fn on_tick(
     tim: &pac::tim3::RegisterBlock,
     adc3: &pac::adc1::RegisterBlock,
     dac: &pac::dac::RegisterBlock,
-) {
+    tim2: &pac::tim2::RegisterBlock,
+) -> PickoffSample {
+    // The update edge in TIM2's time: both timers count the same 84 MHz clock, TIM4 from 0 at
+    // its update. The two reads are taken together (a latch between them would move one by
+    // its handler's time); their own spacing is a constant offset of a few ticks, the same for
+    // every sample (a fixed phase the stripping's quadrature tap takes up).
+    let (tim2_now, tim4_now) =
+        cortex_m::interrupt::free(|_| (tim2.cnt().read().bits(), tim.cnt().read().bits()));
     let code = take_pickoff(tim, adc3);
     TICKS.fetch_add(1, Ordering::Relaxed);
     DITHER.lock(|task| {
@@ -157,4 +168,8 @@ pub fn on_tick(
         let locked = task.controller.state() == DitherState::Locked;
         DRIVE_LOCKED.store(locked, Ordering::Relaxed);
     });
+    PickoffSample {
+        timestamp_ticks: tim2_now.wrapping_sub(tim4_now),
+        code,
+    }
 }

@@ -265,7 +265,11 @@ impl NorFlash for InternalFlash {
         writable(offset, bytes.len() as u32)?;
         self.unlocked(|f| {
             bytes.chunks_exact(4).enumerate().try_for_each(|(i, w)| {
-                let word = u32::from_le_bytes([w[0], w[1], w[2], w[3]]);
+                let word = match *w {
+                    [b0, b1, b2, b3] => u32::from_le_bytes([b0, b1, b2, b3]),
+                    // chunks_exact(4): every chunk is four bytes.
+                    _ => return Err(FlashError::NotAligned),
+                };
                 f.program_word(offset + 4 * i as u32, word)
             })
         })

@@ -10,8 +10,9 @@ use core::sync::atomic::Ordering;
 use cortex_m::peripheral::NVIC;
 
 use super::resources::{
-    self, LATCH_SIDE, OUTPUT_LATCHES_DROPPED, OUTPUT_LATCH_SIDE, OUTPUT_RECORDS_DROPPED, READOUT,
-    READOUT_TASK_IRQ, RECORDS_DROPPED, SCHEDULER, TURNAROUNDS_DROPPED,
+    self, LATCH_SIDE, OUTPUT_LATCHES_DROPPED, OUTPUT_LATCH_SIDE, OUTPUT_RECORDS_DROPPED,
+    PICKOFF_SAMPLES_DROPPED, PICKOFF_SIDE, READOUT, READOUT_TASK_IRQ, RECORDS_DROPPED, SCHEDULER,
+    TURNAROUNDS_DROPPED,
 };
 use super::turnaround::Latched;
 use super::{adc, dither, pac, turnaround, usart};
@@ -60,12 +61,26 @@ pub fn adc() {
     NVIC::pend(READOUT_TASK_IRQ);
 }
 
-/// `TIM4` (CC1): the dither drive tick.
+/// `TIM4` (CC1): the dither drive tick, and the pick-off stream's sample.
 pub fn tim4() {
     // SAFETY: TIM4's SR, ADC3's SR/JDR1 and the DAC's DHR12R1 are used by this handler only
-    // after start-up (and by the main loop's store pause, with this interrupt masked).
-    let (tim, adc3, dac) = unsafe { (&*pac::TIM4::ptr(), &*pac::ADC3::ptr(), &*pac::DAC::ptr()) };
-    dither::on_tick(tim, adc3, dac);
+    // after start-up (and by the main loop's store pause, with this interrupt masked); TIM2's
+    // and TIM4's counters are only read.
+    let (tim, adc3, dac, tim2) = unsafe {
+        (
+            &*pac::TIM4::ptr(),
+            &*pac::ADC3::ptr(),
+            &*pac::DAC::ptr(),
+            &*pac::TIM2::ptr(),
+        )
+    };
+    let sample = dither::on_tick(tim, adc3, dac, tim2);
+    // SAFETY: this handler is the only producer.
+    if let Some(queue) = unsafe { PICKOFF_SIDE.get() } {
+        if queue.enqueue(sample).is_err() {
+            PICKOFF_SAMPLES_DROPPED.fetch_add(1, Ordering::Relaxed);
+        }
+    }
 }
 
 /// `TIM2`: a pick-off edge.
@@ -114,6 +129,10 @@ pub fn readout_task() {
             task.readout.break_output_chain();
         }
         let timing_fault = super::watch::TIMING_FAULT.load(Ordering::Relaxed);
+        // Each output latch first, with the dither model as the stream so far made it (the
+        // model evaluates its sine at the latch's own instant: a fit a millisecond older is the
+        // same sine), then the stream up to it: the record's latency is the latch's own work,
+        // not a backlog of pick-off samples.
         while let Some(sample) = task.output_samples.dequeue() {
             if timing_fault {
                 task.readout.mark_output(OutputStatus::TIMING_FAULT);
@@ -122,6 +141,22 @@ pub fn readout_task() {
             if task.outputs.enqueue(record).is_err() {
                 OUTPUT_RECORDS_DROPPED.fetch_add(1, Ordering::Relaxed);
             }
+            if let Some(lag) = task.readout.pickoff_lag_ticks(&task.config) {
+                turnaround::publish_pickoff_lag(lag);
+            }
+            let at = sample.timestamp_ticks;
+            while task
+                .pickoff
+                .peek()
+                .is_some_and(|p| at.wrapping_sub(p.timestamp_ticks) < u32::MAX / 2)
+            {
+                if let Some(p) = task.pickoff.dequeue() {
+                    task.readout.on_pickoff_sample(&task.config, p);
+                }
+            }
+        }
+        while let Some(p) = task.pickoff.dequeue() {
+            task.readout.on_pickoff_sample(&task.config, p);
         }
         while let Some(sample) = task.samples.dequeue() {
             if let Some(record) = task.readout.on_turnaround(&task.config, sample) {

@@ -81,7 +81,7 @@ impl SerialTx for BoardPorts {
     fn send(&mut self, mut bytes: &[u8]) {
         while !bytes.is_empty() {
             let n = self.serial.write(bytes);
-            bytes = &bytes[n..];
+            bytes = bytes.get(n..).unwrap_or_default();
             self.serial.kick();
             if !bytes.is_empty() {
                 self.refresh_watchdog();

@@ -9,12 +9,12 @@
 //! | context | vector | prio | work | worst case |
 //! |---|---|---|---|---|
 //! | latch | `ADC` (JEOC, OVR) | 0x00 | an overrun restarts the photodiode stream; copy ADC1/ADC2 JDR1, ADC3 DR (after its EOC), TIM5 CCR3, TIM2 CCR1 into a `TurnaroundSample` or an `OutputSample`, arm the next compare (`LatchPlan`, re-anchored from TIM2/TIM4), enqueue, pend the readout task | ~150 instr, 1.6 us; 480 instr, 4.7 us with ADC3's full EOC poll |
-//! | dither drive tick | `TIM4` (CC1, 40 kHz) | 0x10 | ADC3 JDR1 (pick-off) -> `DitherController::on_tick` -> DAC DHR12R1 | 18 + 232 instr, 2.5 us; at the end of a half dither cycle 18 + 1243, 12.0 us |
+//! | dither drive tick | `TIM4` (CC1, 40 kHz) | 0x10 | ADC3 JDR1 (pick-off) -> `DitherController::on_tick` -> DAC DHR12R1; the code, stamped with TIM2's time of the tick, into the pick-off stream | 18 + 232 instr, 2.5 us; at the end of a half dither cycle 18 + 1243, 12.0 us (see docs/board.md for the stream's share) |
 //! | pick-off and sync | `TIM2` (CC3/CC4, CC2) | 0x20 | edge time -> predicted turnaround -> `CCR1`; a sync edge (or the internal output period) -> the output latch's compare (`super::sync`) | 55 instr, 0.7 us (both edges pending: 1.1 us) |
 //! | serial | `USART1` | 0x30 | RX byte -> RX queue; TX queue -> DR | 35 + 20 per byte, 0.9 us |
 //! | Lissajous block | `DMA2_STREAM0` (HT/TC) | 0x40 | mark a half buffer ready, pend the readout task | 44 instr (static count), 0.6 us |
 //! | ms tick | `SysTick` | 0x40 | millisecond counter for the protocol's timeouts | 10 instr |
-//! | readout task | `EXTI1` (software-pended, no EXTI line routed) | 0x50 | `on_output_latch` per queued output latch (1999 instr), `on_turnaround` per queued sample (1106 / 1786 instr) + rate shift (71), `on_lissajous_sample` per pair (129; 51 573 at a window solve), `CycleRecord` out | 18 us per turnaround; 0.33 ms per block, 0.82 ms with a solve |
+//! | readout task | `EXTI1` (software-pended, no EXTI line routed) | 0x50 | the pick-off stream up to each queued output latch (`on_pickoff_sample`), `on_output_latch` per queued output latch, `on_turnaround` per queued sample + rate shift, `on_lissajous_sample` per pair (51 573 at a window solve), `CycleRecord` out; costs in docs/board.md | 18 us per turnaround; 0.33 ms per block, 0.82 ms with a solve |
 //! | main loop | thread | - | protocol (line -> parse -> `Executor`), rate averaging (716 instr per cycle), calibration run (3 910), stream frame (921), flash store, watchdog | preemptible |
 //!
 //! Rate-monotonic reasoning: the turnaround latch has no deadline of its own (the hardware holds
@@ -35,7 +35,11 @@
 //! # Shared state
 //! - ISR -> readout task: `TurnaroundSample`s through a heapless SPSC queue (16 entries = 8
 //!   dither cycles of slack), `OutputSample`s through another (8 entries: 8 ms at 1 kHz; a loss
-//!   makes the next record a restart); Lissajous halves through an atomic bit mask (`adc`).
+//!   makes the next record a restart), the drive tick's pick-off codes through a third (128
+//!   entries, 3.2 ms; a loss is a gap the dither model sees by the timestamps); Lissajous
+//!   halves through an atomic bit mask (`adc`).
+//! - readout task -> pick-off handler: the pick-off's measured lag through an `AtomicI32`
+//!   (`turnaround::PICKOFF_LAG_TICKS`).
 //! - readout task -> main loop: `OutputRecord`s through an SPSC queue (64 entries; a loss is a
 //!   gap in the records' sequence numbers, which the host counts).
 //! - The latch's compare plan (`turnaround::PLAN`, a `LatchPlan`) is shared by the pick-off
@@ -53,9 +57,9 @@
 //!   section.
 //!
 //! # CPU load (docs/board.md has the derivation)
-//! At 389 Hz dither: 14.1 % of 168 MHz (dither drive 10.8 %, turnaround chain 1.6 %, Lissajous
-//! stream 1.7 %); with a calibration run and the binary stream on every cycle: 17.1 %. At
-//! 1 kHz: 17.7 %; with a calibration run and the stream on every second cycle: 23.4 %.
+//! At a 389 Hz dither and a 1 kHz output: 21.6 % of 168 MHz (dither drive 10.0 %, the pick-off
+//! stream's model 5.2 %, output latches 2.8 %, turnarounds 2.0 %, Lissajous stream 1.7 %);
+//! with a calibration run and the binary stream on every cycle: 23.8 %.
 
 use crate::millis::Millis;
 use core::cell::UnsafeCell;
@@ -71,6 +75,7 @@ use crate::readout::{Readout, ReadoutConfig};
 use crate::sample::{OutputSample, TurnaroundSample};
 use crate::service::record_queue::{LossyProducer, Tagged};
 use crate::signal::lockin::CycleRecord;
+use crate::signal::output::dither_model::PickoffSample;
 use crate::signal::output::record::OutputRecord;
 use crate::storage::DitherSetpoints;
 use pac::Interrupt;
@@ -100,6 +105,9 @@ const TURNAROUND_QUEUE: usize = 17; // 16 usable
 const RECORD_QUEUE: usize = 33; // 32 usable
 const OUTPUT_LATCH_QUEUE: usize = 9; // 8 usable: 8 ms at a 1 kHz sync
 const OUTPUT_RECORD_QUEUE: usize = 65; // 64 usable: 64 ms at a 1 kHz sync
+/// The pick-off stream: 128 samples, 3.2 ms at 40 kHz, against the readout task's period (a
+/// half dither cycle or an output period, 1.7 ms at most from 300 Hz and a 1 kHz output).
+const PICKOFF_QUEUE: usize = 129;
 
 /// Turnarounds lost because the readout task fell 16 behind.
 pub static TURNAROUNDS_DROPPED: AtomicU32 = AtomicU32::new(0);
@@ -110,6 +118,10 @@ pub static RECORDS_DROPPED: AtomicU32 = AtomicU32::new(0);
 pub static OUTPUT_LATCHES_DROPPED: AtomicU32 = AtomicU32::new(0);
 /// Output records the main loop did not take in time: gaps in the records' sequence numbers.
 pub static OUTPUT_RECORDS_DROPPED: AtomicU32 = AtomicU32::new(0);
+/// Pick-off stream samples dropped on a full queue (the readout task held off for over
+/// 3.2 ms): the dither model sees the gap in their timestamps and starts afresh, the output
+/// meanwhile invalid (`NO_DITHER_MODEL`).
+pub static PICKOFF_SAMPLES_DROPPED: AtomicU32 = AtomicU32::new(0);
 /// Milliseconds since start (SysTick), 64 bits: never wraps.
 static MILLIS: Millis = Millis::new();
 
@@ -169,6 +181,8 @@ pub struct ReadoutTask {
     pub output_samples: Consumer<'static, OutputSample>,
     /// The task's end of the output record queue (64 entries), emptied by the main loop.
     pub outputs: Producer<'static, OutputRecord>,
+    /// The task's end of the pick-off stream (128 entries), filled by the drive tick.
+    pub pickoff: Consumer<'static, PickoffSample>,
     /// [`OUTPUT_LATCHES_DROPPED`] as last seen: a change breaks the output chain.
     pub output_latches_dropped_seen: u32,
 }
@@ -198,10 +212,13 @@ pub static READOUT: PriorityLock<ReadoutTask> = PriorityLock::new(priority::READ
 pub static LATCH_SIDE: Owned<Producer<'static, TurnaroundSample>> = Owned::new();
 /// The latch's end of the output latch queue (owner: `isr::adc`).
 pub static OUTPUT_LATCH_SIDE: Owned<Producer<'static, OutputSample>> = Owned::new();
+/// The drive tick's end of the pick-off stream (owner: `isr::tim4`).
+pub static PICKOFF_SIDE: Owned<Producer<'static, PickoffSample>> = Owned::new();
 /// The pick-off handler's prediction state (owner: `isr::tim2`).
 pub static SCHEDULER: Owned<turnaround::Scheduler> = Owned::new();
 
 /// Creates the queues and the readout; returns the main loop's ends of the record queues.
+#[allow(clippy::unwrap_used)] // at reset, once: the peripherals and the static queues are taken for the first time
 pub fn init_readout(config: ReadoutConfig, readout: Readout) -> ReadoutQueues {
     let samples =
         cortex_m::singleton!(: Queue<TurnaroundSample, TURNAROUND_QUEUE> = Queue::new()).unwrap();
@@ -211,6 +228,10 @@ pub fn init_readout(config: ReadoutConfig, readout: Readout) -> ReadoutQueues {
         cortex_m::singleton!(: Queue<OutputSample, OUTPUT_LATCH_QUEUE> = Queue::new()).unwrap();
     let outputs =
         cortex_m::singleton!(: Queue<OutputRecord, OUTPUT_RECORD_QUEUE> = Queue::new()).unwrap();
+    let pickoff =
+        cortex_m::singleton!(: Queue<PickoffSample, PICKOFF_QUEUE> = Queue::new()).unwrap();
+    let (pickoff_in, pickoff_out) = pickoff.split();
+    PICKOFF_SIDE.init(pickoff_in);
     let (sample_in, sample_out) = samples.split();
     let (record_in, record_out) = records.split();
     let (output_sample_in, output_sample_out) = output_samples.split();
@@ -224,6 +245,7 @@ pub fn init_readout(config: ReadoutConfig, readout: Readout) -> ReadoutQueues {
         records: LossyProducer::new(record_in),
         output_samples: output_sample_out,
         outputs: output_in,
+        pickoff: pickoff_out,
         output_latches_dropped_seen: 0,
     });
     ReadoutQueues {

@@ -85,6 +85,7 @@ fn regs() -> &'static pac::usart1::RegisterBlock {
 
 /// Configures USART1 and its pins (clocks for USART1 and GPIOA must be on) and returns the main
 /// loop's side. Call once; the caller unmasks `USART1` in the NVIC afterwards.
+#[allow(clippy::unwrap_used)] // at reset, once: the peripherals and the static queues are taken for the first time
 pub fn init(usart: pac::USART1) -> SerialPort {
     super::Port::A.alternate(9, 7);
     super::Port::A.alternate_pull_up(10, 7);

@@ -119,7 +119,9 @@ impl FitAccumulator {
         ];
         const PAIRS: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
         for (c, (i, j)) in self.comoment.iter_mut().zip(PAIRS) {
-            *c += before[i] * after[j];
+            #[allow(clippy::indexing_slicing)] // PAIRS holds indices of the 3-arrays
+            let term = before[i] * after[j];
+            *c += term;
         }
         true
     }

@@ -137,6 +137,7 @@ impl Tracker {
 
     /// One cycle: output y (rad), P1, P2 (s). `usable` false (inside the dead band, a flagged
     /// cycle) freezes the estimate and its covariance. Non-finite input is ignored.
+    #[allow(clippy::indexing_slicing)] // indices count over the 3-vectors and the 3 x 3 covariance
     pub fn update(
         &mut self,
         config: &TrackingConfig,

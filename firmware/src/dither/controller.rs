@@ -235,7 +235,7 @@ impl DitherController {
     }
 
     /// Runs the power-up self-test from `Off` (at the next tick): a sweep of the search range
-    /// at a low drive that must make the pick-off ring ([`super::self_test`]). Passed, the
+    /// at a low drive that must make the pick-off ring (`dither::self_test`). Passed, the
     /// drive starts if it is wanted on ([`Self::enable`], before or during the test); failed,
     /// the drive is inhibited. Does nothing unless `Off` and not inhibited.
     pub fn start_self_test(&mut self) {

@@ -103,6 +103,7 @@ pub fn atan2_q32(y: i32, x: i32) -> Phase {
 
 /// `atan(small / big)` in Q32 turns for `big >= small >= 0`, `big > 0`: in [0, 2^29].
 #[inline]
+#[allow(clippy::indexing_slicing)] // i runs 1..=CORDIC_ITERATIONS over a table of CORDIC_ITERATIONS + 1
 fn cordic_first_octant(big: u32, small: u32) -> u32 {
     // The octant edges exactly (the iterations would dither around them by a few LSB).
     if small == 0 {

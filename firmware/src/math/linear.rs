@@ -6,6 +6,7 @@ use super::scalar::{abs_f64, max_f64, positive};
 /// Gauss-Jordan elimination with partial pivoting of a 5x5 system given as an augmented
 /// 5x6 matrix (the right-hand side in column 5; the matrix is overwritten). `None` if a pivot
 /// falls below 1e-12 of the largest diagonal entry, or the solution is not finite.
+#[allow(clippy::indexing_slicing)] // row and column indices count over the 5 x 6 array
 pub fn solve5(a: &mut [[f64; 6]; 5]) -> Option<[f64; 5]> {
     let mut scale: f64 = 0.0;
     for (i, row) in a.iter().enumerate() {

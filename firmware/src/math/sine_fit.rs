@@ -104,11 +104,14 @@ impl SineSums {
         self.sx += x;
         self.sc += cos_q15;
         self.ss += sin_q15;
-        self.scc += (cos_q15 * cos_q15) as i64;
-        self.scs += (cos_q15 * sin_q15) as i64;
-        self.sss += (sin_q15 * sin_q15) as i64;
-        self.sxc += (x * cos_q15) as i64;
-        self.sxs += (x * sin_q15) as i64;
+        // Widened before the product: one multiply-accumulate (SMLAL) each on the M4, the same
+        // exact integer as the product widened after.
+        let (x, c, s) = (i64::from(x), i64::from(cos_q15), i64::from(sin_q15));
+        self.scc += c * c;
+        self.scs += c * s;
+        self.sss += s * s;
+        self.sxc += x * c;
+        self.sxs += x * s;
     }
 
     /// Adds another window's sums (exact: integer sums). The caller keeps the total at or

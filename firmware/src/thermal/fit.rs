@@ -73,7 +73,9 @@ impl FitError {
 }
 
 /// Solves the symmetric system `a x = b` of size `n` (Gauss-Jordan with partial pivoting).
+#[allow(clippy::indexing_slicing)] // row and column indices count below n, clamped to N
 fn solve<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N], n: usize) -> Option<[f64; N]> {
+    let n = n.min(N);
     for col in 0..n {
         let pivot = (col..n).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
         if a[pivot][col].abs() <= 1e-12 || a[pivot][col].is_nan() {
@@ -179,15 +181,17 @@ impl BiasFit {
             return;
         }
         let mut row = [0.0; UNKNOWNS];
-        row[..TERMS].copy_from_slice(&self.integral);
-        row[TERMS + self.stretch] = 1.0;
-        for i in 0..UNKNOWNS {
-            if row[i] == 0.0 {
-                continue;
-            }
-            self.aty[i] += row[i] * self.error_arcsec;
-            for j in 0..UNKNOWNS {
-                self.ata[i][j] += row[i] * row[j];
+        for (r, i) in row.iter_mut().zip(self.integral) {
+            *r = i;
+        }
+        if let Some(offset) = row.get_mut(TERMS + self.stretch) {
+            *offset = 1.0;
+        }
+        let rows = self.ata.iter_mut().zip(self.aty.iter_mut()).zip(row);
+        for ((ata_row, aty), ri) in rows.filter(|(_, ri)| *ri != 0.0) {
+            *aty += ri * self.error_arcsec;
+            for (a, rj) in ata_row.iter_mut().zip(row) {
+                *a += ri * rj;
             }
         }
     }
@@ -223,26 +227,29 @@ impl BiasFit {
         let unknowns = TERMS + self.stretch + 1 - usize::from(!rate_fitted);
         let mut a = [[0.0; UNKNOWNS]; UNKNOWNS];
         let mut b = [0.0; UNKNOWNS];
-        for i in 0..unknowns {
-            b[i] = self.aty[keep[i]];
-            for j in 0..unknowns {
-                a[i][j] = self.ata[keep[i]][keep[j]];
+        let rows = a.iter_mut().zip(b.iter_mut()).zip(keep).take(unknowns);
+        for ((a_row, b_i), ki) in rows {
+            *b_i = self.aty.get(ki).copied().unwrap_or(0.0);
+            let source = self.ata.get(ki);
+            for (a_ij, kj) in a_row.iter_mut().zip(keep).take(unknowns) {
+                *a_ij = source.and_then(|r| r.get(kj)).copied().unwrap_or(0.0);
             }
         }
         let x = solve(a, b, unknowns).ok_or(FitError::Singular)?;
-        let mut bias = [0.0; 4];
-        for (k, c) in bias.iter_mut().enumerate() {
-            *c = x[k]
-                / [
-                    1.0,
-                    X_SCALE_C,
-                    X_SCALE_C * X_SCALE_C,
-                    X_SCALE_C * X_SCALE_C * X_SCALE_C,
-                ][k];
-        }
+        let [c0, c1, c2, c3, c_rate, ..] = x;
+        let bias = [
+            c0,
+            c1 / X_SCALE_C,
+            c2 / (X_SCALE_C * X_SCALE_C),
+            c3 / (X_SCALE_C * X_SCALE_C * X_SCALE_C),
+        ];
         Ok(BiasResult {
             bias_deg_h: bias,
-            bias_deg_h_per_c_per_min: if rate_fitted { x[4] / RATE_SCALE } else { 0.0 },
+            bias_deg_h_per_c_per_min: if rate_fitted {
+                c_rate / RATE_SCALE
+            } else {
+                0.0
+            },
             rate_fitted,
             min_c: self.min_c,
             max_c: self.max_c,
@@ -269,15 +276,15 @@ pub fn fit_scale(reference_c: f64, points: &[(f64, f64)]) -> Result<[f64; 3], Fi
     for &(t, ppm) in points {
         let x = (t - reference_c) / X_SCALE_C;
         let phi = [1.0, x, x * x];
-        for i in 0..3 {
-            b[i] += phi[i] * ppm;
-            for j in 0..3 {
-                a[i][j] += phi[i] * phi[j];
+        for ((a_row, b_i), pi) in a.iter_mut().zip(b.iter_mut()).zip(phi) {
+            *b_i += pi * ppm;
+            for (a_ij, pj) in a_row.iter_mut().zip(phi) {
+                *a_ij += pi * pj;
             }
         }
     }
-    let x = solve(a, b, 3).ok_or(FitError::Singular)?;
-    Ok([x[0], x[1] / X_SCALE_C, x[2] / (X_SCALE_C * X_SCALE_C)])
+    let [s0, s1, s2] = solve(a, b, 3).ok_or(FitError::Singular)?;
+    Ok([s0, s1 / X_SCALE_C, s2 / (X_SCALE_C * X_SCALE_C)])
 }
 
 /// The model of a bias fit and a scale-factor fit (`scale`: ppm per °C^k), valid over the

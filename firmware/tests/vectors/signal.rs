@@ -313,7 +313,14 @@ pub fn output_stage(out: &mut Outputs) {
         // The pick-off stream up to the latch.
         while tick_s(tick) <= t {
             let code = (pickoff_at(tick_s(tick)) + rng.f32_in(-1.0, 1.0)) as u16;
-            readout.on_pickoff_sample(&config, PickoffSample { tick, code });
+            let timestamp_ticks = tick * 2100;
+            readout.on_pickoff_sample(
+                &config,
+                PickoffSample {
+                    timestamp_ticks,
+                    code,
+                },
+            );
             tick += 1;
         }
         let psi_q32 = psi_at(t);
@@ -322,14 +329,11 @@ pub fn output_stage(out: &mut Outputs) {
         let encoder_count = (psi_q32 >> 30) as u32;
         let timestamp_ticks = (t as f64 * 84e6) as u32;
         if is_sync {
-            let last = tick - 1;
             let sample = OutputSample {
                 encoder_count,
                 adc_a_code,
                 adc_b_code,
                 pickoff_code: (pickoff_at(t) + rng.f32_in(-1.0, 1.0)) as u16,
-                pickoff_tick: last,
-                pickoff_offset_ticks: ((t - tick_s(last)) * 84e6) as u32,
                 timestamp_ticks,
                 drive_locked: true,
             };
@@ -393,10 +397,10 @@ pub fn dither_model(out: &mut Outputs) {
         let (phase, offset) = (rng.f32_in(-3.0, 3.0), rng.f32_in(-40.0, 40.0));
         let mut model = DitherModel::new();
         model.seed(&config, hz + rng.f32_in(-0.5, 0.5));
-        let mut tick = rng.u32();
+        let mut timestamp_ticks = rng.u32();
         for k in 0..8_000u32 {
             if k == 5_000 {
-                tick = tick.wrapping_add(100); // a gap
+                timestamp_ticks = timestamp_ticks.wrapping_add(100 * 2100); // a gap
             }
             if k == 6_000 {
                 model.seed(&config, hz + 3.0); // far: restarts
@@ -404,10 +408,16 @@ pub fn dither_model(out: &mut Outputs) {
             let t = k as f32 / 40_000.0;
             let x = amp * libm::cosf(core::f32::consts::TAU * hz * t + phase);
             let code = (2048.0 + offset + x + rng.f32_in(-1.5, 1.5)) as u16;
-            model.push(&config, PickoffSample { tick, code });
+            model.push(
+                &config,
+                PickoffSample {
+                    timestamp_ticks,
+                    code,
+                },
+            );
             if k % 97 == 0 {
-                let offset_ticks = rng.i32_in(0, 2099) as u32;
-                match model.estimate(&config, tick, offset_ticks) {
+                let at = timestamp_ticks.wrapping_add(rng.i32_in(0, 2099) as u32);
+                match model.estimate(&config, at) {
                     Some(e) => {
                         out.f32(e.in_phase_codes);
                         out.f32(e.quadrature_codes);
@@ -422,7 +432,7 @@ pub fn dither_model(out: &mut Outputs) {
                 out.f32(s.amplitude_codes);
                 out.u32(s.restarts);
             }
-            tick = tick.wrapping_add(1);
+            timestamp_ticks = timestamp_ticks.wrapping_add(2100);
         }
     }
 }

@@ -183,7 +183,6 @@ impl SimBoard {
         let stream = PickoffStream::new(
             f64::from(profile.drive_tick_hz),
             f64::from(profile.aperture_delay_ticks) / config.timer_hz,
-            config.timer_hz,
         );
         let psi_h0 = gyro.advance_to(0.0) - gyro.eps_rad(0.0);
         let counter = QuadratureCounter::new(&config.photodiodes, config.counter, psi_h0)
@@ -293,7 +292,8 @@ impl SimBoard {
                     // TIM4 stopped: no conversion of the pick-off, a gap in the stream.
                     self.stream.skip_next();
                 } else {
-                    self.stream.take_next(&mut self.pickoff, &self.gyro);
+                    self.stream
+                        .take_next(&mut self.pickoff, &self.gyro, &self.timer);
                 }
                 continue;
             }
@@ -311,15 +311,12 @@ impl SimBoard {
                 self.next_sync_s = ((t * hz).round() + 1.0) / hz;
             } else if sync_first {
                 self.sync_edges += 1;
-                let (pickoff_tick, pickoff_offset_ticks) = self.stream.reference(t);
                 self.outputs.push(OutputLatch {
                     sample: OutputSample {
                         encoder_count: self.counter.count(),
                         adc_a_code: codes.a_code,
                         adc_b_code: codes.b_code,
                         pickoff_code: self.pickoff.sample_latch_code(&self.gyro, t),
-                        pickoff_tick,
-                        pickoff_offset_ticks,
                         timestamp_ticks: self.timer.ticks_at(t),
                         drive_locked: true,
                     },
@@ -346,7 +343,7 @@ impl SimBoard {
     }
 
     /// Hands over the pick-off stream's conversions up to the board's time since the last call
-    /// (in tick order; an output latch's `pickoff_tick` names the last one before it).
+    /// (in time order, on the capture timer's time base like the output latches).
     pub fn drain_pickoff_samples(&mut self, into: &mut Vec<PickoffSample>) {
         self.stream.drain(into);
     }

@@ -8,6 +8,7 @@
 //! handed them on, so the drive and the readout see the same conversion, as on the board, and
 //! the noise draws follow the tick order whoever asks.
 
+use crate::clock::CaptureTimer;
 use crate::gyro::Gyro;
 use crate::pickoff::Pickoff;
 use firmware::signal::output::dither_model::PickoffSample;
@@ -23,7 +24,6 @@ pub(super) struct PickoffStream {
     tick_hz: f64,
     /// Drive tick edge to the conversion's sampling instant, s.
     delay_s: f64,
-    timer_hz: f64,
     /// Codes of ticks `first..first + cache.len()`, converted ahead of the board's time (the
     /// drive asked) or not yet handed over.
     cache: VecDeque<u16>,
@@ -35,13 +35,11 @@ pub(super) struct PickoffStream {
 }
 
 impl PickoffStream {
-    /// Ticks at `tick_hz` from t = 0, each sampled `delay_s` after its edge, timed by a capture
-    /// timer at `timer_hz`.
-    pub(super) fn new(tick_hz: f64, delay_s: f64, timer_hz: f64) -> Self {
+    /// Ticks at `tick_hz` from t = 0, each sampled `delay_s` after its edge.
+    pub(super) fn new(tick_hz: f64, delay_s: f64) -> Self {
         Self {
             tick_hz,
             delay_s,
-            timer_hz,
             cache: VecDeque::new(),
             first: 0,
             next: 0,
@@ -79,15 +77,16 @@ impl PickoffStream {
         self.cache[(n - self.first) as usize]
     }
 
-    /// Hands the next tick's conversion over.
-    pub(super) fn take_next(&mut self, pickoff: &mut Pickoff, gyro: &Gyro) {
+    /// Hands the next tick's conversion over, stamped by `timer` at its sampling instant (the
+    /// output latches' time base: their stamps are their sampling instants too).
+    pub(super) fn take_next(&mut self, pickoff: &mut Pickoff, gyro: &Gyro, timer: &CaptureTimer) {
         let n = self.next;
         let code = self.code(pickoff, gyro, n);
         while self.first <= n && self.cache.pop_front().is_some() {
             self.first += 1;
         }
         self.taken.push(PickoffSample {
-            tick: n as u32,
+            timestamp_ticks: timer.ticks_at(self.instant_s(n)),
             code,
         });
         self.next += 1;
@@ -100,14 +99,6 @@ impl PickoffStream {
             self.first += 1;
         }
         self.next += 1;
-    }
-
-    /// The stream's reference for a latch sampled at `t_s`: the last tick handed over (at or
-    /// before `t_s`) and the capture-timer ticks from its sampling instant to `t_s`.
-    pub(super) fn reference(&self, t_s: f64) -> (u32, u32) {
-        let last = self.next.wrapping_sub(1);
-        let offset_s = (t_s - self.instant_s(last)).max(0.0);
-        (last as u32, (offset_s * self.timer_hz).round() as u32)
     }
 
     /// Moves the conversions handed over since the last call into `into` (cleared first).
