@@ -14,7 +14,7 @@
 //!   (plus 1 % and 1 s), however the records' sequence numbers and times jump.
 //!
 //! The first byte picks the part; the rest is its input. For the output recording the input is
-//! read as records: 40 bytes of payload (as on the wire, without COBS and CRC, so that every
+//! read as records: 38 bytes of payload (as on the wire, without COBS and CRC, so that every
 //! field value reaches the writer) and 2 bytes of milliseconds the host's clock advances.
 
 use std::io::{self, Write};
@@ -117,7 +117,7 @@ fn check_capture(data: &[u8]) {
     let _ = capture.mean_rates(&SCALE);
 }
 
-fn record_from(bytes: &[u8; 40]) -> OutputRecord {
+fn record_from(bytes: &[u8; 38]) -> OutputRecord {
     let u64_at = |i: usize| u64::from_le_bytes(bytes[i..i + 8].try_into().expect("8 bytes"));
     let u32_at = |i: usize| u32::from_le_bytes(bytes[i..i + 4].try_into().expect("4 bytes"));
     OutputRecord {
@@ -128,8 +128,8 @@ fn record_from(bytes: &[u8; 40]) -> OutputRecord {
         angle_q16: u64_at(24) as i64,
         rate_deg_per_h: f32::from_bits(u32_at(32)),
         status: OutputStatus(u16::from_le_bytes([bytes[36], bytes[37]])),
-        temperature_q7: i16::from_le_bytes([bytes[38], bytes[39]]),
-        temperature_rate_centi_c_per_min: i16::from_le_bytes([bytes[38], bytes[39]]),
+        temperature_q7: firmware::thermal::state::NO_VALUE,
+        temperature_rate_centi_c_per_min: firmware::thermal::state::NO_VALUE,
     }
 }
 
@@ -139,9 +139,9 @@ fn check_recording(data: &[u8]) {
     let mut received = Duration::ZERO;
     let mut first = None;
     let mut records = 0usize;
-    for chunk in data.chunks_exact(42) {
-        let payload: &[u8; 40] = chunk[..40].try_into().expect("40 bytes");
-        received += Duration::from_millis(u16::from_le_bytes([chunk[40], chunk[41]]).into());
+    for chunk in data.chunks_exact(40) {
+        let payload: &[u8; 38] = chunk[..38].try_into().expect("38 bytes");
+        received += Duration::from_millis(u16::from_le_bytes([chunk[38], chunk[39]]).into());
         first.get_or_insert(received);
         rows.push(&record_from(payload), received)
             .expect("in memory");

@@ -329,7 +329,7 @@ impl<'a, L: Link> Device<'a, L> {
         if gaps.lost > 0 {
             eprintln!(
                 "rlg-cal: {} records lost (sequence gaps, marked in the CSV): the link is slower \
-                 than the output (46 bytes per record)",
+                 than the output (44 bytes per record)",
                 gaps.lost
             );
         }

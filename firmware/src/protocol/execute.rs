@@ -31,7 +31,7 @@ use super::commands::access::AccessState;
 use super::commands::calibration::CalibrationState;
 use super::commands::info::{self, StatusFlags};
 use super::commands::provenance::Provenance;
-use super::commands::stream::StreamState;
+use super::commands::stream::{StreamState, StreamedOutput};
 use super::commands::{dither, settings, storage, Answer};
 use super::confirm::{needs_confirmation, Canonical};
 use super::parse::{Command, DitherCommand};
@@ -142,12 +142,18 @@ impl Executor {
     /// Every output record (from the output latch's context, through the service): the frame
     /// to send when the output is streamed, with the tracking bit set while the tracker runs
     /// (the readout does not know it).
-    pub fn on_output(&self, record: &OutputRecord) -> Option<OutputRecord> {
-        let mut record = self.stream.on_output(record)?;
-        if self.tracking() {
-            record.status = record.status.union(OutputStatus::TRACKING);
+    pub fn on_output(&mut self, record: &OutputRecord) -> Option<StreamedOutput> {
+        let tracking = self.tracking();
+        let mut out = self.stream.on_output(record)?;
+        if tracking {
+            out.record.status = out.record.status.union(OutputStatus::TRACKING);
         }
-        Some(record)
+        Some(out)
+    }
+
+    /// A thermal frame of the output stream could not be sent: the next record gets one.
+    pub fn thermal_frame_lost(&mut self) {
+        self.stream.thermal_frame_lost();
     }
 
     /// Executes one command from a line: a state-changing one without a CRC is not executed
@@ -561,11 +567,12 @@ mod tests {
         };
         assert_eq!(e.on_output(&record), None);
         assert!(run(&mut e, &mut d, "stream output").starts_with("OK stream=output"));
-        assert_eq!(e.on_output(&record), Some(record));
+        assert_eq!(e.on_output(&record).map(|o| o.record), Some(record));
         assert!(run(&mut e, &mut d, &unlock_line()).starts_with("OK"));
         assert!(run(&mut e, &mut d, "track on").starts_with("OK"));
         let sent = e.on_output(&record).unwrap();
         assert!(sent
+            .record
             .status
             .contains(OutputStatus::TRACKING.union(OutputStatus::VALID)));
     }

@@ -10,39 +10,24 @@
 //!  20  i32  delta angle     Q16 fringes: LSB 2^-16 fringe (2.85e-5 arcsec at 1.8655 arcsec/fringe)
 //!  24  i64  angle           Q16 fringes, integrated over the valid periods
 //!  32  f32  rate            deg/h over the period
-//!  36  u16  status          OutputStatus bits (bit 0 VALID)
-//!  38  i16  thermal         even sequence: the temperature, 1/128 °C (the TMP117's own LSB);
-//!                           odd sequence: its rate, 0.01 °C/min; -32768: none
+//!  36  u16  status          OutputStatus bits (bit 0 VALID; 11 thermal sensor fault, 12
+//!                           thermally corrected)
 //! ```
 //!
-//! 40 bytes of payload, 46 on the wire: 46.0 kB/s at a 1 kHz sync, which 460800 baud
-//! (46.08 kB/s of 8N1 bytes) carries; a 2 kHz sync needs 1 Mbaud or more (the F405's USART1
-//! does 10.5 Mbit/s).
+//! 38 bytes of payload, 44 on the wire: 44 kB/s at a 1 kHz sync, which 460800 baud (46.08 kB/s)
+//! carries; a 2 kHz sync needs 1 Mbaud or more (the F405's USART1 does 10.5 Mbit/s).
 //!
-//! # The thermal word: one field, two quantities
-//!
-//! The temperature and its rate need 16 bits each, but four more bytes would make the frame
-//! 48 bytes, 48 kB/s at the default 1 kHz output: more than 460800 baud carries. So one word
-//! alternates by the record's sequence number: the temperature in even records, the rate in odd
-//! ones. Both change far slower than the records come (the sensor gives 8 results a second), so
-//! a receiver has both, each at most one record old; the sequence number in the same frame
-//! says which it is, a lost record included. The status word carries the sensor's fault and
-//! whether the model corrected the record (bits 11 and 12) in every record.
-//!
-//! # Older frames
-//!
-//! A receiver accepts both lengths: a 38-byte payload is an older firmware's frame (no
-//! thermal word: both quantities none). The frame's CRC covers its own length, so one cannot
-//! be taken for the other.
+//! The block's temperature and its rate travel in the same stream, in a frame of their own
+//! sent when they change ([`super::thermal_frame`], which says why); a receiver reads both
+//! kinds with [`OutputStreamDecoder`], which gives each record the values in force for it.
 
 use super::cobs::{self, FrameError};
+use super::thermal_frame::{decode_thermal_frame, ThermalFrame, THERMAL_FRAME};
 use crate::signal::output::record::{OutputRecord, OutputStatus};
 use crate::thermal::state::NO_VALUE;
 
 /// Payload bytes.
-pub const OUTPUT_PAYLOAD: usize = 40;
-/// Payload bytes of an older firmware's frame (no thermal word).
-pub const OUTPUT_PAYLOAD_V1: usize = 38;
+pub const OUTPUT_PAYLOAD: usize = 38;
 /// The most output records a board makes per second: five times the fastest sync it is
 /// documented for (2 kHz, which already needs 1 Mbaud). A receiver believes no gap that would
 /// need records faster than this.
@@ -59,20 +44,10 @@ fn to_bytes(r: &OutputRecord) -> [u8; OUTPUT_PAYLOAD] {
     b[24..32].copy_from_slice(&r.angle_q16.to_le_bytes());
     b[32..36].copy_from_slice(&r.rate_deg_per_h.to_le_bytes());
     b[36..38].copy_from_slice(&r.status.0.to_le_bytes());
-    b[38..40].copy_from_slice(&thermal_word(r).to_le_bytes());
     b
 }
 
-/// The thermal word of a record: the temperature in even records, the rate in odd ones.
-pub fn thermal_word(r: &OutputRecord) -> i16 {
-    if r.sequence.is_multiple_of(2) {
-        r.temperature_q7
-    } else {
-        r.temperature_rate_centi_c_per_min
-    }
-}
-
-fn from_bytes(b: &[u8; OUTPUT_PAYLOAD], thermal: bool) -> OutputRecord {
+fn from_bytes(b: &[u8; OUTPUT_PAYLOAD]) -> OutputRecord {
     // The fields' offsets lie inside the payload (a fixed layout): `get` never misses.
     let u64_at = |i: usize| {
         u64::from_le_bytes(
@@ -92,7 +67,7 @@ fn from_bytes(b: &[u8; OUTPUT_PAYLOAD], thermal: bool) -> OutputRecord {
         )
     };
     let (period_ticks, delta, rate) = (u32_at(16), u32_at(20), u32_at(32));
-    let mut record = OutputRecord {
+    OutputRecord {
         sequence,
         time_ticks,
         period_ticks,
@@ -102,39 +77,61 @@ fn from_bytes(b: &[u8; OUTPUT_PAYLOAD], thermal: bool) -> OutputRecord {
         status: OutputStatus(u16::from_le_bytes([b[36], b[37]])),
         temperature_q7: NO_VALUE,
         temperature_rate_centi_c_per_min: NO_VALUE,
-    };
-    if thermal {
-        let word = i16::from_le_bytes([b[38], b[39]]);
-        if sequence.is_multiple_of(2) {
-            record.temperature_q7 = word;
-        } else {
-            record.temperature_rate_centi_c_per_min = word;
-        }
     }
-    record
 }
 
-/// Encodes a record's frame into `out`; returns its length (delimiter included).
+/// Encodes a record's frame into `out`; returns its length (delimiter included). The
+/// record's temperature and rate are not in it ([`super::thermal_frame`]).
 pub fn encode_output_frame(record: &OutputRecord, out: &mut [u8; MAX_OUTPUT_FRAME]) -> usize {
     cobs::encode(&to_bytes(record), out)
 }
 
-/// Decodes one frame (without its 0x00 delimiter): this firmware's, or an older one's
-/// without the thermal word. A decoded record holds the one thermal quantity its frame
-/// carries; the other is `NO_VALUE`.
+/// Decodes one record's frame (without its 0x00 delimiter); the temperature and its rate are
+/// none (the stream's thermal frames carry them: [`OutputStreamDecoder`]).
 pub fn decode_output_frame(encoded: &[u8]) -> Result<OutputRecord, FrameError> {
     let mut payload = [0u8; OUTPUT_PAYLOAD];
-    match cobs::decode(encoded, &mut payload) {
-        Ok(()) => Ok(from_bytes(&payload, true)),
-        Err(FrameError::Malformed) => {
-            let mut older = [0u8; OUTPUT_PAYLOAD_V1];
-            cobs::decode(encoded, &mut older)?;
-            if let Some(head) = payload.get_mut(..OUTPUT_PAYLOAD_V1) {
-                head.copy_from_slice(&older);
-            }
-            Ok(from_bytes(&payload, false))
+    cobs::decode(encoded, &mut payload)?;
+    Ok(from_bytes(&payload))
+}
+
+/// A thermal frame's length without its delimiter.
+const THERMAL_ENCODED: usize = THERMAL_FRAME - 1;
+
+/// One frame of the output stream.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum OutputStreamFrame {
+    /// A record, with the temperature and rate of the thermal frame in force for it.
+    Record(OutputRecord),
+    /// New thermal values (already taken into account for the records that follow).
+    Thermal(ThermalFrame),
+}
+
+/// The receiver of the output stream: records and thermal frames, told apart by length.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct OutputStreamDecoder {
+    thermal: Option<ThermalFrame>,
+}
+
+impl OutputStreamDecoder {
+    /// Decodes one 0x00-delimited chunk (without the delimiter).
+    pub fn decode(&mut self, encoded: &[u8]) -> Result<OutputStreamFrame, FrameError> {
+        // A record's frame is 43 bytes without its delimiter, a thermal frame 17: the length
+        // says which to try.
+        if encoded.len() == THERMAL_ENCODED {
+            let frame = decode_thermal_frame(encoded)?;
+            self.thermal = Some(frame);
+            return Ok(OutputStreamFrame::Thermal(frame));
         }
-        Err(e) => Err(e),
+        let mut record = decode_output_frame(encoded)?;
+        if let Some(thermal) = &self.thermal {
+            thermal.fill(&mut record);
+        }
+        Ok(OutputStreamFrame::Record(record))
+    }
+
+    /// Forgets the thermal values (a new stream: they come again before its first record).
+    pub fn restart(&mut self) {
+        self.thermal = None;
     }
 }
 
@@ -197,8 +194,7 @@ mod tests {
         }
     }
 
-    /// A frame carries the temperature in even records and the rate in odd ones: the decoded
-    /// record holds that one (the other none), and everything else exactly.
+    /// A record's frame carries every field but the thermal values, exactly.
     #[test]
     fn round_trip_and_no_zero_inside_a_frame() {
         for seq in [0, 1, 255, 256, 1 << 40, u64::MAX] {
@@ -208,30 +204,55 @@ mod tests {
             assert_eq!(n, MAX_OUTPUT_FRAME);
             assert_eq!(buf[n - 1], 0);
             assert!(buf[..n - 1].iter().all(|&b| b != 0));
-            let mut want = r;
-            if seq % 2 == 0 {
-                want.temperature_rate_centi_c_per_min = NO_VALUE;
-                assert_eq!(want.temperature_c(), Some(-20.0 + 3.0 / 128.0));
-            } else {
-                want.temperature_q7 = NO_VALUE;
-                assert_eq!(want.temperature_rate_c_per_min(), Some(-1.5));
-            }
+            let want = OutputRecord {
+                temperature_q7: NO_VALUE,
+                temperature_rate_centi_c_per_min: NO_VALUE,
+                ..r
+            };
             assert_eq!(decode_output_frame(&buf[..n - 1]), Ok(want));
         }
     }
 
-    /// An older firmware's 38-byte frame decodes, with no thermal quantities.
+    /// The board's framer and the host's decoder together: every record decodes with the
+    /// values it carried on the board; a stream of an older firmware (records only) decodes
+    /// with none.
     #[test]
-    fn an_older_frame_without_the_thermal_word_decodes() {
-        let r = record(6);
-        let mut older = [0u8; OUTPUT_PAYLOAD_V1 + 6];
-        let n = cobs::encode(&to_bytes(&r)[..OUTPUT_PAYLOAD_V1], &mut older);
-        let want = OutputRecord {
-            temperature_q7: NO_VALUE,
-            temperature_rate_centi_c_per_min: NO_VALUE,
-            ..r
-        };
-        assert_eq!(decode_output_frame(&older[..n - 1]), Ok(want));
+    fn the_stream_carries_every_records_thermal_values() {
+        use crate::protocol::thermal_frame::{encode_thermal_frame, ThermalFramer, THERMAL_FRAME};
+        let mut framer = ThermalFramer::default();
+        let mut decoder = OutputStreamDecoder::default();
+        let mut older = OutputStreamDecoder::default();
+        let (mut thermal_frames, mut bytes) = (0, 0);
+        for seq in 0..2000u64 {
+            let mut r = record(seq);
+            r.temperature_q7 = 3000 + (seq / 125) as i16;
+            r.temperature_rate_centi_c_per_min = if seq < 300 { NO_VALUE } else { 48 };
+            if let Some(f) = framer.before(&r) {
+                let mut buf = [0u8; THERMAL_FRAME];
+                let n = encode_thermal_frame(&f, &mut buf);
+                assert!(matches!(
+                    decoder.decode(&buf[..n - 1]),
+                    Ok(OutputStreamFrame::Thermal(_))
+                ));
+                thermal_frames += 1;
+                bytes += n;
+            }
+            let mut buf = [0u8; MAX_OUTPUT_FRAME];
+            let n = encode_output_frame(&r, &mut buf);
+            bytes += n;
+            assert_eq!(
+                decoder.decode(&buf[..n - 1]),
+                Ok(OutputStreamFrame::Record(r))
+            );
+            let Ok(OutputStreamFrame::Record(old)) = older.decode(&buf[..n - 1]) else {
+                panic!("a record");
+            };
+            assert_eq!((old.temperature_c(), old.sequence), (None, seq));
+        }
+        // 2 s at 1 kHz, the temperature changing 8 times a second, the rate known after
+        // 0.3 s: 16 + 1 frames, 44 bytes per record and 18 per thermal frame.
+        assert_eq!(thermal_frames, 17);
+        assert_eq!(bytes, 2000 * 44 + 17 * 18);
     }
 
     /// Any single corrupted byte is caught (COBS structure or CRC), never misread.

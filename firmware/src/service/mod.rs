@@ -42,6 +42,7 @@ use crate::protocol::line::{LineAssembler, LineEvent, MAX_LINE};
 use crate::protocol::link::KeyWriteError;
 use crate::protocol::output_frame::{encode_output_frame, MAX_OUTPUT_FRAME};
 use crate::protocol::stream::{encode_frame, MAX_FRAME};
+use crate::protocol::thermal_frame::{encode_thermal_frame, THERMAL_FRAME};
 use crate::readout::ReadoutConfig;
 use crate::signal::compensation::CompensationSettings;
 use crate::signal::lockin::CycleRecord;
@@ -304,13 +305,27 @@ impl<F: NorFlash> Service<F> {
     /// One fixed-rate output record: sent as a frame when the output is streamed (`stream
     /// output`), queued whole or dropped and counted; a dropped record shows to the host as a
     /// gap in the records' own sequence numbers.
+    ///
+    /// A thermal frame goes first when the record's temperature or rate is new to the host
+    /// (`protocol::thermal_frame`); when it finds no room the record is dropped too (it would
+    /// find none either) and the next record gets the thermal frame.
     pub fn on_output<P: SerialTx>(&mut self, record: &OutputRecord, ports: &mut P) {
-        if let Some(record) = self.executor.on_output(record) {
-            let mut buf = [0u8; MAX_OUTPUT_FRAME];
-            let n = encode_output_frame(&record, &mut buf);
+        let Some(out) = self.executor.on_output(record) else {
+            return;
+        };
+        if let Some(thermal) = out.thermal {
+            let mut buf = [0u8; THERMAL_FRAME];
+            let n = encode_thermal_frame(&thermal, &mut buf);
             if !ports.try_send_frame(buf.get(..n).unwrap_or(&buf)) {
+                self.executor.thermal_frame_lost();
                 self.frames_dropped = self.frames_dropped.saturating_add(1);
+                return;
             }
+        }
+        let mut buf = [0u8; MAX_OUTPUT_FRAME];
+        let n = encode_output_frame(&out.record, &mut buf);
+        if !ports.try_send_frame(buf.get(..n).unwrap_or(&buf)) {
+            self.frames_dropped = self.frames_dropped.saturating_add(1);
         }
     }
 
