@@ -40,7 +40,7 @@ use super::answers::{check_answer, split_output, LineCounter};
 use super::events::{BLANK_OTP, CYCLES, FAIL_STORE, NEW_SESSION, OUTPUTS, RESET, TICK, TICK_SHORT};
 use super::protocol::IDENTITY;
 
-/// Two sectors of 512 bytes: room for five records each, so stores soon erase.
+/// Two sectors of 512 bytes: room for three records each, so stores soon erase.
 type Ram = RamFlash<2, 512>;
 
 /// The RAM flash with a failure to inject: the next write fails.

@@ -331,7 +331,8 @@ impl Harness {
     /// Puts a thermal model in force (`None`: none) in the harness's own thermal state.
     pub fn set_thermal_model(&mut self, model: Option<ThermalModel>) {
         if let Some(state) = &mut self.thermal {
-            let input = state.set_model(model, self.config.output.scale_factor_arcsec);
+            let sf = self.config.output.scale_factor_arcsec;
+            let input = state.set_model(model, model.is_some(), sf);
             self.readout.set_thermal(input);
         }
     }

@@ -32,6 +32,7 @@ use super::commands::calibration::CalibrationState;
 use super::commands::info::{self, StatusFlags};
 use super::commands::provenance::Provenance;
 use super::commands::stream::{StreamState, StreamedOutput};
+use super::commands::thermal::{self, ThermalEdit};
 use super::commands::{dither, settings, storage, Answer};
 use super::confirm::{needs_confirmation, Canonical};
 use super::parse::{Command, DitherCommand};
@@ -55,6 +56,8 @@ pub struct Executor {
     calibration: CalibrationState,
     provenance: Provenance,
     stream: StreamState,
+    /// The thermal model being edited (`thermal range|bias|sf`).
+    thermal_edit: ThermalEdit,
     /// A state-changing command typed without a CRC, echoed, waiting for `yes`.
     pending: Option<Command>,
 }
@@ -81,6 +84,7 @@ impl Executor {
             calibration: CalibrationState::new(limits),
             provenance: Provenance::new(report, fit, boot_count),
             stream: StreamState::default(),
+            thermal_edit: ThermalEdit::default(),
             pending: None,
         }
     }
@@ -252,7 +256,7 @@ impl Executor {
                 Ok(info::status(id, device, flags))
             }
             Command::SelfTest => Ok(info::selftest(device)),
-            Command::Thermal => Ok(info::thermal(device)),
+            Command::Thermal(c) => thermal::command(&mut self.thermal_edit, device, p, c),
             Command::Get(which) => Ok(info::get(id, device, which)),
             Command::Set(which, value) => settings::set(device, p, which, value),
             Command::Compensation(on) => Ok(settings::compensation(device, p, on)),
@@ -313,6 +317,7 @@ fn protected(command: &Command) -> bool {
             | Command::Reload
             | Command::Defaults
     ) || matches!(command, Command::Dither(c) if *c != DitherCommand::Status)
+        || matches!(command, Command::Thermal(c) if !c.is_read())
 }
 
 #[cfg(test)]

@@ -147,6 +147,11 @@ impl<F: NorFlash> Service<F> {
         let (record, report) = store.load_for_serial(&mut flash, config.identity.serial_number);
         // Saturating: a counter never wraps in the field.
         let boots = boot_count.unwrap_or(record.boot_count.saturating_add(1));
+        let mut thermal = ThermalState::new();
+        if let Some(stored) = record.thermal {
+            let sf = config.readout.output.scale_factor_arcsec;
+            thermal.set_model(Some(stored.model), stored.enabled, sf);
+        }
         let service = Self {
             executor: Executor::new(&report, record.fit, boots, AcceptanceLimits::DEFAULT),
             line: LineAssembler::new(),
@@ -154,7 +159,7 @@ impl<F: NorFlash> Service<F> {
             status: DeviceStatus::default(),
             frames_dropped: 0,
             saved_wrong_keys: 0,
-            thermal: ThermalState::new(),
+            thermal,
             config,
             flash,
             store,
@@ -256,7 +261,7 @@ impl<F: NorFlash> Service<F> {
             store: &self.store,
             serial_number: self.config.identity.serial_number,
             status: self.status,
-            thermal: self.thermal,
+            thermal: &mut self.thermal,
             ports,
         };
         let answer = endpoint::answer(
@@ -338,17 +343,6 @@ impl<F: NorFlash> Service<F> {
         ports.with_readout(|r| r.set_thermal(input));
     }
 
-    /// Puts a thermal model in force (`None`: none), applied to the next records.
-    pub fn set_thermal_model<P: ReadoutAccess>(
-        &mut self,
-        model: Option<ThermalModel>,
-        ports: &mut P,
-    ) {
-        let sf = self.config.readout.output.scale_factor_arcsec;
-        let input = self.thermal.set_model(model, sf);
-        ports.with_readout(|r| r.set_thermal(input));
-    }
-
     /// The thermal state.
     pub fn thermal(&self) -> &ThermalState {
         &self.thermal
@@ -413,7 +407,7 @@ struct ServiceDevice<'a, F, P> {
     /// This board's gyro: records of another are not loaded.
     serial_number: u32,
     status: DeviceStatus,
-    thermal: ThermalState,
+    thermal: &'a mut ThermalState,
     ports: &'a mut P,
 }
 
@@ -484,7 +478,13 @@ impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess + Secrets> DeviceLink
     }
 
     fn thermal(&mut self) -> ThermalState {
-        self.thermal
+        *self.thermal
+    }
+
+    fn set_thermal_model(&mut self, model: Option<ThermalModel>, enabled: bool) {
+        let sf = self.readout.output.scale_factor_arcsec;
+        let input = self.thermal.set_model(model, enabled, sf);
+        self.ports.with_readout(|r| r.set_thermal(input));
     }
 
     fn thermal_scale_factor_arcsec(&mut self) -> f32 {

@@ -1,7 +1,7 @@
 //! Calibration storage: the compensation settings and their metadata in the two reserved flash
 //! sectors (10 and 11 of the STM32F405, 128 KiB each), surviving a power cut at any moment.
 //!
-//! Rooms: [`crc`] (CRC-32/ISO-HDLC), [`record`] (the 80-byte record, its byte layout and
+//! Rooms: [`crc`] (CRC-32/ISO-HDLC), [`record`] (the 144-byte record, its byte layout and
 //! checks), [`store`] (the two-sector log), [`ram_flash`] (NOR flash in RAM, for QEMU and host
 //! tests). Flash access goes only through
 //! `embedded_storage::nor_flash::NorFlash`; everything else is plain logic, tested on the host
@@ -10,10 +10,10 @@
 //! # Scheme: an append-only log over two sectors
 //! Each store appends one record, with a sequence number one above the highest valid one in
 //! either sector, to the sector written last, at the end of its used part. When that sector is
-//! full (1638 records of 80 bytes per 128 KiB sector) the other sector is erased and the record
+//! full (910 records of 144 bytes per 128 KiB sector) the other sector is erased and the record
 //! goes to its start. `load` scans both sectors and takes the valid record with the highest
 //! sequence number. Erases alternate between the sectors, so they wear evenly: one erase per
-//! 1638 stores, against the F405's 10 000 cycles.
+//! 910 stores, against the F405's 10 000 cycles.
 //!
 //! A record is *valid* when its magic, length, CRC-32 and commit marker check, its format
 //! version is this firmware's and its contents are plausible. Anything else in the sectors is
@@ -66,7 +66,10 @@ pub mod ram_flash;
 pub mod record;
 pub mod store;
 
-pub use record::{CalibrationRecord, DitherSetpoints, FitSummary, RecordError, StripCoefficients};
+pub use record::{
+    CalibrationRecord, DitherSetpoints, FitSummary, RecordError, StripCoefficients,
+    ThermalCalibration,
+};
 pub use store::{
     CalibrationStore, DefaultsReason, Geometry, GeometryError, LoadOutcome, LoadReport,
     SkippedFrame, StoreError,

@@ -25,6 +25,9 @@ pub const MAX_BIAS_DEG_H: f32 = 100.0;
 /// Largest scale-factor correction a plausible model makes anywhere in its range, ppm.
 pub const MAX_SCALE_PPM: f32 = 10_000.0;
 
+/// The first [`TEMPERATURES`] of [`ThermalModel::NAMES`] are temperatures (°C).
+pub const TEMPERATURES: usize = 3;
+
 /// The model's coefficients (immutable once applied; the protocol edits a copy).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

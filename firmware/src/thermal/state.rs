@@ -120,20 +120,15 @@ impl ThermalState {
         self.refresh(scale_factor_arcsec)
     }
 
-    /// Puts `model` in force (`None`: no model), switched on.
+    /// Puts `model` in force (`None`: no model), switched on (`enabled`) or off.
     pub fn set_model(
         &mut self,
         model: Option<ThermalModel>,
+        enabled: bool,
         scale_factor_arcsec: f32,
     ) -> ThermalInput {
         self.model = model;
-        self.enabled = model.is_some();
-        self.refresh(scale_factor_arcsec)
-    }
-
-    /// Switches the model in force on or off.
-    pub fn set_enabled(&mut self, on: bool, scale_factor_arcsec: f32) -> ThermalInput {
-        self.enabled = on;
+        self.enabled = enabled && model.is_some();
         self.refresh(scale_factor_arcsec)
     }
 

@@ -14,9 +14,10 @@ use crate::protocol::respond::Response;
 use crate::signal::compensation::Coefficients;
 
 const HELP: &str =
-    "commands: id status selftest thermal get{a|b|coeffs} set{a|b}<rad/s> comp{on|off} track{on|off} \
+    "commands: id status selftest get{a|b|coeffs} set{a|b}<rad/s> comp{on|off} track{on|off} \
 cal{start<n>[<warmup>]|status|abort|result|accept} store reload defaults stream{on[<n>]|output|off} \
-dither{on|off|amp<arcsec>|noise<percent>|status} unlock<key> lock key{provision<key>} help";
+dither{on|off|amp<arcsec>|noise<percent>|status} thermal[model|range<t_ref><t_min><t_max>|\
+bias<b0><b1><b2><b3><b_rate>|sf<s0><s1><s2>|apply|on|off] unlock<key> lock key{provision<key>} help";
 
 /// What `status` reports of the executor's own state.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -107,40 +108,6 @@ pub fn selftest<D: DeviceLink>(device: &mut D) -> Response {
         drive,
         Unmodelled(health.emulated),
     ))
-}
-
-/// `thermal`: the block's temperature (°C, the sensor's last result), its rate (°C/min), the
-/// sensor's state, the sensor faults since boot, and whether the thermal model is applied now
-/// (`applied`, or why not), with its bias (deg/h) and scale-factor (ppm) corrections when it is.
-pub fn thermal<D: DeviceLink>(device: &mut D) -> Response {
-    let t = device.thermal();
-    let mut r = Response::ok();
-    match t.temperature_c() {
-        Some(c) => r.field(format_args!("temp_c={c:.4}")),
-        None => r.field(format_args!("temp_c=none")),
-    };
-    match t.rate_c_per_s() {
-        Some(rate) => r.field(format_args!("rate_c_min={:.3}", rate * 60.0)),
-        None => r.field(format_args!("rate_c_min=none")),
-    };
-    let _ = r.field(format_args!(
-        "sensor={} sensor_faults={} model={}",
-        t.sensor().name(),
-        t.faults(),
-        t.model_state().name()
-    ));
-    if let Some(c) = t.input().correction {
-        let _ = r.field(format_args!(
-            "bias_deg_h={:.5} sf_ppm={:.3}",
-            c.bias_fringes_per_s * device_sf(device),
-            c.scale_error * 1e6
-        ));
-    }
-    r
-}
-
-fn device_sf<D: DeviceLink>(device: &mut D) -> f32 {
-    device.thermal_scale_factor_arcsec()
 }
 
 /// `clock=pass timers=pass ...`.
