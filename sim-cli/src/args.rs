@@ -3,8 +3,7 @@
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
 
-/// Earth rate projected on the paper's horizontal axis: 15 deg/h x cos(22.2 deg).
-pub const PAPER_RANGE_DEG_H: f64 = 13.888;
+pub use rlg_sim::experiment::PAPER_RANGE_DEG_H;
 
 #[derive(Parser, Debug)]
 #[command(
