@@ -57,7 +57,28 @@ pub struct ThermalCoefficients {
     pub eps_rad_per_c: f64,
     /// p1, relative per °C. Range [-0.01, 0.01].
     pub pickoff_gain_per_c: f64,
+    /// df0/dT of a driven dither resonator, Hz per °C (`TemperatureDrift::f0_hz_per_c`).
+    /// Range [-1, 1].
+    pub dither_hz_per_c: f64,
+    /// (dQ/dT)/Q of a driven dither resonator, per °C. Range [-0.1, 0.1].
+    pub dither_q_per_c: f64,
 }
+
+/// The largest magnitude of each coefficient ([`ThermalCoefficients::validate`]; `rlg-sim`'s
+/// flags check against the same): `reference_c` is the range's bound on T_ref instead.
+pub const LIMITS: ThermalCoefficients = ThermalCoefficients {
+    reference_c: 150.0,
+    bias_deg_h_per_c: 1.0,
+    bias_deg_h_per_c2: 0.01,
+    bias_deg_h_per_c_per_min: 1.0,
+    scale_factor_ppm_per_c: 100.0,
+    scale_factor_ppm_per_c2: 1.0,
+    lock_in_per_c: 0.01,
+    eps_rad_per_c: 0.05,
+    pickoff_gain_per_c: 0.01,
+    dither_hz_per_c: 1.0,
+    dither_q_per_c: 0.1,
+};
 
 impl ThermalCoefficients {
     /// No thermal effect.
@@ -71,11 +92,14 @@ impl ThermalCoefficients {
         lock_in_per_c: 0.0,
         eps_rad_per_c: 0.0,
         pickoff_gain_per_c: 0.0,
+        dither_hz_per_c: 0.0,
+        dither_q_per_c: 0.0,
     };
 
     /// The defaults (docs/physics.md section 13): over -20..+60 °C about 0.17 deg/h of bias
     /// change, 36 ppm of scale factor, 0.8 % of Omega_L, 0.04 rad of eps, 0.8 % of pick-off
-    /// gain, and 0.002 deg/h per °C/min of rate term.
+    /// gain, 0.002 deg/h per °C/min of rate term, and a driven resonator's f0 -0.04 Hz/°C
+    /// (a steel spring's -100 ppm/°C at 389 Hz).
     pub const DEFAULT: Self = Self {
         reference_c: 25.0,
         bias_deg_h_per_c: 0.002,
@@ -86,27 +110,69 @@ impl ThermalCoefficients {
         lock_in_per_c: 1e-4,
         eps_rad_per_c: 5e-4,
         pickoff_gain_per_c: -1e-4,
+        dither_hz_per_c: -0.04,
+        dither_q_per_c: 0.0,
     };
 
-    /// Checks every coefficient against its range.
+    /// Each coefficient with its name (as `rlg-sim`'s flags spell it after `--thermal-`) and
+    /// its largest magnitude ([`LIMITS`]).
+    pub fn each(&self) -> [(&'static str, f64, f64); 10] {
+        let l = LIMITS;
+        [
+            (
+                "bias-deg-h-per-c",
+                self.bias_deg_h_per_c,
+                l.bias_deg_h_per_c,
+            ),
+            (
+                "bias-deg-h-per-c2",
+                self.bias_deg_h_per_c2,
+                l.bias_deg_h_per_c2,
+            ),
+            (
+                "bias-deg-h-per-c-per-min",
+                self.bias_deg_h_per_c_per_min,
+                l.bias_deg_h_per_c_per_min,
+            ),
+            (
+                "sf-ppm-per-c",
+                self.scale_factor_ppm_per_c,
+                l.scale_factor_ppm_per_c,
+            ),
+            (
+                "sf-ppm-per-c2",
+                self.scale_factor_ppm_per_c2,
+                l.scale_factor_ppm_per_c2,
+            ),
+            ("lock-in-per-c", self.lock_in_per_c, l.lock_in_per_c),
+            ("eps-rad-per-c", self.eps_rad_per_c, l.eps_rad_per_c),
+            (
+                "pickoff-gain-per-c",
+                self.pickoff_gain_per_c,
+                l.pickoff_gain_per_c,
+            ),
+            ("dither-hz-per-c", self.dither_hz_per_c, l.dither_hz_per_c),
+            ("dither-q-per-c", self.dither_q_per_c, l.dither_q_per_c),
+        ]
+    }
+
+    /// Checks every coefficient against its range ([`LIMITS`]); the error names the first
+    /// one out of it.
     pub fn validate(&self) -> Result<(), ParamError> {
-        let r = |x: f64, lim: f64| x.is_finite() && x.abs() <= lim;
-        let ok = self.reference_c.is_finite()
-            && r(self.bias_deg_h_per_c, 1.0)
-            && r(self.bias_deg_h_per_c2, 0.01)
-            && r(self.bias_deg_h_per_c_per_min, 1.0)
-            && r(self.scale_factor_ppm_per_c, 100.0)
-            && r(self.scale_factor_ppm_per_c2, 1.0)
-            && r(self.lock_in_per_c, 0.01)
-            && r(self.eps_rad_per_c, 0.05)
-            && r(self.pickoff_gain_per_c, 0.01);
-        if ok {
-            Ok(())
-        } else {
-            Err(ParamError::OutOfRange(
-                "thermal coefficients: finite T_ref, |b1| <= 1, |b2| <= 0.01, |b_rate| <= 1, \\
-                 |s1| <= 100, |s2| <= 1, |l1| <= 0.01, |e1| <= 0.05, |p1| <= 0.01",
-            ))
+        let reference_ok =
+            self.reference_c.is_finite() && self.reference_c.abs() <= LIMITS.reference_c;
+        if !reference_ok {
+            return Err(ParamError::OutOfRange(
+                "thermal T_ref: within -150..=150 °C",
+            ));
+        }
+        match self
+            .each()
+            .into_iter()
+            .find(|(_, v, lim)| !(v.is_finite() && v.abs() <= *lim))
+        {
+            Some((name, _, _)) => Err(ParamError::OutOfRange(name)),
+            None => Ok(()),
         }
     }
 

@@ -25,7 +25,7 @@ use firmware::signal::lockin::{CycleOutput, CycleRecord};
 use firmware::signal::output::record::OutputRecord;
 use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use hal_sim::board::{LatchTiming, OutputLatch};
-use hal_sim::dither::resonator::ResonatorParams;
+use hal_sim::dither::resonator::{ResonatorParams, TemperatureDrift};
 use hal_sim::gyro::Speed;
 use hal_sim::harness::{DriveSource, Harness, HarnessOptions};
 use hal_sim::input::InputProfile;
@@ -206,9 +206,16 @@ pub fn start_run(
     let (params, source) = match setup.drive {
         DitherDrive::Ideal => (params, None),
         DitherDrive::ClosedLoop { .. } => {
+            let c = &params.thermal.coefficients;
             let driven = params
                 .with_steady_driven_dither(ResonatorParams {
                     f0_hz: params.dither_hz,
+                    temperature: TemperatureDrift {
+                        reference_c: c.reference_c,
+                        f0_hz_per_c: c.dither_hz_per_c,
+                        q_relative_per_c: c.dither_q_per_c,
+                        ..TemperatureDrift::NONE
+                    },
                     ..ResonatorParams::default()
                 })
                 .with_temperature(params.thermal.profile);
