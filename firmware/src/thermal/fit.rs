@@ -36,8 +36,9 @@ pub const MIN_SPAN_C: f64 = 10.0;
 pub const MIN_RATE_SPREAD_C_PER_MIN: f64 = 0.2;
 /// The fewest records a bias fit accepts.
 pub const MIN_RECORDS: u64 = 1000;
-/// Most unbroken stretches of records (each has its own offset).
-pub const MAX_STRETCHES: usize = 8;
+/// Most unbroken stretches of records (each has its own offset): a log of ramps and soaks
+/// from which the transients and the table's runs are left out has a few dozen.
+pub const MAX_STRETCHES: usize = 32;
 
 const X_SCALE_C: f64 = 50.0;
 const RATE_SCALE: f64 = 10.0;
@@ -65,7 +66,7 @@ impl FitError {
         match self {
             Self::TooFew => "too few records or points",
             Self::NarrowSpan => "temperature span under 10 C",
-            Self::TooManyStretches => "more than 8 unbroken stretches of records",
+            Self::TooManyStretches => "more than 32 unbroken stretches of records",
             Self::Singular => "singular normal equations",
             Self::Model(_) => "the fitted model is implausible",
         }
