@@ -39,12 +39,14 @@ Examples:
   rlg-cal serve-sim --tcp 127.0.0.1:7878 --board-key-file key.txt
   rlg-cal --port /dev/ttyUSB0 stream --seconds 10 --csv run.csv --svg run.svg
   rlg-cal --port /dev/ttyUSB0 record --seconds 600 --csv output.csv
+  rlg-cal --port /dev/ttyUSB0 --key-file key.txt thermal --seconds 14400 --input-rate-deg-h 13.888 \
+      --table-rate-deg-h 36000 --csv chamber.csv --apply --store
   rlg-cal --sim --sim-state board.state --key-file key.txt store
   rlg-cal sweep --calibrate --svg sweep.svg
   rlg-cal serve-sim --pty
 
-Long runs (stream, calibrate, sweep) check their output files, the key and the board (`id`)
-before they start. Ctrl-C (or SIGTERM) stops them cleanly: a stream keeps every frame received
+Long runs (stream, calibrate, record, thermal, sweep) check their output files, the key and the
+board (`id`) before they start. Ctrl-C (or SIGTERM) stops them cleanly: a stream keeps every frame received
 in its CSV and draws its SVG, a calibration is aborted on the board (`cal abort`), a sweep keeps
 the azimuths done; the summary is printed and the exit status is 130.
 
