@@ -38,6 +38,8 @@ MAX_LINE = 96                    # "Limits": bytes of a command line, its *XXXX 
 STORE_TIMEOUT_S = 2.5            # "Limits": a store may stall the board for a sector erase (2 s)
 CYCLE_PAYLOAD = 41               # "Streaming": the cycle frame's payload
 OUTPUT_PAYLOAD = 38              # "The fixed-rate output": the output frame's payload (at least)
+THERMAL_PAYLOAD = 12             # "The fixed-rate output": the thermal frame's payload
+NO_TEMPERATURE = -32768          # the thermal frame's i16 fields: no value
 Q32 = 2.0 ** 32
 Q16 = 2.0 ** 16
 # Output status bits ("The fixed-rate output").
@@ -106,6 +108,22 @@ def decode_cycle(chunk: bytes) -> dict:
     seq, end, raw, comp, p1, p2, duration, flags = struct.unpack_from("<IqqqffIB", p)
     return dict(sequence=seq, end_phase=end, raw=raw, compensated=comp, p1=p1, p2=p2,
                 duration=duration, flags=flags)
+
+
+def is_thermal(chunk: bytes) -> bool:
+    """The output stream carries two frames; a receiver tells them by length (the thermal frame's
+    payload and CRC are 16 bytes, an output record's at least 42)."""
+    return len(cobs_decode(chunk)) == THERMAL_PAYLOAD + 4
+
+
+def decode_thermal(chunk: bytes) -> dict:
+    """The block's temperature (degC) and its rate (degC/min) from record `from_sequence` on;
+    None where the board has no value."""
+    p = unframe(chunk, THERMAL_PAYLOAD)
+    first, t, rate = struct.unpack_from("<Qhh", p)
+    return dict(from_sequence=first,
+                temperature_c=None if t == NO_TEMPERATURE else t / 128.0,
+                temperature_rate_c_per_min=None if rate == NO_TEMPERATURE else rate / 100.0)
 
 
 def decode_output(chunk: bytes) -> dict:
@@ -313,12 +331,20 @@ def cycle_summary(chunks, sf_arcsec, timer_hz):
 
 
 def output_summary(chunks, sf_arcsec, timer_hz):
-    records, bad = [], 0
+    """Each record gets the temperature of the last thermal frame before it."""
+    records, bad, thermal = [], 0, None
     for c in chunks:
         try:
-            records.append(decode_output(c))
+            if is_thermal(c):
+                thermal = decode_thermal(c)
+                continue
+            r = decode_output(c)
         except ProtocolError:
             bad += 1
+            continue
+        held = thermal is not None and r["sequence"] >= thermal["from_sequence"]
+        r["temperature_c"] = thermal["temperature_c"] if held else None
+        records.append(r)
     gaps = Gaps(2 ** 64)
     for r in records:
         gaps.observe(r["sequence"])
@@ -445,6 +471,11 @@ def check(client: Client, key: str, rate_deg_h: float) -> Checks:
     c.check("output rate", abs(out["rate_deg_h"] - rate_deg_h) < 0.05,
             f"{out['rate_deg_h']:.4f} deg/h")
     c.check("compensation bit", all(r["status"] & COMPENSATION_ON for r in out["records"]))
+    # The block's temperature: a thermal frame before the stream's first record, so every record
+    # has one (the simulated board's sensor works; docs/protocol.md "The fixed-rate output").
+    temps = [r["temperature_c"] for r in out["records"]]
+    c.check("temperature in every record", n > 0 and None not in temps,
+            f"{sum(t is not None for t in temps)} of {n}, first {temps[0] if temps else None} degC")
 
     # Stores while streaming: the output whole, the drive locked (docs/protocol.md "store").
     for attempt in range(2):
@@ -547,7 +578,8 @@ def main(argv=None):
                 client.command("stream output")
                 s = output_summary(client.collect(args.seconds), sf, timer_hz)
                 print(f"records={len(s['records'])} lost={s['lost']} bad={s['bad']} "
-                      f"invalid={s['invalid']} rate_deg_h={s['rate_deg_h']:.4f}")
+                      f"invalid={s['invalid']} rate_deg_h={s['rate_deg_h']:.4f} "
+                      f"temperature_c={s['records'][-1]['temperature_c'] if s['records'] else None}")
             client.command("stream off")
         else:
             result = check(client, read_key(args.key_file), args.rate)

@@ -109,7 +109,19 @@ mod app {
             false,
             firmware::board_timing::selftest::SelfTestReport::NOT_RUN,
         );
-        serve(service, records, ports, Some("# rlg-readout ready"))
+        // The block's TMP117 on I2C1: QEMU does not model the I2C peripheral, so every transfer
+        // times out and `thermal` answers `sensor=bus` after two polls (0.1 s).
+        let sensor = firmware::thermal::tmp117::Tmp117::new(
+            firmware::board::i2c::I2c1::init(dp.I2C1, &dp.RCC),
+            firmware::thermal::tmp117::ADDRESS,
+        );
+        serve(
+            service,
+            records,
+            ports,
+            Some(sensor),
+            Some("# rlg-readout ready"),
+        )
     }
 }
 

@@ -48,6 +48,7 @@ pub mod units;
 pub mod storage;
 #[cfg(test)]
 mod test_rng;
+pub mod thermal;
 
 #[cfg(target_os = "none")]
 pub mod board;

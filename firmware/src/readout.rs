@@ -320,6 +320,12 @@ impl Readout {
         )
     }
 
+    /// The temperature, its rate and the thermal correction for the output records from the
+    /// next latch on (`thermal::state::ThermalState`, in the main loop, hands it over whole).
+    pub fn set_thermal(&mut self, thermal: crate::thermal::state::ThermalInput) {
+        self.recorder.set_thermal(thermal);
+    }
+
     /// Output latches were lost before they reached the readout: the next record is a restart
     /// (invalid, its period spanning the loss), so no angle is spliced across it.
     pub fn break_output_chain(&mut self) {

@@ -3,7 +3,8 @@
 //! record decoder, and the store's log scan over a flash holding the bytes.
 //!
 //! Checked, besides no panic:
-//! - `cobs::decode` for every payload length it serves, and both frame decoders: what decodes
+//! - `cobs::decode` for every payload length it serves, and the three frame decoders (cycle,
+//!   output record, thermal): what decodes
 //!   encodes back to exactly the bytes given (the encoding is canonical, so nothing else can
 //!   pass for a frame);
 //! - `record::decode`: a record it accepts passes its own checks and survives
@@ -18,13 +19,16 @@ use firmware::protocol::output_frame::{
     decode_output_frame, encode_output_frame, MAX_OUTPUT_FRAME,
 };
 use firmware::protocol::stream::{decode_frame, encode_frame, MAX_FRAME};
+use firmware::protocol::thermal_frame::{
+    decode_thermal_frame, encode_thermal_frame, THERMAL_FRAME,
+};
 use firmware::signal::compensation::{Coefficients, CompensationSettings};
 use firmware::storage::ram_flash::RamFlash;
 use firmware::storage::record::{self, CalibrationRecord};
 use firmware::storage::{CalibrationStore, Geometry, LoadOutcome, ReadoutPaused};
 
 /// The payload lengths the protocol's frames use, and the envelope's limits.
-const PAYLOAD_LENGTHS: [usize; 6] = [0, 1, 38, 41, 248, 249];
+const PAYLOAD_LENGTHS: [usize; 7] = [0, 1, 12, 38, 41, 248, 249];
 
 fn check_envelope(data: &[u8]) {
     for len in PAYLOAD_LENGTHS {
@@ -47,6 +51,15 @@ fn check_envelope(data: &[u8]) {
             &again[..n - 1],
             data,
             "an output frame re-encodes to itself"
+        );
+    }
+    if let Ok(frame) = decode_thermal_frame(data) {
+        let mut again = [0u8; THERMAL_FRAME];
+        let n = encode_thermal_frame(&frame, &mut again);
+        assert_eq!(
+            &again[..n - 1],
+            data,
+            "a thermal frame re-encodes to itself"
         );
     }
 }

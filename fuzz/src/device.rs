@@ -22,6 +22,7 @@ use firmware::protocol::key::Key;
 use firmware::protocol::output_frame::decode_output_frame;
 use firmware::protocol::parse::crc16;
 use firmware::protocol::stream::decode_frame;
+use firmware::protocol::thermal_frame::decode_thermal_frame;
 use hal_sim::device::{SimDevice, SIM_IDENTITY};
 use hal_sim::flash::{CalibrationFlash, PowerCut};
 use hal_sim::input::InputProfile;
@@ -76,7 +77,9 @@ impl Session {
         }
         for frame in &out.frames {
             assert!(
-                decode_frame(frame).is_ok() || decode_output_frame(frame).is_ok(),
+                decode_frame(frame).is_ok()
+                    || decode_output_frame(frame).is_ok()
+                    || decode_thermal_frame(frame).is_ok(),
                 "a bad frame: {frame:?}"
             );
         }

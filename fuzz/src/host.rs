@@ -128,6 +128,8 @@ fn record_from(bytes: &[u8; 38]) -> OutputRecord {
         angle_q16: u64_at(24) as i64,
         rate_deg_per_h: f32::from_bits(u32_at(32)),
         status: OutputStatus(u16::from_le_bytes([bytes[36], bytes[37]])),
+        temperature_q7: firmware::thermal::state::NO_VALUE,
+        temperature_rate_centi_c_per_min: firmware::thermal::state::NO_VALUE,
     }
 }
 

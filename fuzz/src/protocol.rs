@@ -9,7 +9,8 @@
 //!   `OK` or `ERR <code> <text>` with a known code and its text, a valid CRC suffix exactly when
 //!   the request carried a valid one;
 //! - after an `ERR`, nothing observable changed: settings, stored records, streaming, the
-//!   lock state and the answers to `status`, `cal status` and `get coeffs`, and the pending
+//!   lock state and the answers to `status`, `cal status`, `get coeffs` and `thermal model`
+//!   (the thermal model in force and its switch), and the pending
 //!   confirmation (what `yes` would do: every line but the echo drops it, so after an `ERR`
 //!   nothing is pending; after `ERR 18` exactly the echoed command is). Two answers are exempt
 //!   by design: `ERR 15` (a wrong key locks the board, asserted instead) and `ERR 12` (`cal
@@ -44,6 +45,8 @@ use firmware::storage::{
     CalibrationRecord, DefaultsReason, DitherSetpoints, LoadOutcome, LoadReport, StoreError,
     Stored, StripCoefficients,
 };
+use firmware::thermal::model::ThermalModel;
+use firmware::thermal::state::ThermalState;
 
 pub use super::events::{BLANK_OTP, CYCLES, FAIL_STORE, NEW_SESSION, TICK, TICK_SHORT};
 
@@ -77,6 +80,8 @@ struct MemDevice {
     strip: Option<StripCoefficients>,
     /// The OTP key words: `None` blank (`key provision` writes them once).
     otp_key: Option<Key>,
+    /// The thermal model in force and its switch (no sensor).
+    thermal: ThermalState,
 }
 
 impl DeviceLink for MemDevice {
@@ -164,6 +169,15 @@ impl DeviceLink for MemDevice {
         self.otp_key = Some(*key);
         Ok(())
     }
+
+    fn thermal(&mut self) -> ThermalState {
+        self.thermal
+    }
+
+    fn set_thermal_model(&mut self, model: Option<ThermalModel>, enabled: bool) {
+        self.thermal
+            .set_model(model, enabled, IDENTITY.scale_factor_arcsec);
+    }
 }
 
 fn report(outcome: LoadOutcome) -> LoadReport {
@@ -178,8 +192,8 @@ fn report(outcome: LoadOutcome) -> LoadReport {
 /// What a host can observe of the device's state (at the same instant).
 #[derive(Clone, Debug, PartialEq)]
 struct Observation {
-    /// `status` (the lock state included), `cal status`, `get coeffs`.
-    answers: [String; 3],
+    /// `status` (the lock state included), `cal status`, `get coeffs`, `thermal model`.
+    answers: [String; 4],
     settings: CompensationSettings,
     stored: Vec<CalibrationRecord>,
     otp_key: Option<Key>,
@@ -191,7 +205,7 @@ struct Observation {
 
 fn observe(executor: &Executor, device: &MemDevice, id: &Identity) -> Observation {
     let (mut e, mut d) = (executor.clone(), device.clone());
-    let answers = ["status", "cal status", "get coeffs"].map(|q| {
+    let answers = ["status", "cal status", "get coeffs", "thermal model"].map(|q| {
         let command = parse(q).expect("query parses");
         e.execute(id, &mut d, command)
             .finish(false)
@@ -240,6 +254,7 @@ impl Harness {
                 },
                 strip: None,
                 otp_key: None,
+                thermal: ThermalState::new(),
             },
             identity,
             line: LineAssembler::new(),

@@ -25,6 +25,7 @@ use firmware::protocol::key::Key;
 use firmware::protocol::link::KeyWriteError;
 use firmware::protocol::output_frame::decode_output_frame;
 use firmware::protocol::stream::{decode_frame, sequence_step};
+use firmware::protocol::thermal_frame::decode_thermal_frame;
 use firmware::readout::Readout;
 use firmware::service::ports::{Clock, DitherAccess, ReadoutAccess, Secrets, SerialTx};
 use firmware::service::power_up::power_up;
@@ -39,7 +40,7 @@ use super::answers::{check_answer, split_output, LineCounter};
 use super::events::{BLANK_OTP, CYCLES, FAIL_STORE, NEW_SESSION, OUTPUTS, RESET, TICK, TICK_SHORT};
 use super::protocol::IDENTITY;
 
-/// Two sectors of 512 bytes: room for five records each, so stores soon erase.
+/// Two sectors of 512 bytes: room for three records each, so stores soon erase.
 type Ram = RamFlash<2, 512>;
 
 /// The RAM flash with a failure to inject: the next write fails.
@@ -227,6 +228,8 @@ impl Harness {
                 angle_q16: self.output_sequence as i64 * 3,
                 rate_deg_per_h: 13.9,
                 status: OutputStatus::VALID,
+                temperature_q7: firmware::thermal::state::NO_VALUE,
+                temperature_rate_centi_c_per_min: firmware::thermal::state::NO_VALUE,
             });
         }
         let mut remaining = cycles;
@@ -276,7 +279,10 @@ impl Harness {
                 }
                 self.last_cycle_frame = Some(record.sequence);
             } else {
-                assert!(decode_output_frame(frame).is_ok(), "a bad frame: {frame:?}");
+                assert!(
+                    decode_output_frame(frame).is_ok() || decode_thermal_frame(frame).is_ok(),
+                    "a bad frame: {frame:?}"
+                );
             }
         }
         assert_eq!(

@@ -204,6 +204,9 @@ impl SimDevice {
         for &fault in faults {
             harness.board_mut().inject(fault);
         }
+        // As on the board, the command service keeps the thermal state (`thermal`); the
+        // harness only polls the sensor.
+        harness.hand_over_thermal();
         // As `board::app::run`: the clock, timer and trigger checks, then the drive with its
         // stored setpoints, its pick-off check first (or inhibited).
         let selftest = harness.board().faults().selftest();
@@ -305,6 +308,7 @@ impl SimDevice {
         // The output latches of the half cycle came first (the output latch's context), then
         // the cycle its closing turnaround made (the cycle task).
         let outputs: Vec<OutputRecord> = self.harness.outputs().iter().map(|(_, r)| *r).collect();
+        let sensor_updates = self.harness.take_sensor_updates();
         let health = self.board_health();
         let mut ports = SimPorts::new(
             &mut self.harness,
@@ -312,6 +316,9 @@ impl SimDevice {
             &mut self.otp_key,
             health,
         );
+        for update in sensor_updates {
+            self.service.on_sensor(update, &mut ports);
+        }
         for output in &outputs {
             self.service.on_output(output, &mut ports);
         }
@@ -346,6 +353,11 @@ impl SimDevice {
                 Held::Cycle(record) => self.service.on_cycle(record, &mut ports),
             }
         }
+    }
+
+    /// The simulated temperature sensor, for fault injection.
+    pub fn sensor_mut(&mut self) -> &mut crate::tmp117::SimTmp117 {
+        self.harness.sensor_mut()
     }
 
     /// The rate monitors' pass after a half cycle (`board::watch::Watch::pass`): the events'

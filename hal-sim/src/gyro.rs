@@ -94,6 +94,8 @@ pub struct Gyro {
     run_turns: Vec<Turnaround>,
     last_turn: Option<Turnaround>,
     traversals: VecDeque<Traversal>,
+    /// The true input (the gyro measures it with its thermal errors: [`crate::thermal`]).
+    true_input: InputProfile,
     /// A driven dither's drive-gain wander (`GyroParams::amplitude_jitter` applied to the
     /// drive: the amplifier's and the piezo's gain drift that the amplitude loop must hold the
     /// amplitude against); empty without it.
@@ -104,18 +106,16 @@ impl Gyro {
     /// A gyro with `params`, driven by `input`, at t = 0.
     pub fn new(params: GyroParams, input: InputProfile) -> Result<Self, ParamError> {
         let derived = params.derive()?;
-        let fp = FreePhase::new(&params, &derived, input);
+        let measured =
+            crate::thermal::measured_input(&input, &params.thermal, params.scale_factor_arcsec)?;
+        let fp = FreePhase::new(&params, &derived, measured);
         let mut integ = Integrator::new(
             fp,
             derived.omega_l_rad_per_s,
             &params.solver.effective(derived.omega_l_rad_per_s),
             params.initial_psi_rad,
         );
-        integ.set_lock_in_drift(LockInDrift {
-            omega_l0: derived.omega_l_rad_per_s,
-            rate_per_s: params.lock_in_drift_per_s,
-            until_s: params.lock_in_drift_until_s,
-        });
+        integ.set_lock_in_drift(Self::lock_in_drift(&params, &derived));
         let mut drive_gain_wander = Vec::new();
         if params.resonator().is_some() {
             draw_tones(
@@ -125,6 +125,7 @@ impl Gyro {
             );
         }
         Ok(Self {
+            true_input: input,
             params,
             derived,
             integ,
@@ -140,14 +141,19 @@ impl Gyro {
         &self.params
     }
 
-    /// The lock-in threshold at `t_s`, rad/s of beat phase (drifting if the parameters say so).
-    pub fn lock_in_rad_per_s(&self, t_s: f64) -> f64 {
+    fn lock_in_drift(params: &GyroParams, derived: &Derived) -> LockInDrift {
         LockInDrift {
-            omega_l0: self.derived.omega_l_rad_per_s,
-            rate_per_s: self.params.lock_in_drift_per_s,
-            until_s: self.params.lock_in_drift_until_s,
+            omega_l0: derived.omega_l_rad_per_s,
+            rate_per_s: params.lock_in_drift_per_s,
+            until_s: params.lock_in_drift_until_s,
+            thermal: params.thermal.is_on().then_some(params.thermal),
         }
-        .at(t_s)
+    }
+
+    /// The lock-in threshold at `t_s`, rad/s of beat phase (drifting and following the
+    /// temperature if the parameters say so).
+    pub fn lock_in_rad_per_s(&self, t_s: f64) -> f64 {
+        Self::lock_in_drift(&self.params, &self.derived).at(t_s)
     }
 
     /// The parameters in beat-phase units.
@@ -267,9 +273,15 @@ impl Gyro {
         Some(d.state_at(t_s))
     }
 
-    /// What the photodiodes see at `t_s`: `psi_H = psi - eps`, rad (advances to `t_s`).
+    /// What the photodiodes see at `t_s`: `psi_H = psi - eps(T)`, rad (advances to `t_s`).
     pub fn psi_h(&mut self, t_s: f64) -> f64 {
-        self.advance_to(t_s) - self.params.eps_rad
+        self.advance_to(t_s) - self.eps_rad(t_s)
+    }
+
+    /// The photodiode phase offset eps at `t_s` (the parameters' eps, moved by the
+    /// temperature: [`crate::thermal`]), rad.
+    pub fn eps_rad(&self, t_s: f64) -> f64 {
+        self.params.eps_rad + self.params.thermal.eps_offset_rad(t_s)
     }
 
     /// The next turnaround after the current time, without advancing (plans ahead). Panics
@@ -336,12 +348,12 @@ impl Gyro {
 
     /// The true input rate at `t_s`, deg/h.
     pub fn input_rate_deg_per_h(&self, t_s: f64) -> f64 {
-        self.integ.free_phase().input().rate_deg_per_h(t_s)
+        self.true_input.rate_deg_per_h(t_s)
     }
 
     /// The true input angle since t = 0, arcsec of body angle.
     pub fn input_angle_arcsec(&self, t_s: f64) -> f64 {
-        self.integ.free_phase().input().angle_arcsec(t_s)
+        self.true_input.angle_arcsec(t_s)
     }
 
     /// The dither pick-off (spring deflection) at `t_s`, arcsec of body angle: the true dither

@@ -31,15 +31,24 @@
 
 use core::f64::consts::TAU;
 
-/// One piece of a piecewise-linear rate: `rate(t) = rate0 + slope (t - start)` from `start_s`
-/// to the next piece's start.
+/// One piece of a piecewise-polynomial rate: `rate(t) = sum_k c_k (t - start)^k` (k = 0..3,
+/// deg/h per s^k) from `start_s` to the next piece's start. The input profiles are linear
+/// (c2 = c3 = 0); a gyro's thermal errors make the rate it measures cubic
+/// ([`crate::thermal`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct RatePiece {
     start_s: f64,
-    rate0_deg_per_h: f64,
-    slope_deg_per_h_per_s: f64,
+    rate_deg_per_h: [f64; 4],
     /// Angle accumulated from t = 0 to `start_s`, arcsec.
     angle0_arcsec: f64,
+}
+
+impl RatePiece {
+    /// The angle over `dt` from the piece's start, arcsec.
+    fn angle_over(&self, dt: f64) -> f64 {
+        let c = &self.rate_deg_per_h;
+        dt * (c[0] + dt * (c[1] / 2.0 + dt * (c[2] / 3.0 + dt * c[3] / 4.0)))
+    }
 }
 
 /// An input-rate profile (rates in deg/h, time in s from the gyro's start).
@@ -81,22 +90,35 @@ pub struct PiecewiseRate {
 impl PiecewiseRate {
     /// Builds from `(start_s, rate0, slope)` triples; the first must start at 0.
     fn new(raw: &[(f64, f64, f64)]) -> Self {
+        let poly: Vec<(f64, [f64; 4])> = raw
+            .iter()
+            .map(|&(start, r0, slope)| (start, [r0, slope, 0.0, 0.0]))
+            .collect();
+        Self::polynomial(&poly)
+    }
+
+    /// Builds from `(start_s, [c0, c1, c2, c3])` pieces (rate in deg/h, polynomial in the time
+    /// since the piece's start); the first must start at 0.
+    pub(crate) fn polynomial(raw: &[(f64, [f64; 4])]) -> Self {
         let mut pieces: Vec<RatePiece> = Vec::with_capacity(raw.len());
         let mut angle = 0.0;
-        for (i, &(start, r0, slope)) in raw.iter().enumerate() {
+        for (i, &(start, rate_deg_per_h)) in raw.iter().enumerate() {
             if i > 0 {
                 let p = pieces[i - 1];
-                let dt = start - p.start_s;
-                angle += p.rate0_deg_per_h * dt + 0.5 * p.slope_deg_per_h_per_s * dt * dt;
+                angle += p.angle_over(start - p.start_s);
             }
             pieces.push(RatePiece {
                 start_s: start,
-                rate0_deg_per_h: r0,
-                slope_deg_per_h_per_s: slope,
+                rate_deg_per_h,
                 angle0_arcsec: angle,
             });
         }
         Self { pieces }
+    }
+
+    /// The pieces: `(start_s, [c0, c1, c2, c3])`.
+    pub(crate) fn pieces(&self) -> impl Iterator<Item = (f64, [f64; 4])> + '_ {
+        self.pieces.iter().map(|p| (p.start_s, p.rate_deg_per_h))
     }
 
     fn index(&self, t_s: f64) -> usize {
@@ -232,14 +254,17 @@ impl InputProfile {
             Self::Piecewise(p) => {
                 let q = &p.pieces[piece];
                 let dt = t_s - q.start_s;
-                out[0] = q.angle0_arcsec
-                    + q.rate0_deg_per_h * dt
-                    + 0.5 * q.slope_deg_per_h_per_s * dt * dt;
-                if out.len() > 1 {
-                    out[1] = q.rate0_deg_per_h + q.slope_deg_per_h_per_s * dt;
-                }
-                if out.len() > 2 {
-                    out[2] = q.slope_deg_per_h_per_s;
+                out[0] = q.angle0_arcsec + q.angle_over(dt);
+                // d^k angle / dt^k = d^(k-1) rate / dt^(k-1) of the cubic rate.
+                let c = &q.rate_deg_per_h;
+                let derivs = [
+                    c[0] + dt * (c[1] + dt * (c[2] + dt * c[3])),
+                    c[1] + dt * (2.0 * c[2] + dt * 3.0 * c[3]),
+                    2.0 * c[2] + dt * 6.0 * c[3],
+                    6.0 * c[3],
+                ];
+                for (o, d) in out.iter_mut().skip(1).zip(derivs) {
+                    *o = d;
                 }
             }
             &Self::Sinusoid {

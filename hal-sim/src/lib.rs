@@ -27,6 +27,8 @@ pub mod param_error;
 pub mod params;
 pub mod phase;
 pub mod random_gyro;
+pub mod thermal;
+pub mod tmp117;
 pub mod trig;
 pub mod units;
 

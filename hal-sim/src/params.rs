@@ -11,6 +11,7 @@ use crate::dither::resonator::ResonatorParams;
 use crate::dither::DitherSpec;
 pub use crate::dither::{AmplitudeModulation, DitherModel};
 use crate::param_error::ParamError;
+use crate::thermal::GyroThermal;
 use crate::units::{
     arcsec_to_beat_rad, arw_deg_per_rt_h_to_beat_rad_per_rt_s, deg_per_h_to_beat_rad_per_s,
     hz_to_rad_per_s,
@@ -95,6 +96,9 @@ pub struct GyroParams {
     pub solver: SolverParams,
     /// The dither model: the prescribed sine (default) or the driven resonator.
     pub dither_model: DitherModel,
+    /// The block's temperature and what it does to the gyro ([`crate::thermal`]; by default
+    /// 25 °C throughout, the coefficients' reference: no effect).
+    pub thermal: GyroThermal,
 }
 
 impl Default for GyroParams {
@@ -115,6 +119,7 @@ impl Default for GyroParams {
             lock_in_drift_until_s: 0.0,
             solver: SolverParams::default(),
             dither_model: DitherModel::Ideal,
+            thermal: GyroThermal::DEFAULT,
         }
     }
 }
@@ -217,6 +222,19 @@ impl GyroParams {
         }
     }
 
+    /// This gyro with its block at `profile`; a driven resonator's f0 and Q follow the same
+    /// profile (its own coefficients).
+    pub fn with_temperature(
+        mut self,
+        profile: crate::dither::resonator::TemperatureProfile,
+    ) -> Self {
+        self.thermal.profile = profile;
+        if let DitherModel::Driven(r) = &mut self.dither_model {
+            r.temperature.profile = profile;
+        }
+        self
+    }
+
     /// Validates and converts to beat-phase units.
     pub fn derive(&self) -> Result<Derived, ParamError> {
         let sf = self.scale_factor_arcsec;
@@ -253,6 +271,7 @@ impl GyroParams {
             &self.random_noise_dither,
             "random_noise_dither: rms in [0, 0.3), 1..64 tones, 0 < min_hz <= max_hz",
         )?;
+        self.thermal.coefficients.validate()?;
         if let DitherModel::Driven(r) = &self.dither_model {
             r.validate()?;
             check(

@@ -194,8 +194,15 @@ impl Pickoff {
         if self.lost {
             return self.config.offset_v;
         }
-        self.config
-            .voltage_v(gyro.dither_pickoff_arcsec(t_s - self.config.lag_s))
+        let v = self
+            .config
+            .voltage_v(gyro.dither_pickoff_arcsec(t_s - self.config.lag_s));
+        // The gain moves with the block's temperature (`crate::thermal`; 1 at T_ref).
+        let factor = gyro.params().thermal.pickoff_gain_factor(t_s);
+        if factor == 1.0 {
+            return v;
+        }
+        self.config.offset_v + (v - self.config.offset_v) * factor
     }
 
     /// The output at `t_s` with one noise draw, V.

@@ -6,7 +6,7 @@
 mod device_support;
 
 use device_support::{boot_with_key, exchange, field, KEY};
-use firmware::protocol::output_frame::{decode_output_frame, OutputGaps};
+use firmware::protocol::output_frame::{OutputGaps, OutputStreamDecoder, OutputStreamFrame};
 use firmware::protocol::parse::crc16;
 use firmware::signal::output::record::OutputStatus;
 use hal_sim::device::{SimDevice, OUTPUT_RATE_HZ};
@@ -61,13 +61,15 @@ fn stream_output_sends_every_record_numbered_and_valid() {
     dev.receive(b"stream off\n");
     let bytes = dev.take_output();
     let mut gaps = OutputGaps::default();
-    let (mut records, mut texts) = (Vec::new(), 0);
+    let mut decoder = OutputStreamDecoder::default();
+    let (mut records, mut texts, mut thermal_frames) = (Vec::new(), 0, 0);
     for chunk in bytes.split(|&b| b == 0).filter(|c| !c.is_empty()) {
-        match decode_output_frame(chunk) {
-            Ok(r) => {
+        match decoder.decode(chunk) {
+            Ok(OutputStreamFrame::Record(r)) => {
                 gaps.observe(r.sequence);
                 records.push(r);
             }
+            Ok(OutputStreamFrame::Thermal(_)) => thermal_frames += 1,
             Err(_) => {
                 assert!(chunk.starts_with(b"OK stream=off"), "{chunk:?}");
                 texts += 1;
@@ -77,6 +79,19 @@ fn stream_output_sends_every_record_numbered_and_valid() {
     let n = records.len() as f64;
     assert!((n - OUTPUT_RATE_HZ).abs() <= 2.0, "{n} records in 1 s");
     assert_eq!((gaps.lost, gaps.out_of_order, texts), (0, 0, 1));
+    // The block's temperature (the profile's 25 °C, the simulated TMP117 +0.02 °C) in every
+    // record, from thermal frames sent on change: the sensor's 8 results a second, 18 bytes each.
+    assert!(
+        records
+            .iter()
+            .all(|r| r.temperature_c().is_some_and(|t| (t - 25.02).abs() < 0.05)),
+        "{:?}",
+        records[0]
+    );
+    assert!(
+        (1..=9).contains(&thermal_frames),
+        "{thermal_frames} thermal frames in 1 s"
+    );
     assert!(records.iter().all(|r| r.is_valid()
         && r.status.contains(OutputStatus::DITHER_LOCKED)
         && r.status.contains(OutputStatus::K_CONVERGED)));

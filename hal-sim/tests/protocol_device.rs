@@ -455,3 +455,28 @@ fn a_store_answers_after_its_stall() {
         "then the command sent meanwhile: {text}"
     );
 }
+
+/// `thermal` on the simulated board: the sensor's temperature (the profile's 25 °C plus the
+/// simulated part's +0.02 °C offset, within its noise), its rate once the window is full, no
+/// model; a NACK shows as `sensor=nack` within 0.15 s, and the temperature is gone.
+#[test]
+fn thermal_reports_the_sensor_and_its_faults() {
+    let mut dev = boot(CalibrationFlash::default(), 13.888, 0);
+    dev.run_for(3.0);
+    let answer = ask(&mut dev, "thermal");
+    eprintln!("{answer}");
+    assert!(answer.starts_with("OK temp_c="), "{answer}");
+    let temp: f64 = field(&answer, "temp_c").parse().unwrap();
+    assert!((temp - 25.02).abs() < 0.04, "{answer}");
+    let rate: f64 = field(&answer, "rate_c_min").parse().unwrap();
+    assert!(rate.abs() < 2.0, "{answer}");
+    assert_eq!(field(&answer, "sensor"), "ok", "{answer}");
+    assert_eq!(field(&answer, "model"), "none", "{answer}");
+    dev.sensor_mut()
+        .set_fault(Some(hal_sim::tmp117::SensorFault::Nack));
+    dev.run_for(0.15);
+    let answer = ask(&mut dev, "thermal");
+    assert_eq!(field(&answer, "sensor"), "nack", "{answer}");
+    assert_eq!(field(&answer, "temp_c"), "none", "{answer}");
+    assert_eq!(field(&answer, "sensor_faults"), "1", "{answer}");
+}

@@ -162,6 +162,7 @@ fn instantiate(form: &str) -> String {
         .replace("<cycles>", "3000")
         .replace("<arcsec>", "450")
         .replace("<percent>", "5")
+        .replace("<name> <value>", "b1 0.002")
         .replace("<key>", &"0".repeat(32));
     assert!(
         !filled.contains('<'),
@@ -204,13 +205,17 @@ fn the_command_table_is_the_parsers_and_the_executors() {
             }
         }
     }
-    // Every command of the board's `help` has a row: `word`, and `word sub` for `word{sub|..}`.
+    // Every command of the board's `help` has a row: `word`, and `word sub` for `word{sub|..}`
+    // (required) and `word[sub|..]` (optional).
     let mut dev = ready();
     let help = ask(&mut dev, "help");
     let list = help.strip_prefix("OK commands: ").expect(&help);
     for entry in list.split(' ') {
-        let (word, subs) = match entry.split_once('{') {
-            Some((w, rest)) => (w, Some(rest.trim_end_matches('}'))),
+        let (word, subs) = match entry.find(['{', '[']) {
+            Some(i) => (
+                &entry[..i],
+                Some(entry[i + 1..].trim_end_matches(['}', ']'])),
+            ),
             None => (entry.split('<').next().unwrap(), None),
         };
         assert!(heads.iter().any(|h| h == word), "`{word}` has no row");
@@ -413,6 +418,7 @@ fn read(payload: &[u8], at: usize, ty: &str) -> f64 {
     match ty {
         "u8" => f64::from(payload[at]),
         "u16" => f64::from(u16::from_le_bytes(b(2).try_into().unwrap())),
+        "i16" => f64::from(i16::from_le_bytes(b(2).try_into().unwrap())),
         "u32" => f64::from(u32::from_le_bytes(b(4).try_into().unwrap())),
         "i32" => f64::from(i32::from_le_bytes(b(4).try_into().unwrap())),
         "f32" => f64::from(f32::from_le_bytes(b(4).try_into().unwrap())),
@@ -425,7 +431,7 @@ fn read(payload: &[u8], at: usize, ty: &str) -> f64 {
 fn size_of(ty: &str) -> usize {
     match ty {
         "u8" => 1,
-        "u16" => 2,
+        "u16" | "i16" => 2,
         "u32" | "i32" | "f32" => 4,
         "u64" | "i64" => 8,
         other => panic!("type {other}"),
@@ -458,9 +464,16 @@ fn check_layout(rows: &[Vec<String>], frame: &[u8], expected: &dyn Fn(&str) -> f
 fn the_frame_layouts_decode_the_firmwares_frames() {
     use firmware::protocol::output_frame::{encode_output_frame, MAX_OUTPUT_FRAME, OUTPUT_PAYLOAD};
     use firmware::protocol::stream::{encode_frame, StreamRecord, FRAME_PAYLOAD, MAX_FRAME};
+    use firmware::protocol::thermal_frame::{
+        encode_thermal_frame, ThermalFrame, THERMAL_FRAME, THERMAL_PAYLOAD,
+    };
     let doc = doc();
     let layouts = tables(&doc, &["offset", "type", "field", "meaning"]);
-    assert_eq!(layouts.len(), 2, "the cycle frame's and the output frame's");
+    assert_eq!(
+        layouts.len(),
+        3,
+        "the cycle frame's, the output frame's and the thermal frame's"
+    );
     let cycle = StreamRecord {
         sequence: 0x0102_0304,
         end_phase_q32: -0x0123_4567_89AB,
@@ -495,7 +508,9 @@ fn the_frame_layouts_decode_the_firmwares_frames() {
         delta_angle_q16: -123_456,
         angle_q16: 0x0000_0012_3456_789A,
         rate_deg_per_h: 15.25,
-        status: OutputStatus(0x0417),
+        status: OutputStatus(0x1417),
+        temperature_q7: -1234,
+        temperature_rate_centi_c_per_min: 321,
     };
     let mut frame = [0u8; MAX_OUTPUT_FRAME];
     let n = encode_output_frame(&output, &mut frame);
@@ -513,6 +528,20 @@ fn the_frame_layouts_decode_the_firmwares_frames() {
     let fixed = section(&doc, "### The fixed-rate output: `stream output`");
     assert!(fixed.contains(&format!("little-endian, {OUTPUT_PAYLOAD} bytes")));
     assert!(fixed.contains(&format!("frame_bytes={MAX_OUTPUT_FRAME}`")));
+    let thermal = ThermalFrame::of(&output);
+    let mut frame = [0u8; THERMAL_FRAME];
+    let n = encode_thermal_frame(&thermal, &mut frame);
+    let size = check_layout(&layouts[2], &frame[..n], &|name| match name {
+        "from_sequence" => thermal.from_sequence as f64,
+        "temperature" => f64::from(thermal.temperature_q7),
+        "temperature_rate" => f64::from(thermal.rate_centi_c_per_min),
+        other => panic!("an unknown field: {other}"),
+    });
+    assert_eq!((size, n), (THERMAL_PAYLOAD, THERMAL_FRAME));
+    assert!(fixed.contains(&format!(
+        "the payload, little-endian, {THERMAL_PAYLOAD} bytes"
+    )));
+    assert!(fixed.contains(&format!("({THERMAL_FRAME} bytes on the wire)")));
 }
 
 #[test]

@@ -191,21 +191,21 @@ fn random_garbage_gives_defaults_then_recovers() {
     );
 }
 
-/// A frame of a newer format (version 4, 128 bytes, valid CRC and marker) between records of
+/// A frame of a newer format (version 5, 128 bytes, valid CRC and marker) between records of
 /// this firmware's: skipped by its length and reported, the older record loads, and neither
 /// load nor the next stores touch it; new records are numbered above it.
 #[test]
 fn unknown_format_version_is_skipped_not_destroyed() {
     let (mut flash, store) = small_flash(17);
     store_n(&mut flash, &store, 1);
-    let v4_at = RECORD_BYTES;
-    let v4 = version_4_frame(2);
-    flash.write(v4_at as u32, &v4).unwrap();
+    let v5_at = RECORD_BYTES;
+    let v5 = version_5_frame(2);
+    flash.write(v5_at as u32, &v5).unwrap();
 
     let (loaded, report) = store.load(&mut flash);
-    assert_is(&(loaded, report), 1, &record(0), "v3 under v4");
+    assert_is(&(loaded, report), 1, &record(0), "v4 under v5");
     let skipped = Some(SkippedFrame {
-        version: 4,
+        version: 5,
         sequence: 2,
     });
     assert_eq!(report.newer_format, skipped);
@@ -215,21 +215,21 @@ fn unknown_format_version_is_skipped_not_destroyed() {
         let sequence = store
             .store_while_paused(&mut flash, &paused(), &record(10 + i))
             .unwrap();
-        assert_eq!(sequence, 3 + i as u32, "numbered above the v4 frame");
+        assert_eq!(sequence, 3 + i as u32, "numbered above the v5 frame");
         let loaded = store.load(&mut flash);
-        assert_is(&loaded, sequence, &record(10 + i), "after v4");
+        assert_is(&loaded, sequence, &record(10 + i), "after v5");
         assert_eq!(loaded.1.newer_format, skipped);
     }
     assert_eq!(
-        &flash.contents()[v4_at..v4_at + v4.len()],
-        &v4[..],
-        "v4 frame changed"
+        &flash.contents()[v5_at..v5_at + v5.len()],
+        &v5[..],
+        "v5 frame changed"
     );
 }
 
 /// A board updated from the firmware that wrote format version 1 (64 bytes, no dither
 /// setpoints): its newest version-1 record loads (dither setpoints absent: the board's defaults
-/// apply), the next store writes the current version (3) numbered above it, and the version-1
+/// apply), the next store writes the current version (4) numbered above it, and the version-1
 /// records stay untouched until their sector is erased for a wrap.
 #[test]
 fn version_1_records_load_and_the_next_store_writes_the_current_version() {
@@ -237,6 +237,7 @@ fn version_1_records_load_and_the_next_store_writes_the_current_version() {
     let mut old = record(30);
     old.dither = None;
     old.strip = None;
+    old.thermal = None;
     let v1 = version_1_frame(&old, 5);
     flash.write(0, &v1).unwrap();
     flash
@@ -257,10 +258,43 @@ fn version_1_records_load_and_the_next_store_writes_the_current_version() {
         .store_while_paused(&mut flash, &paused(), &new)
         .unwrap();
     assert_eq!(sequence, 6, "numbered above the version-1 records");
-    assert_is(&store.load(&mut flash), 6, &new, "v3 above v1");
+    assert_is(&store.load(&mut flash), 6, &new, "v4 above v1");
     assert_eq!(&flash.contents()[..v1.len()], &v1[..], "v1 record changed");
     assert_eq!(
         flash.contents()[2 * v1.len() + offset::VERSION],
+        record::FORMAT_VERSION
+    );
+}
+
+/// A board updated from the firmware that wrote format version 3 (96 bytes, no thermal model):
+/// its record loads with no thermal model, the next store (with one) writes version 4 above it
+/// and leaves it untouched.
+#[test]
+fn version_3_records_load_and_the_next_store_writes_version_4() {
+    let (mut flash, store) = small_flash(22);
+    let mut old = record(40);
+    old.thermal = None;
+    let v4 = record::encode(&old, 9);
+    let mut v3 = vec![0u8; record::V3_RECORD_BYTES];
+    v3[..offset::V3_CRC].copy_from_slice(&v4[..offset::V3_CRC]);
+    v3[offset::VERSION] = record::V3_FORMAT_VERSION;
+    v3[offset::LENGTH_WORDS] = (record::V3_RECORD_BYTES / 4) as u8;
+    record::seal(&mut v3);
+    flash.write(0, &v3).unwrap();
+    let (loaded, report) = store.load(&mut flash);
+    assert_eq!(loaded, old);
+    assert_eq!(report.outcome, LoadOutcome::Loaded { sequence: 9 });
+    let mut new = record(41);
+    new.thermal = record(42).thermal.or(record(43).thermal);
+    assert!(new.thermal.is_some());
+    let sequence = store
+        .store_while_paused(&mut flash, &paused(), &new)
+        .unwrap();
+    assert_eq!(sequence, 10);
+    assert_is(&store.load(&mut flash), 10, &new, "v4 above v3");
+    assert_eq!(&flash.contents()[..v3.len()], &v3[..], "v3 record changed");
+    assert_eq!(
+        flash.contents()[v3.len() + offset::VERSION],
         record::FORMAT_VERSION
     );
 }
@@ -281,7 +315,7 @@ fn version_1_frame(record: &CalibrationRecord, sequence: u32) -> Vec<u8> {
 #[test]
 fn only_unknown_format_gives_defaults() {
     let (mut flash, store) = small_flash(18);
-    flash.write(0, &version_4_frame(7)).unwrap();
+    flash.write(0, &version_5_frame(7)).unwrap();
     let (loaded, report) = store.load(&mut flash);
     assert_eq!(loaded, CalibrationRecord::DEFAULTS);
     assert_eq!(
@@ -291,12 +325,12 @@ fn only_unknown_format_gives_defaults() {
     assert_eq!(report.newer_format.map(|f| f.sequence), Some(7));
 }
 
-/// A frame of format version 4 (unknown to this firmware), 128 bytes: the
+/// A frame of format version 5 (unknown to this firmware), 128 bytes: the
 /// version-independent frame with some body.
-fn version_4_frame(sequence: u32) -> Vec<u8> {
+fn version_5_frame(sequence: u32) -> Vec<u8> {
     let mut frame = vec![0x42u8; 128];
     frame[offset::MAGIC..offset::MAGIC + 2].copy_from_slice(&record::MAGIC.to_le_bytes());
-    frame[offset::VERSION] = 4;
+    frame[offset::VERSION] = 5;
     frame[offset::LENGTH_WORDS] = 32;
     frame[offset::SEQUENCE..offset::SEQUENCE + 4].copy_from_slice(&sequence.to_le_bytes());
     record::seal(&mut frame);

@@ -8,8 +8,8 @@
 //! model's randomness is seeded). Assumption (the model's): words are programmed in address
 //! order and a cut leaves at most one word partially programmed.
 //!
-//! Cut positions: `PowerCut::AfterBytes(n)` for n = 0..=64 covers every byte of the 80-byte
-//! record (n = 64 dies right after the last word: the record is complete). A store that erases
+//! Cut positions: `PowerCut::AfterBytes(n)` for n = 0..=RECORD_BYTES covers every byte of the
+//! record (n = RECORD_BYTES dies right after the last word: the record is complete). A store that erases
 //! is also cut inside the erase, in each way the flash model can leave an interrupted erase.
 
 mod storage_support;

@@ -6,7 +6,7 @@
 //! SIGTERM (`rlg_sim::interrupt`): `calibrate` sends `cal abort`, `stream` keeps every frame
 //! received (its CSV is written row by row), draws its SVG and prints its summary; exit 130.
 
-use crate::cli::{CalibrateArgs, Command, OnOff, RecordArgs, StreamArgs};
+use crate::cli::{CalibrateArgs, Command, OnOff, RecordArgs, StreamArgs, ThermalArgs};
 use crate::Failure;
 use indicatif::{ProgressBar, ProgressStyle};
 use rlg_cal::capture::CsvRows;
@@ -85,6 +85,15 @@ pub fn prepare(command: &Command, have_key: bool) -> Result<Outputs, Failure> {
                 svg: None,
             })
         }
+        Command::Thermal(args) if args.apply && !have_key => Err(Failure::Usage(
+            "thermal --apply needs the unlock key (--key-file or RLG_KEY): `thermal set` is \
+             protected"
+                .into(),
+        )),
+        Command::Thermal(args) => Ok(Outputs {
+            csv: args.csv.as_deref().map(create_output).transpose()?,
+            svg: None,
+        }),
         Command::Calibrate(_) if !have_key => Err(Failure::Usage(
             "calibrate needs the unlock key (--key-file or RLG_KEY): `cal start` takes the \
              board's time and is protected"
@@ -207,6 +216,7 @@ impl<'a, L: Link> Device<'a, L> {
             Command::Calibrate(args) => self.calibrate(args),
             Command::Stream(args) => self.stream(args),
             Command::Record(args) => self.record(args),
+            Command::Thermal(args) => self.thermal(args),
             Command::Console => {
                 if let Some(key) = &self.session.key {
                     ops::unlock(self.client, key)?;
@@ -273,6 +283,88 @@ impl<'a, L: Link> Device<'a, L> {
             sections.push(("store", self.client.command("store")?.fields()));
         }
         self.print(&fit.fields(), &sections);
+        Ok(())
+    }
+
+    /// `rlg-cal thermal`: the log, the fit, and with --apply / --store the model on the board.
+    fn thermal(&mut self, args: &ThermalArgs) -> Result<(), Failure> {
+        use rlg_cal::thermal::{apply_model, fit_log, record_log, ThermalOptions};
+        let stop = interrupt::install();
+        let csv = std::mem::take(&mut self.session.outputs).csv;
+        self.probe()?;
+        if args.apply {
+            // A wrong key is refused before the run, not after it.
+            self.unlocked()?;
+        }
+        eprintln!(
+            "rlg-cal: recording the output and the block's temperature for {} s (run the \
+             chamber's ramps or steps now; Ctrl-C stops and fits what was recorded).",
+            args.seconds
+        );
+        let bar = run_bar("thermal log");
+        let (log, bad) = record_log(
+            self.client,
+            Duration::from_secs_f64(args.seconds),
+            &mut |fraction| bar.set_position((fraction * 1000.0) as u64),
+            stop,
+        )?;
+        bar.finish_and_clear();
+        if let Some(out) = csv {
+            let mut w = std::io::BufWriter::new(out.file);
+            let rows =
+                std::iter::once("t_s,delta_angle_arcsec,valid,temperature_c,rate_c_min".to_owned())
+                    .chain(log.records().iter().map(|r| {
+                        let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.4}"));
+                        format!(
+                            "{:.6},{:.6},{},{},{}",
+                            r.t_s,
+                            r.arcsec,
+                            u8::from(r.valid),
+                            opt(r.temp_c),
+                            opt(r.rate_c_per_min)
+                        )
+                    }));
+            for row in rows {
+                writeln!(w, "{row}").map_err(|e| write_failed(&out.path, e))?;
+            }
+            w.flush().map_err(|e| write_failed(&out.path, e))?;
+        }
+        let options = ThermalOptions {
+            input_rate_deg_h: args.input_rate_deg_h,
+            table_rate_deg_h: args.table_rate_deg_h,
+            reference_c: args.reference_c,
+        };
+        let fit = fit_log(log.records(), &options).map_err(|e| Failure::Run(e.to_string()))?;
+        let m = &fit.model;
+        let mut fields: Vec<(String, String)> = vec![
+            ("records".into(), fit.records.to_string()),
+            ("lost".into(), log.lost.to_string()),
+            ("bad".into(), bad.to_string()),
+            ("bias_records".into(), fit.bias_records.to_string()),
+            ("rate_fitted".into(), fit.bias.rate_fitted.to_string()),
+            ("scale_points".into(), fit.scale_points.len().to_string()),
+        ];
+        fields.extend(
+            firmware::thermal::model::ThermalModel::NAMES
+                .iter()
+                .zip(m.values())
+                .map(|(k, v)| ((*k).to_owned(), format!("{v:e}"))),
+        );
+        if args.table_rate_deg_h.is_none() {
+            eprintln!(
+                "rlg-cal: no --table-rate-deg-h: the scale factor is not calibrated (s0..s2 = 0)"
+            );
+        }
+        let mut sections = Vec::new();
+        if args.apply {
+            // The unlock of the start has long expired (5 minutes idle) after a chamber's run.
+            self.unlocked()?;
+            sections.push(("apply", apply_model(self.client, m)?.fields()));
+        }
+        if args.store {
+            sections.push(("store", self.client.command("store")?.fields()));
+        }
+        self.print(&fields, &sections);
         Ok(())
     }
 

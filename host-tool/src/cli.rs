@@ -39,12 +39,14 @@ Examples:
   rlg-cal serve-sim --tcp 127.0.0.1:7878 --board-key-file key.txt
   rlg-cal --port /dev/ttyUSB0 stream --seconds 10 --csv run.csv --svg run.svg
   rlg-cal --port /dev/ttyUSB0 record --seconds 600 --csv output.csv
+  rlg-cal --port /dev/ttyUSB0 --key-file key.txt thermal --seconds 14400 --input-rate-deg-h 13.888 \
+      --table-rate-deg-h 36000 --csv chamber.csv --apply --store
   rlg-cal --sim --sim-state board.state --key-file key.txt store
   rlg-cal sweep --calibrate --svg sweep.svg
   rlg-cal serve-sim --pty
 
-Long runs (stream, calibrate, sweep) check their output files, the key and the board (`id`)
-before they start. Ctrl-C (or SIGTERM) stops them cleanly: a stream keeps every frame received
+Long runs (stream, calibrate, record, thermal, sweep) check their output files, the key and the
+board (`id`) before they start. Ctrl-C (or SIGTERM) stops them cleanly: a stream keeps every frame received
 in its CSV and draws its SVG, a calibration is aborted on the board (`cal abort`), a sweep keeps
 the azimuths done; the summary is printed and the exit status is 130.
 
@@ -310,6 +312,11 @@ pub enum Command {
     /// Record the board's fixed-rate output (`stream output`): one CSV row per output period,
     /// lost records marked; rows go to disk as they come, Ctrl-C keeps them.
     Record(RecordArgs),
+    /// Thermal calibration: records the fixed-rate output with the block's temperature while
+    /// the chamber runs its ramps or steps, fits the thermal model (bias; the scale factor too
+    /// with --table-rate-deg-h) with its checks and prints it; --apply puts it in force,
+    /// --store writes it to flash. Protected with --apply.
+    Thermal(ThermalArgs),
     /// An interactive console: line editing, history, completion of command names (Tab); the
     /// CRC is added to each line and every answer shown, an error with its code in words.
     Console,
@@ -377,6 +384,34 @@ pub struct RecordArgs {
     /// Override the capture-timer frequency the board reports in `id`, Hz.
     #[arg(long)]
     pub timer_hz: Option<f64>,
+}
+
+/// `rlg-cal thermal`: the thermal calibration (docs/protocol.md, `rlg_cal::thermal`).
+#[derive(Debug, Args)]
+pub struct ThermalArgs {
+    /// How long to record, s (the chamber's whole run).
+    #[arg(long, value_parser = ranges::thermal_seconds, allow_negative_numbers = true)]
+    pub seconds: f64,
+    /// The gyro's true input at rest, deg/h: the Earth rate on its sensitive axis (it must lie
+    /// outside the dither's dead band, a few deg/h).
+    #[arg(long, value_parser = ranges::rate_deg_h, allow_negative_numbers = true)]
+    pub input_rate_deg_h: f64,
+    /// The rate table's rate when it turns at +R and -R at some temperatures, deg/h; without
+    /// it the scale factor is not calibrated (its terms stay 0).
+    #[arg(long, value_parser = ranges::table_rate_deg_h, allow_negative_numbers = true)]
+    pub table_rate_deg_h: Option<f64>,
+    /// T_ref of the model, C.
+    #[arg(long, default_value_t = 25.0, value_parser = ranges::reference_c, allow_negative_numbers = true)]
+    pub reference_c: f64,
+    /// Put the fitted model in force on the board (`thermal set`, `thermal apply`), checked.
+    #[arg(long)]
+    pub apply: bool,
+    /// Then write it to flash with the calibration (`store`).
+    #[arg(long, requires = "apply")]
+    pub store: bool,
+    /// The log, one row per record (t_s,delta_angle_arcsec,valid,temperature_c,rate_c_min).
+    #[arg(long, value_name = "PATH")]
+    pub csv: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]

@@ -9,6 +9,7 @@
 //! - [`console`]: the interactive console (line editing, history, completion, CRC added).
 //! - [`capture`]: stream frames to records, lost-frame counts, CSV and SVG.
 //! - [`sweep`]: a rotary-table sweep on the simulated board, through the protocol.
+//! - [`thermal`]: the thermal calibration from a log of the output against temperature.
 //! - [`serve`]: the simulated board served on TCP or a pty for any serial client.
 //! - [`sim`]: booting the simulated board; [`sim_state`]: its state file (`--sim-state`).
 //! - [`ranges`]: the valid range of every numeric command-line argument.
@@ -31,3 +32,4 @@ pub mod serve;
 pub mod sim;
 pub mod sim_state;
 pub mod sweep;
+pub mod thermal;

@@ -1,8 +1,9 @@
 //! The board's fixed-rate output (`stream output`) on the host: frames -> records, lost
 //! records, and CSV rows as they arrive (`rlg-cal record`).
 //!
-//! Frames are decoded with the firmware's own [`decode_output_frame`] (COBS + CRC-32); a chunk
-//! that fails is a bad frame. The records carry a 64-bit sequence number and the 64-bit
+//! Frames are decoded with the firmware's own [`OutputStreamDecoder`] (COBS + CRC-32; the
+//! records and the thermal frames that give them the block's temperature); a chunk that fails
+//! is a bad frame. The records carry a 64-bit sequence number and the 64-bit
 //! capture-timer time of their latch, so lost records are counted exactly ([`OutputGaps`]) and
 //! written as rows of their own, `valid` 0 and no angle, at the times the missing sequence
 //! numbers would have had (the neighbours' period): an Allan deviation or an integration over
@@ -26,7 +27,9 @@
 //! `rlg-sim record`'s file, which carries the truth beside them instead.
 
 use crate::capture::RateScale;
-use firmware::protocol::output_frame::{decode_output_frame, OutputGaps, MAX_OUTPUT_RATE_HZ};
+use firmware::protocol::output_frame::{
+    OutputGaps, OutputStreamDecoder, OutputStreamFrame, MAX_OUTPUT_RATE_HZ,
+};
 use firmware::signal::output::record::OutputRecord;
 use std::io::{self, Write};
 use std::time::{Duration, Instant};
@@ -47,6 +50,8 @@ pub struct OutputRows<W: Write> {
     first_received: Duration,
     /// Board time of all believed steps, s (compared with the host's clock).
     board_span_s: f64,
+    /// The stream's decoder (it keeps the thermal values in force).
+    decoder: OutputStreamDecoder,
     /// Chunks that were not valid frames.
     pub bad_frames: u64,
     /// Invalid records received.
@@ -88,6 +93,7 @@ impl<W: Write> OutputRows<W> {
             last: None,
             first_received: Duration::ZERO,
             board_span_s: 0.0,
+            decoder: OutputStreamDecoder::default(),
             bad_frames: 0,
             invalid: 0,
             last_flush: Instant::now(),
@@ -101,11 +107,12 @@ impl<W: Write> OutputRows<W> {
         chunk: &[u8],
         received: Duration,
     ) -> io::Result<Option<OutputRecord>> {
-        match decode_output_frame(chunk) {
-            Ok(record) => {
+        match self.decoder.decode(chunk) {
+            Ok(OutputStreamFrame::Record(record)) => {
                 self.push(&record, received)?;
                 Ok(Some(record))
             }
+            Ok(OutputStreamFrame::Thermal(_)) => Ok(None),
             Err(_) => {
                 self.bad_frames += 1;
                 Ok(None)
@@ -238,6 +245,8 @@ mod tests {
             angle_q16: sequence as i64 * 65536,
             rate_deg_per_h: 0.0,
             status: OutputStatus::VALID.union(OutputStatus::DITHER_LOCKED),
+            temperature_q7: firmware::thermal::state::NO_VALUE,
+            temperature_rate_centi_c_per_min: firmware::thermal::state::NO_VALUE,
         }
     }
 

@@ -165,6 +165,22 @@ pub fn speed(text: &str) -> Result<f64, String> {
     float(text, above(0.0, 1000.0, "simulated s per s"))
 }
 
+/// `thermal --seconds`: up to 100 h (a chamber's run of ramps and soaks takes hours).
+pub fn thermal_seconds(text: &str) -> Result<f64, String> {
+    float(text, above(0.0, 360_000.0, "s"))
+}
+
+/// `thermal --table-rate-deg-h`: R of the rate table, 3 600 ..= 1 000 000 deg/h (1 deg/s
+/// upwards: the scale factor's +-R must stand far out of the bias and the noise).
+pub fn table_rate_deg_h(text: &str) -> Result<f64, String> {
+    float(text, closed(3_600.0, 1_000_000.0, "deg/h"))
+}
+
+/// `thermal --reference-c`: T_ref within the TMP117's -55 ..= 150 °C.
+pub fn reference_c(text: &str) -> Result<f64, String> {
+    float(text, closed(-55.0, 150.0, "C"))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

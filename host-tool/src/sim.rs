@@ -106,10 +106,21 @@ pub fn boot(
         seed,
         ..GyroParams::default()
     };
+    boot_gyro(params, input.profile(), flash, boot_count, key)
+}
+
+/// [`boot`] with any gyro (e.g. its block on a temperature profile) and input.
+pub fn boot_gyro(
+    params: GyroParams,
+    input: InputProfile,
+    flash: CalibrationFlash,
+    boot_count: u32,
+    key: Option<Key>,
+) -> io::Result<SimDevice> {
     let identity = firmware::protocol::execute::Identity {
         key,
         ..SIM_IDENTITY
     };
-    SimDevice::boot(params, input.profile(), identity, flash, boot_count)
+    SimDevice::boot(params, input, identity, flash, boot_count)
         .map_err(|e| io::Error::other(format!("simulated board: {e:?}")))
 }

@@ -464,3 +464,75 @@ fn a_failed_unlock_does_not_print_the_key() {
     assert!(err.contains("no answer to `unlock <key>`"), "{err}");
     assert!(!out.contains(WRONG) && !err.contains(WRONG), "{err}");
 }
+
+/// `thermal`: out-of-range flags and `--apply` without a key are usage errors (exit 2) before
+/// any run; a log without a temperature span (the `--sim` board sits at 25 °C) is refused by
+/// the fit with its reason (exit 1), the log written, nothing sent to the board.
+#[test]
+fn thermal_refuses_bad_flags_and_a_log_without_a_span() {
+    for (args, says) in [
+        (
+            &[
+                "--sim",
+                "thermal",
+                "--seconds",
+                "0",
+                "--input-rate-deg-h",
+                "13.888",
+            ][..],
+            "0 is outside 0 < x <= 360000 (s)",
+        ),
+        (
+            &[
+                "--sim",
+                "thermal",
+                "--seconds",
+                "5",
+                "--input-rate-deg-h",
+                "13.888",
+                "--table-rate-deg-h",
+                "10",
+            ][..],
+            "10 is outside 3600 <= x <= 1000000 (deg/h)",
+        ),
+        (
+            &[
+                "--sim",
+                "thermal",
+                "--seconds",
+                "5",
+                "--input-rate-deg-h",
+                "13.888",
+                "--apply",
+            ][..],
+            "thermal --apply needs the unlock key",
+        ),
+        (
+            &["--sim", "thermal", "--seconds", "5"][..],
+            "--input-rate-deg-h",
+        ),
+    ] {
+        let (code, _, err) = run(args);
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+    let csv = scratch("thermal.csv");
+    let (code, _, err) = run(&[
+        "--sim",
+        "thermal",
+        "--seconds",
+        "3",
+        "--input-rate-deg-h",
+        "13.888",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("bias fit refused: temperature span under 10 C"),
+        "{err}"
+    );
+    let log = std::fs::read_to_string(&csv).unwrap();
+    assert!(log.starts_with("t_s,delta_angle_arcsec,valid,temperature_c,rate_c_min\n"));
+    assert!(log.lines().count() > 2500, "{} rows", log.lines().count());
+}

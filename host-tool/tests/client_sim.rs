@@ -104,7 +104,7 @@ fn protected_commands_need_the_key_and_answer_the_applied_value() {
     assert_eq!(ask(&mut c, "defaults").unwrap(), "a=0 b=0 comp=off");
     assert_eq!(
         ask(&mut c, "reload").unwrap(),
-        "coeffs=flash:1 dither=stored strip=stored"
+        "coeffs=flash:1 dither=stored strip=stored thermal=kept"
     );
     assert_eq!(ask(&mut c, "get a").unwrap(), "a=344.12344");
     assert_eq!(ask(&mut c, "lock").unwrap(), "locked");

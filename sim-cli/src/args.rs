@@ -1,10 +1,11 @@
 //! Command-line flags: every physical parameter of the simulated gyro, named with its unit.
 
 use clap::{Args, Parser, Subcommand};
+use hal_sim::dither::resonator::TemperatureProfile;
+use hal_sim::thermal::{GyroThermal, ThermalCoefficients};
 use std::path::PathBuf;
 
-/// Earth rate projected on the paper's horizontal axis: 15 deg/h x cos(22.2 deg).
-pub const PAPER_RANGE_DEG_H: f64 = 13.888;
+pub use rlg_sim::experiment::PAPER_RANGE_DEG_H;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -88,7 +89,8 @@ impl GyroArgs {
         use std::f64::consts::PI;
         in_range("--eps-rad", self.eps_rad, -PI, PI)?;
         in_range("--arw-deg-rt-h", self.arw_deg_rt_h, 0.0, 1.0)?;
-        in_range("--amplitude-jitter", self.amplitude_jitter, 0.0, 0.1)
+        in_range("--amplitude-jitter", self.amplitude_jitter, 0.0, 0.1)?;
+        self.thermal.validate()
     }
 }
 
@@ -162,6 +164,100 @@ pub struct GyroArgs {
     /// Random seed (same seed, same output).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    #[command(flatten)]
+    pub thermal: ThermalArgs,
+}
+
+/// The gyro block's temperature and what it does (docs/physics.md section 13; the defaults
+/// are the published figures it cites). Without --temperature-profile the block stays at
+/// --thermal-reference-c, where none of them acts.
+#[derive(Args, Debug, Clone)]
+pub struct ThermalArgs {
+    /// The block's temperature over the run: constant:<C> | ramp:<from C>:<to C>:<C per min>
+    /// | steps:<C>,<C>,...:<hold s> | warmup:<from C>:<to C>:<tau s> | knots:<t s>/<C>,...
+    /// (temperatures -55..=150 C, ramps 0.01..=600 C/min, holds and tau 1..=360000 s; times
+    /// from the start of the simulation).
+    #[arg(long, value_parser = rlg_sim::thermal::profile_arg::parse)]
+    pub temperature_profile: Option<hal_sim::dither::resonator::TemperatureProfile>,
+    /// T_ref: the temperature at which every thermal effect is zero, C (-150..=150).
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.reference_c, allow_negative_numbers = true)]
+    pub thermal_reference_c: f64,
+    /// Bias b1, deg/h per C (-1..=1).
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.bias_deg_h_per_c, allow_negative_numbers = true)]
+    pub thermal_bias_deg_h_per_c: f64,
+    /// Bias b2, deg/h per C^2 (-0.01..=0.01).
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.bias_deg_h_per_c2, allow_negative_numbers = true)]
+    pub thermal_bias_deg_h_per_c2: f64,
+    /// Bias rate term, deg/h per C/min of dT/dt (-1..=1).
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.bias_deg_h_per_c_per_min, allow_negative_numbers = true)]
+    pub thermal_bias_deg_h_per_c_per_min: f64,
+    /// Scale-factor error s1, ppm per C (-100..=100).
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.scale_factor_ppm_per_c, allow_negative_numbers = true)]
+    pub thermal_sf_ppm_per_c: f64,
+    /// Scale-factor error s2, ppm per C^2 (-1..=1).
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.scale_factor_ppm_per_c2, allow_negative_numbers = true)]
+    pub thermal_sf_ppm_per_c2: f64,
+    /// Lock-in threshold Omega_L, relative change per C (-0.01..=0.01).
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.lock_in_per_c, allow_negative_numbers = true)]
+    pub thermal_lock_in_per_c: f64,
+    /// Photodiode phase eps, rad per C (-0.05..=0.05).
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.eps_rad_per_c, allow_negative_numbers = true)]
+    pub thermal_eps_rad_per_c: f64,
+    /// Pick-off gain, relative change per C (-0.01..=0.01).
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.pickoff_gain_per_c, allow_negative_numbers = true)]
+    pub thermal_pickoff_gain_per_c: f64,
+    /// Dither resonance f0 (with --dither-drive closed-loop), Hz per C (-1..=1).
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.dither_hz_per_c, allow_negative_numbers = true)]
+    pub thermal_dither_hz_per_c: f64,
+    /// Dither resonator Q (with --dither-drive closed-loop), relative change per C
+    /// (-0.1..=0.1).
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.dither_q_per_c, allow_negative_numbers = true)]
+    pub thermal_dither_q_per_c: f64,
+}
+
+impl ThermalArgs {
+    /// The coefficients the flags give.
+    pub fn coefficients(&self) -> ThermalCoefficients {
+        ThermalCoefficients {
+            reference_c: self.thermal_reference_c,
+            bias_deg_h_per_c: self.thermal_bias_deg_h_per_c,
+            bias_deg_h_per_c2: self.thermal_bias_deg_h_per_c2,
+            bias_deg_h_per_c_per_min: self.thermal_bias_deg_h_per_c_per_min,
+            scale_factor_ppm_per_c: self.thermal_sf_ppm_per_c,
+            scale_factor_ppm_per_c2: self.thermal_sf_ppm_per_c2,
+            lock_in_per_c: self.thermal_lock_in_per_c,
+            eps_rad_per_c: self.thermal_eps_rad_per_c,
+            pickoff_gain_per_c: self.thermal_pickoff_gain_per_c,
+            dither_hz_per_c: self.thermal_dither_hz_per_c,
+            dither_q_per_c: self.thermal_dither_q_per_c,
+        }
+    }
+
+    /// The block: the profile (or T_ref throughout) and the coefficients.
+    pub fn gyro_thermal(&self) -> GyroThermal {
+        let coefficients = self.coefficients();
+        GyroThermal {
+            profile: self
+                .temperature_profile
+                .unwrap_or(TemperatureProfile::constant(coefficients.reference_c)),
+            coefficients,
+        }
+    }
+
+    /// Every coefficient in its range; the message names the flag.
+    pub fn validate(&self) -> Result<(), String> {
+        let limit = hal_sim::thermal::LIMITS.reference_c;
+        in_range(
+            "--thermal-reference-c",
+            self.thermal_reference_c,
+            -limit,
+            limit,
+        )?;
+        for (name, value, limit) in self.coefficients().each() {
+            in_range(&format!("--thermal-{name}"), value, -limit, limit)?;
+        }
+        Ok(())
+    }
 }
 
 #[derive(Args, Debug, Clone)]
@@ -380,8 +476,9 @@ pub struct RecordArgs {
     /// Simulated seconds discarded before recording (0..=60).
     #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     pub warmup_seconds: f64,
-    /// Output CSV (t_s,delta_angle_arcsec,true_delta_angle_arcsec,valid), one row per sync
-    /// period, written as the rows come.
+    /// Output CSV (t_s,delta_angle_arcsec,true_delta_angle_arcsec,valid, and temperature_c
+    /// with --temperature-profile: the block's temperature the record carries), one row per
+    /// sync period, written as the rows come.
     #[arg(long)]
     pub csv: PathBuf,
     /// No progress bar.
@@ -499,6 +596,13 @@ pub struct CharacterizeArgs {
     /// Without --compare: compensation on (calibrated first) or off.
     #[arg(long, value_enum, default_value_t = OnOff::On)]
     pub compensation: OnOff,
+    /// Also IEEE 647's bias and scale factor over temperature: the thermal calibration (ramps
+    /// -20..+60 C, soaks with the table at +-10 deg/s), then its check on another ramp and
+    /// eight soaks with the model off and on (thermal.csv, thermal.svg, a report section;
+    /// about 900 gyro-seconds; --temperature-profile does not apply to it; the coefficient
+    /// flags do).
+    #[arg(long)]
+    pub thermal: bool,
     /// With --compare: the random-noise dither's depth, percent of the drive amplitude
     /// (1..=50; at 10 % the resonator smooths it too much to fill the dead band in 5 s).
     #[arg(long, default_value_t = 25.0, allow_negative_numbers = true)]

@@ -175,11 +175,52 @@ pub fn characterize(args: &CharacterizeArgs) -> Result<(), Failure> {
         theory,
         board: board_text(args),
         calibration,
+        thermal: None,
     };
+    let thermal = if args.thermal {
+        let thermal_plan = rlg_sim::thermal::procedure::ThermalPlan::default_plan();
+        let thermal_s = thermal_plan.gyro_seconds();
+        eprintln!("bias and scale factor over temperature: {thermal_s:.0} gyro-seconds");
+        let thermal_setup = BoardSetup {
+            drive: match setup.drive {
+                DitherDrive::ClosedLoop { .. } => DitherDrive::ClosedLoop { noise_percent: 0.0 },
+                ideal => ideal,
+            },
+            ..setup
+        };
+        let outcome =
+            rlg_sim::thermal::procedure::run(&params, thermal_setup, settings, &thermal_plan)
+                .map_err(Failure::Run)?;
+        Some((outcome, thermal_plan))
+    } else {
+        None
+    };
+    let ctx = Context { thermal, ..ctx };
     let written = report::write(out, &outcome, &ctx).map_err(io)?;
     print!("{}", summary::table(&outcome.results));
     for c in summary::conclusions(&outcome.results) {
         println!("\n{c}");
+    }
+    if let Some((thermal, _)) = &ctx.thermal {
+        let r = &thermal.ramp;
+        let worst = |f: fn(&rlg_sim::thermal::procedure::SoakCheck) -> f64| {
+            thermal
+                .soaks
+                .iter()
+                .map(f)
+                .map(f64::abs)
+                .fold(0.0, f64::max)
+        };
+        println!(
+            "\nover temperature: ramp bias rms {:.5} -> {:.5} deg/h with the model; soaks: bias \
+             worst {:.5} -> {:.5} deg/h, scale factor worst {:.3} -> {:.3} ppm",
+            r.raw_rms_all_deg_h,
+            r.corrected_rms_all_deg_h,
+            worst(|p| p.bias_raw_deg_h),
+            worst(|p| p.bias_compensated_deg_h),
+            worst(|p| p.scale_factor_raw_ppm),
+            worst(|p| p.scale_factor_compensated_ppm)
+        );
     }
     eprintln!(
         "{:.0} gyro-seconds in {:.1} s; wrote {} files to {}",

@@ -25,11 +25,14 @@ use firmware::signal::lockin::{CycleOutput, CycleRecord};
 use firmware::signal::output::record::OutputRecord;
 use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use hal_sim::board::{LatchTiming, OutputLatch};
-use hal_sim::dither::resonator::ResonatorParams;
+use hal_sim::dither::resonator::{ResonatorParams, TemperatureDrift};
 use hal_sim::gyro::Speed;
 use hal_sim::harness::{DriveSource, Harness, HarnessOptions};
 use hal_sim::input::InputProfile;
 use hal_sim::params::GyroParams;
+
+/// Earth rate projected on the paper's horizontal axis: 15 deg/h x cos(22.2 deg).
+pub const PAPER_RANGE_DEG_H: f64 = 13.888;
 
 /// A run's timing: warm-up (discarded) and recording, simulated seconds.
 #[derive(Clone, Copy, Debug)]
@@ -179,19 +182,48 @@ pub fn start_constant_rate(
         seed: run_seed(params.seed, rate_deg_h),
         ..*params
     };
+    start_run(
+        &params,
+        setup,
+        InputProfile::constant(rate_deg_h),
+        warmup_s,
+        settings,
+    )
+}
+
+/// A harness on the board `setup` describes with the input `input` (the seed as `params`
+/// gives it), run until it may record, as [`start_constant_rate`]; the gyro's block follows
+/// `params.thermal.profile` (a driven resonator's f0 and Q too).
+pub fn start_run(
+    params: &GyroParams,
+    setup: BoardSetup,
+    input: InputProfile,
+    warmup_s: f64,
+    settings: CompensationSettings,
+) -> Result<(Harness, f64), ExperimentError> {
+    let params = *params;
     let simulator = |e: String| ExperimentError::Simulator(e);
     let (params, source) = match setup.drive {
         DitherDrive::Ideal => (params, None),
         DitherDrive::ClosedLoop { .. } => {
-            let driven = params.with_steady_driven_dither(ResonatorParams {
-                f0_hz: params.dither_hz,
-                ..ResonatorParams::default()
-            });
+            let c = &params.thermal.coefficients;
+            let driven = params
+                .with_steady_driven_dither(ResonatorParams {
+                    f0_hz: params.dither_hz,
+                    temperature: TemperatureDrift {
+                        reference_c: c.reference_c,
+                        f0_hz_per_c: c.dither_hz_per_c,
+                        q_relative_per_c: c.dither_q_per_c,
+                        ..TemperatureDrift::NONE
+                    },
+                    ..ResonatorParams::default()
+                })
+                .with_temperature(params.thermal.profile);
             let source = DriveSource::firmware(&driven).map_err(|e| simulator(e.to_string()))?;
             (driven, Some(source))
         }
     };
-    let mut options = HarnessOptions::new(params, InputProfile::constant(rate_deg_h))
+    let mut options = HarnessOptions::new(params, input)
         .compensation(settings)
         .sync_hz(setup.sync_hz);
     if let Some(source) = source {

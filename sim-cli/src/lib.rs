@@ -13,3 +13,4 @@ pub mod interrupt;
 pub mod plot;
 pub mod record_run;
 pub mod report;
+pub mod thermal;

@@ -79,6 +79,7 @@ impl GyroArgs {
             arw_deg_per_rt_h: self.arw_deg_rt_h,
             amplitude_jitter: AmplitudeModulation::jitter(self.amplitude_jitter),
             seed: self.seed,
+            thermal: self.thermal.gyro_thermal(),
             ..GyroParams::default()
         };
         params
@@ -261,7 +262,15 @@ fn record(args: &RecordArgs) -> Result<(), Failure> {
         .map_err(|e| Failure::Usage(format!("{}: {e}", args.csv.display())))?;
     let mut out = std::io::BufWriter::new(file);
     let io = |e: std::io::Error| Failure::Run(format!("{}: {e}", args.csv.display()));
-    writeln!(out, "t_s,delta_angle_arcsec,true_delta_angle_arcsec,valid").map_err(io)?;
+    // With a temperature profile, the temperature each record carries (the board's sensor;
+    // empty while it has none).
+    let with_temperature = args.gyro.thermal.temperature_profile.is_some();
+    let header = "t_s,delta_angle_arcsec,true_delta_angle_arcsec,valid";
+    if with_temperature {
+        writeln!(out, "{header},temperature_c").map_err(io)?;
+    } else {
+        writeln!(out, "{header}").map_err(io)?;
+    }
     let stop = rlg_sim::interrupt::install();
     let setup = args.board.setup();
     let settings = calibrate_board(
@@ -286,9 +295,14 @@ fn record(args: &RecordArgs) -> Result<(), Failure> {
         args.seconds,
         settings,
         |row| {
+            let temperature = match (with_temperature, row.temperature_c) {
+                (false, _) => String::new(),
+                (true, Some(c)) => format!(",{c:.4}"),
+                (true, None) => ",".into(),
+            };
             let line = writeln!(
                 out,
-                "{:.6},{:.6},{:.6},{}",
+                "{:.6},{:.6},{:.6},{}{temperature}",
                 row.t_s,
                 row.delta_angle_arcsec,
                 row.true_delta_angle_arcsec,

@@ -31,6 +31,8 @@ pub struct RecordRow {
     pub valid: bool,
     /// The record's sequence number.
     pub sequence: u64,
+    /// The block's temperature the record carries (the board's sensor), °C.
+    pub temperature_c: Option<f64>,
 }
 
 /// What a record run saw.
@@ -88,6 +90,7 @@ pub fn record(
                 true_delta_angle_arcsec: latch.true_angle_arcsec - truth0,
                 valid: out.is_valid(),
                 sequence: out.sequence,
+                temperature_c: out.temperature_c(),
             };
             rows += 1;
             last_t = latch.t_s;

@@ -201,3 +201,56 @@ fn sigint_keeps_the_static_record_so_far() {
     assert!(!dir.join("report.md").exists());
     std::fs::remove_dir_all(dir).unwrap();
 }
+
+/// `--thermal` on the default board (the firmware's closed-loop drive, compensation
+/// calibrated): thermal.csv with exactly the documented columns, one row per check soak
+/// (-15..+55 °C), thermal.svg, and the report's section; the model takes the soaks' bias and
+/// scale factor down (measured: bias worst 0.078 -> 0.0007 deg/h, scale factor 19.5 ->
+/// 0.03 ppm; bounds 0.005 deg/h and 1 ppm, the acceptance's 10 ppm far above).
+#[test]
+fn thermal_adds_bias_and_scale_factor_over_temperature() {
+    let dir = scratch("thermal");
+    let args = [
+        "characterize",
+        "--quiet",
+        "--range-points",
+        "2",
+        "--dense-points",
+        "2",
+        "--seconds-per-point",
+        "0.5",
+        "--static-seconds",
+        "10",
+        "--max-rate-deg-s=0.1",
+        "--calibration-seconds",
+        "5",
+        "--thermal",
+        "--out",
+        dir.to_str().unwrap(),
+    ];
+    let (o, _) = rlg_sim(&args);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let csv = read(&dir, "thermal.csv");
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next(),
+        Some(
+            "temperature_c,bias_raw_deg_h,bias_compensated_deg_h,scale_factor_raw_ppm,\
+             scale_factor_compensated_ppm"
+        )
+    );
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    let temps: Vec<f64> = rows.iter().map(|r| r[0]).collect();
+    assert_eq!(temps, [-15.0, -5.0, 5.0, 15.0, 25.0, 35.0, 45.0, 55.0]);
+    let worst = |i: usize| rows.iter().map(|r| r[i].abs()).fold(0.0, f64::max);
+    assert!(worst(1) > 0.05 && worst(2) < 0.005, "{csv}");
+    assert!(worst(3) > 10.0 && worst(4) < 1.0, "{csv}");
+    assert!(read(&dir, "thermal.svg").starts_with("<svg"));
+    let report = read(&dir, "report.md");
+    assert!(report.contains("## Bias and scale factor over temperature (IEEE 647)"));
+    assert!(report.contains("![bias and scale factor over temperature](thermal.svg)"));
+    assert!(text(&o.stdout).contains("over temperature: ramp bias rms"));
+    std::fs::remove_dir_all(dir).unwrap();
+}

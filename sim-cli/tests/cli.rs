@@ -296,3 +296,95 @@ fn speed_times_the_gyro_and_the_board() {
     assert!(text(&out.stderr).contains("--seconds must be in"));
     assert!(took < Duration::from_secs(1), "{took:?}");
 }
+
+/// The thermal flags: a malformed or out-of-range profile and an out-of-range coefficient are
+/// refused at once (exit 2), naming the flag and its range.
+#[test]
+fn thermal_flags_are_range_checked() {
+    for (flag, value, says) in [
+        (
+            "--temperature-profile",
+            "ramp:0:10",
+            "--temperature-profile \"ramp:0:10\": unknown kind or wrong number of fields",
+        ),
+        (
+            "--temperature-profile",
+            "constant:200",
+            "temperature 200 outside -55..=150 C",
+        ),
+        (
+            "--thermal-sf-ppm-per-c",
+            "200",
+            "--thermal-sf-ppm-per-c must be in -100..=100",
+        ),
+        (
+            "--thermal-bias-deg-h-per-c-per-min",
+            "-2",
+            "--thermal-bias-deg-h-per-c-per-min must be in -1..=1",
+        ),
+        (
+            "--thermal-eps-rad-per-c",
+            "0.1",
+            "--thermal-eps-rad-per-c must be in -0.05..=0.05",
+        ),
+    ] {
+        let (out, took) = rlg_sim(&["record", "--csv", "/tmp/never.csv", flag, value]);
+        assert_eq!(out.status.code(), Some(2), "{flag} {value}");
+        assert!(text(&out.stderr).contains(says), "{}", text(&out.stderr));
+        assert!(took < Duration::from_secs(1), "{took:?}");
+    }
+}
+
+/// `record --temperature-profile` adds the `temperature_c` column: the temperature the board's
+/// records carry (its simulated TMP117), which follows a 20 -> 30 °C ramp at 1 °C/s to within
+/// the sensor's accuracy and its lag (0.02 °C offset, a result every 125 ms read within 50 ms:
+/// up to 0.2 °C behind at 1 °C/s, bounded at 0.3); without a profile the column is absent.
+#[test]
+fn record_with_a_temperature_profile_has_the_temperature_column() {
+    let csv = std::env::temp_dir().join(format!("rlg-sim-temp-{}.csv", std::process::id()));
+    let path = csv.to_str().unwrap();
+    let (out, _) = rlg_sim(&[
+        "record",
+        "--quiet",
+        "--rate-deg-h",
+        "13.888",
+        "--seconds",
+        "4",
+        "--calibration-seconds",
+        "5",
+        "--temperature-profile",
+        "ramp:20:30:60",
+        "--csv",
+        path,
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let rows = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = rows.lines();
+    assert_eq!(
+        lines.next(),
+        Some("t_s,delta_angle_arcsec,true_delta_angle_arcsec,valid,temperature_c")
+    );
+    let mut worst: f64 = 0.0;
+    for line in lines {
+        let fields: Vec<&str> = line.split(',').collect();
+        let t: f64 = fields[0].parse().unwrap();
+        let temp: f64 = fields[4].parse().unwrap();
+        let truth = (20.0 + t).min(30.0);
+        worst = worst.max((temp - truth).abs());
+    }
+    assert!(worst < 0.3 && worst > 0.05, "{worst}");
+    let (out, _) = rlg_sim(&[
+        "record",
+        "--quiet",
+        "--seconds",
+        "0.1",
+        "--calibration-seconds",
+        "5",
+        "--csv",
+        path,
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let rows = std::fs::read_to_string(&csv).unwrap();
+    assert!(rows.starts_with("t_s,delta_angle_arcsec,true_delta_angle_arcsec,valid\n"));
+    let _ = std::fs::remove_file(&csv);
+}

@@ -27,6 +27,11 @@ use crate::protocol::execute::Identity;
 use crate::service::power_up::power_up;
 use crate::service::{Service, ServiceConfig};
 use crate::storage::{DitherSetpoints, Geometry};
+use crate::thermal::sensor::{SensorConfig, SensorMonitor};
+use crate::thermal::tmp117::{Tmp117, ADDRESS};
+
+/// The gyro block's temperature sensor on I2C1 ([`super::i2c`]).
+pub type BlockSensor = Tmp117<super::i2c::I2c1>;
 
 /// Milliseconds between health logs (defmt, only when a counter changed).
 const HEALTH_LOG_MS: u64 = 10_000;
@@ -223,15 +228,25 @@ pub fn run() -> ! {
     // SAFETY: the USART's queues were set up in `usart::init`.
     unsafe { NVIC::unmask(pac::Interrupt::USART1) };
     let ports = BoardPorts::new(serial, Some(watchdog), true, report);
-    serve(service, queues, ports, Some("# rlg-readout ready"))
+    let sensor = Tmp117::new(super::i2c::I2c1::init(dp.I2C1, &dp.RCC), ADDRESS);
+    serve(
+        service,
+        queues,
+        ports,
+        Some(sensor),
+        Some("# rlg-readout ready"),
+    )
 }
 
-/// The main loop (see the module docs). `banner` is sent once at the start, so a host knows the
-/// receiver is on (QEMU drops bytes sent before its serial socket is connected).
+/// The main loop (see the module docs). `sensor`: the block's TMP117, polled here (never in
+/// an interrupt: a poll is 95-190 us of I2C, `super::i2c`), its updates handed to the
+/// service. `banner` is sent once at the start, so a host knows the receiver is on (QEMU drops
+/// bytes sent before its serial socket is connected).
 pub fn serve<F: NorFlash>(
     mut service: Service<F>,
     mut queues: ReadoutQueues,
     mut ports: BoardPorts,
+    mut sensor: Option<BlockSensor>,
     banner: Option<&str>,
 ) -> ! {
     use crate::service::ports::SerialTx;
@@ -242,9 +257,21 @@ pub fn serve<F: NorFlash>(
     let mut health = Health::default();
     let mut health_logged_ms = resources::now_ms();
     let mut dither_state = None;
+    let mut monitor = SensorMonitor::new();
+    let mut sensor_state = None;
     loop {
         ports.refresh_watchdog();
         ports.watch_pass();
+        if let Some(sensor) = sensor.as_mut() {
+            let now = resources::now_ms();
+            if let Some(update) = monitor.poll(&SensorConfig::DEFAULT, sensor, now) {
+                if sensor_state != Some(update.state) {
+                    defmt::info!("temperature sensor: {}", update.state);
+                    sensor_state = Some(update.state);
+                }
+                service.on_sensor(update, &mut ports);
+            }
+        }
         // Bounded: one command line and one queue of records of each kind, then the watchdog
         // again.
         let ReadoutQueues { cycles, outputs } = &mut queues;

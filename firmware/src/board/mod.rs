@@ -17,6 +17,7 @@
 //! | [`dither`] | TIM4, DAC1, ADC3 | the dither drive's 40 kHz tick: pick-off sample and DAC update on one timer edge, `crate::dither` in the handler |
 //! | [`usart`] | USART1 | the calibration protocol's serial link (RXNE/TXE interrupts, bounded queues) |
 //! | [`flash`] | FLASH | sectors 10-11 as an `embedded_storage` `NorFlash`; OTP programming |
+//! | [`i2c`] | I2C1 (PB6, PB7) | the gyro block's TMP117 at 400 kHz, behind `embedded_hal::i2c::I2c`; polled in the main loop |
 //! | [`otp`] | OTP block 0 | serial number and the 128-bit key (`key provision`) |
 //! | [`backup`] | PWR, backup SRAM | the wrong-key count across resets |
 //! | [`watchdog`] | IWDG | reset if the main loop stops |
@@ -51,6 +52,7 @@ pub mod clocks;
 pub mod dither;
 pub mod encoder;
 pub mod flash;
+pub mod i2c;
 pub mod isr;
 pub mod otp;
 pub mod ports;

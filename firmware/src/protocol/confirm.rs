@@ -14,12 +14,15 @@
 
 use core::fmt;
 
-use super::parse::{Coefficient, Command, DitherCommand};
+use super::parse::{Coefficient, Command, DitherCommand, ThermalCommand};
 
 /// Commands that change the board's state, its work or its flash: without a CRC they wait for
 /// `yes`. `cal result` is listed as a read: the executor adds it while it would close pooled
 /// runs (solving ends pooling), when it changes the session.
 pub fn needs_confirmation(command: &Command) -> bool {
+    if let Command::Thermal(thermal) = command {
+        return !thermal.is_read();
+    }
     !matches!(
         command,
         Command::Help
@@ -59,6 +62,7 @@ impl fmt::Display for Canonical<'_> {
             Command::Status => f.write_str("status"),
             Command::OutputStatus => f.write_str("output status"),
             Command::SelfTest => f.write_str("selftest"),
+            Command::Thermal(thermal) => thermal_words(f, &thermal),
             Command::Get(None) => f.write_str("get coeffs"),
             Command::Get(Some(Coefficient::A)) => f.write_str("get a"),
             Command::Get(Some(Coefficient::B)) => f.write_str("get b"),
@@ -92,6 +96,20 @@ impl fmt::Display for Canonical<'_> {
     }
 }
 
+fn thermal_words(f: &mut fmt::Formatter<'_>, command: &ThermalCommand) -> fmt::Result {
+    use crate::thermal::model::ThermalModel;
+    match *command {
+        ThermalCommand::Read => f.write_str("thermal"),
+        ThermalCommand::Model => f.write_str("thermal model"),
+        ThermalCommand::Set(index, v) => {
+            let name = ThermalModel::NAMES.get(usize::from(index)).unwrap_or(&"?");
+            write!(f, "thermal set {name} {v}")
+        }
+        ThermalCommand::Apply => f.write_str("thermal apply"),
+        ThermalCommand::Enable(on) => write!(f, "thermal {}", on_off(on)),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -115,6 +133,11 @@ mod tests {
             "dither amp 420.5",
             "dither noise 3",
             "dither off",
+            "thermal set t_min -20",
+            "thermal set B3 -1.25e-7",
+            "thermal set s2 0.005",
+            "thermal apply",
+            "thermal off",
             "key provision 00112233445566778899AABBCCDDEEFF",
         ] {
             let command = parse(line).unwrap();
@@ -129,6 +152,8 @@ mod tests {
             "stream on 2",
             "lock",
             "help",
+            "thermal",
+            "thermal model",
         ] {
             assert!(!needs_confirmation(&parse(line).unwrap()), "{line}");
         }

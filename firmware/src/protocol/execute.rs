@@ -31,7 +31,8 @@ use super::commands::access::AccessState;
 use super::commands::calibration::CalibrationState;
 use super::commands::info::{self, StatusFlags};
 use super::commands::provenance::Provenance;
-use super::commands::stream::StreamState;
+use super::commands::stream::{StreamState, StreamedOutput};
+use super::commands::thermal::{self, ThermalEdit};
 use super::commands::{dither, settings, storage, Answer};
 use super::confirm::{needs_confirmation, Canonical};
 use super::parse::{Command, DitherCommand};
@@ -55,6 +56,8 @@ pub struct Executor {
     calibration: CalibrationState,
     provenance: Provenance,
     stream: StreamState,
+    /// The thermal model being edited (`thermal range|bias|sf`).
+    thermal_edit: ThermalEdit,
     /// A state-changing command typed without a CRC, echoed, waiting for `yes`.
     pending: Option<Command>,
 }
@@ -81,6 +84,7 @@ impl Executor {
             calibration: CalibrationState::new(limits),
             provenance: Provenance::new(report, fit, boot_count),
             stream: StreamState::default(),
+            thermal_edit: ThermalEdit::default(),
             pending: None,
         }
     }
@@ -142,12 +146,18 @@ impl Executor {
     /// Every output record (from the output latch's context, through the service): the frame
     /// to send when the output is streamed, with the tracking bit set while the tracker runs
     /// (the readout does not know it).
-    pub fn on_output(&self, record: &OutputRecord) -> Option<OutputRecord> {
-        let mut record = self.stream.on_output(record)?;
-        if self.tracking() {
-            record.status = record.status.union(OutputStatus::TRACKING);
+    pub fn on_output(&mut self, record: &OutputRecord) -> Option<StreamedOutput> {
+        let tracking = self.tracking();
+        let mut out = self.stream.on_output(record)?;
+        if tracking {
+            out.record.status = out.record.status.union(OutputStatus::TRACKING);
         }
-        Some(record)
+        Some(out)
+    }
+
+    /// A thermal frame of the output stream could not be sent: the next record gets one.
+    pub fn thermal_frame_lost(&mut self) {
+        self.stream.thermal_frame_lost();
     }
 
     /// Executes one command from a line: a state-changing one without a CRC is not executed
@@ -240,6 +250,7 @@ impl Executor {
             }
             Command::SelfTest => Ok(info::selftest(device)),
             Command::OutputStatus => Ok(info::output_status(device)),
+            Command::Thermal(c) => thermal::command(&mut self.thermal_edit, device, p, c),
             Command::Get(which) => Ok(info::get(id, device, which)),
             Command::Set(which, value) => settings::set(device, p, which, value),
             Command::Compensation(on) => Ok(settings::compensation(device, p, on)),
@@ -326,6 +337,7 @@ fn protected(command: &Command) -> bool {
             | Command::Reload
             | Command::Defaults
     ) || matches!(command, Command::Dither(c) if *c != DitherCommand::Status)
+        || matches!(command, Command::Thermal(c) if !c.is_read())
 }
 
 #[cfg(test)]
@@ -575,14 +587,17 @@ mod tests {
             angle_q16: 5,
             rate_deg_per_h: 6.0,
             status: OutputStatus::VALID,
+            temperature_q7: crate::thermal::state::NO_VALUE,
+            temperature_rate_centi_c_per_min: crate::thermal::state::NO_VALUE,
         };
         assert_eq!(e.on_output(&record), None);
         assert!(run(&mut e, &mut d, "stream output").starts_with("OK stream=output"));
-        assert_eq!(e.on_output(&record), Some(record));
+        assert_eq!(e.on_output(&record).map(|o| o.record), Some(record));
         assert!(run(&mut e, &mut d, &unlock_line()).starts_with("OK"));
         assert!(run(&mut e, &mut d, "track on").starts_with("OK"));
         let sent = e.on_output(&record).unwrap();
         assert!(sent
+            .record
             .status
             .contains(OutputStatus::TRACKING.union(OutputStatus::VALID)));
     }

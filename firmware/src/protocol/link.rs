@@ -106,6 +106,19 @@ pub trait DeviceLink {
     fn board_health(&mut self) -> BoardHealth {
         BoardHealth::UNTESTED
     }
+    /// The thermal state (`thermal`): the sensor, the model in force and its switch.
+    fn thermal(&mut self) -> crate::thermal::state::ThermalState;
+    /// Puts a thermal model in force (`None`: none), switched on (`enabled`) or off; the
+    /// output's next records follow it (`thermal apply|on|off`, `reload`).
+    fn set_thermal_model(
+        &mut self,
+        model: Option<crate::thermal::model::ThermalModel>,
+        enabled: bool,
+    );
+    /// The scale factor the thermal corrections are in, arcsec per fringe.
+    fn thermal_scale_factor_arcsec(&mut self) -> f32 {
+        1.0
+    }
 }
 
 /// Why the key could not be written to OTP.

@@ -28,6 +28,7 @@ pub mod output_frame;
 pub mod parse;
 pub mod respond;
 pub mod stream;
+pub mod thermal_frame;
 
 /// Line rate of the serial protocol (USART1, 8N1), Bd: the board's (`board::usart::BAUD`) and
 /// the host tool's default for `--port`, one constant for both.

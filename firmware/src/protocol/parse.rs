@@ -33,6 +33,30 @@ pub enum DitherCommand {
     Status,
 }
 
+/// A `thermal` command.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ThermalCommand {
+    /// `thermal`: the temperature, its rate, the sensor, the model's state.
+    Read,
+    /// `thermal model`: the model in force, its coefficients and its switch.
+    Model,
+    /// `thermal set <name> <value>`: one coefficient of the edited model, by its index in
+    /// `ThermalModel::NAMES` (`t_ref t_min t_max` in °C, each within the sensor's -55..150;
+    /// `b0..b3` deg/h per °C^k, `b_rate` deg/h per °C/min, `s0..s2` ppm per °C^k).
+    Set(u8, f32),
+    /// `thermal apply`: the edited model, checked whole, in force and switched on.
+    Apply,
+    /// `thermal on` | `thermal off`: the model in force switched on or off.
+    Enable(bool),
+}
+
+impl ThermalCommand {
+    /// Whether it only reads.
+    pub fn is_read(&self) -> bool {
+        matches!(self, Self::Read | Self::Model)
+    }
+}
+
 /// Every command of the protocol (see the README for examples).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Command {
@@ -46,6 +70,9 @@ pub enum Command {
     OutputStatus,
     /// `selftest`: the power-up self-test's checks, the timing faults raised now.
     SelfTest,
+    /// `thermal [model|set <name> <value>|apply|on|off]`: the block's temperature and
+    /// the thermal model.
+    Thermal(ThermalCommand),
     /// `get a` | `get b` | `get coeffs`: one coefficient, or both with Omega_L and eps.
     Get(Option<Coefficient>),
     /// `set a <rad/s>` | `set b <rad/s>`.
@@ -169,6 +196,33 @@ fn on_off(word: Option<&str>) -> Result<bool, ErrorCode> {
     }
 }
 
+/// The words after `thermal`.
+fn thermal<'a>(words: &mut impl Iterator<Item = &'a str>) -> Result<ThermalCommand, ErrorCode> {
+    use crate::thermal::model::{ThermalModel, SENSOR_MAX_C, SENSOR_MIN_C, TEMPERATURES};
+    let Some(sub) = words.next() else {
+        return Ok(ThermalCommand::Read);
+    };
+    let sub_is = |w: &str| sub.eq_ignore_ascii_case(w);
+    Ok(if sub_is("model") {
+        ThermalCommand::Model
+    } else if sub_is("set") {
+        let name = words.next().ok_or(ErrorCode::Syntax)?;
+        let index = ThermalModel::NAMES
+            .iter()
+            .position(|n| n.eq_ignore_ascii_case(name))
+            .ok_or(ErrorCode::Syntax)?;
+        let value = number(words.next())?;
+        if index < TEMPERATURES && !(SENSOR_MIN_C..=SENSOR_MAX_C).contains(&value) {
+            return Err(ErrorCode::OutOfRange);
+        }
+        ThermalCommand::Set(u8::try_from(index).map_err(|_| ErrorCode::Syntax)?, value)
+    } else if sub_is("apply") {
+        ThermalCommand::Apply
+    } else {
+        ThermalCommand::Enable(on_off(Some(sub))?)
+    })
+}
+
 /// Parses a command text (CRC already stripped).
 pub fn parse(text: &str) -> Result<Command, ErrorCode> {
     let mut words = text.split([' ', '\t']).filter(|w| !w.is_empty());
@@ -187,6 +241,8 @@ pub fn parse(text: &str) -> Result<Command, ErrorCode> {
             Some(w) if w.eq_ignore_ascii_case("status") => Command::OutputStatus,
             _ => return Err(ErrorCode::Syntax),
         }
+    } else if is("thermal") {
+        Command::Thermal(thermal(&mut words)?)
     } else if is("get") {
         match words.next() {
             Some(w) if w.eq_ignore_ascii_case("coeffs") => Command::Get(None),

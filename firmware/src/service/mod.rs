@@ -42,6 +42,7 @@ use crate::protocol::line::{LineAssembler, LineEvent, MAX_LINE};
 use crate::protocol::link::KeyWriteError;
 use crate::protocol::output_frame::{encode_output_frame, MAX_OUTPUT_FRAME};
 use crate::protocol::stream::{encode_frame, MAX_FRAME};
+use crate::protocol::thermal_frame::{encode_thermal_frame, THERMAL_FRAME};
 use crate::readout::ReadoutConfig;
 use crate::signal::compensation::CompensationSettings;
 use crate::signal::lockin::CycleRecord;
@@ -51,6 +52,9 @@ use crate::storage::{
     CalibrationRecord, CalibrationStore, DitherSetpoints, Geometry, GeometryError, LoadReport,
     StoreError, Stored, StripCoefficients,
 };
+use crate::thermal::model::ThermalModel;
+use crate::thermal::sensor::SensorUpdate;
+use crate::thermal::state::ThermalState;
 use ports::{Clock, DitherAccess, ReadoutAccess, Secrets, SerialTx};
 
 /// Lines a main-loop pass executes at most ([`Service::pass`]).
@@ -126,6 +130,8 @@ pub struct Service<F: NorFlash> {
     frames_dropped: u32,
     /// The wrong-key count last handed to [`Secrets::save_wrong_keys`].
     saved_wrong_keys: u32,
+    /// The block's temperature, its rate and the thermal model (`crate::thermal`).
+    thermal: ThermalState,
 }
 
 impl<F: NorFlash> Service<F> {
@@ -141,6 +147,11 @@ impl<F: NorFlash> Service<F> {
         let (record, report) = store.load_for_serial(&mut flash, config.identity.serial_number);
         // Saturating: a counter never wraps in the field.
         let boots = boot_count.unwrap_or(record.boot_count.saturating_add(1));
+        let mut thermal = ThermalState::new();
+        if let Some(stored) = record.thermal {
+            let sf = config.readout.output.scale_factor_arcsec;
+            thermal.set_model(Some(stored.model), stored.enabled, sf);
+        }
         let service = Self {
             executor: Executor::new(&report, record.fit, boots, AcceptanceLimits::DEFAULT),
             line: LineAssembler::new(),
@@ -148,6 +159,7 @@ impl<F: NorFlash> Service<F> {
             status: DeviceStatus::default(),
             frames_dropped: 0,
             saved_wrong_keys: 0,
+            thermal,
             config,
             flash,
             store,
@@ -250,6 +262,7 @@ impl<F: NorFlash> Service<F> {
             store: &self.store,
             serial_number: self.config.identity.serial_number,
             status: self.status,
+            thermal: &mut self.thermal,
             ports,
         };
         let answer = endpoint::answer(
@@ -299,14 +312,42 @@ impl<F: NorFlash> Service<F> {
     /// One fixed-rate output record: sent as a frame when the output is streamed (`stream
     /// output`), queued whole or dropped and counted; a dropped record shows to the host as a
     /// gap in the records' own sequence numbers.
+    ///
+    /// A thermal frame goes first when the record's temperature or rate is new to the host
+    /// (`protocol::thermal_frame`); when it finds no room the record is dropped too (it would
+    /// find none either) and the next record gets the thermal frame.
     pub fn on_output<P: SerialTx>(&mut self, record: &OutputRecord, ports: &mut P) {
-        if let Some(record) = self.executor.on_output(record) {
-            let mut buf = [0u8; MAX_OUTPUT_FRAME];
-            let n = encode_output_frame(&record, &mut buf);
+        let Some(out) = self.executor.on_output(record) else {
+            return;
+        };
+        if let Some(thermal) = out.thermal {
+            let mut buf = [0u8; THERMAL_FRAME];
+            let n = encode_thermal_frame(&thermal, &mut buf);
             if !ports.try_send_frame(buf.get(..n).unwrap_or(&buf)) {
+                self.executor.thermal_frame_lost();
                 self.frames_dropped = self.frames_dropped.saturating_add(1);
+                return;
             }
         }
+        let mut buf = [0u8; MAX_OUTPUT_FRAME];
+        let n = encode_output_frame(&out.record, &mut buf);
+        if !ports.try_send_frame(buf.get(..n).unwrap_or(&buf)) {
+            self.frames_dropped = self.frames_dropped.saturating_add(1);
+        }
+    }
+
+    /// What the temperature sensor's monitor found (the main loop polls it,
+    /// `thermal::sensor::SensorMonitor::poll`): the thermal state follows, and the output
+    /// stage gets the temperature, its rate and the correction for its next records.
+    pub fn on_sensor<P: ReadoutAccess>(&mut self, update: SensorUpdate, ports: &mut P) {
+        let sf = self.config.readout.output.scale_factor_arcsec;
+        let input = self.thermal.on_sensor(update, sf);
+        ports.with_readout(|r| r.set_thermal(input));
+    }
+
+    /// The thermal state.
+    pub fn thermal(&self) -> &ThermalState {
+        &self.thermal
     }
 
     /// Whether the binary stream is on.
@@ -368,6 +409,7 @@ struct ServiceDevice<'a, F, P> {
     /// This board's gyro: records of another are not loaded.
     serial_number: u32,
     status: DeviceStatus,
+    thermal: &'a mut ThermalState,
     ports: &'a mut P,
 }
 
@@ -435,6 +477,20 @@ impl<F: NorFlash, P: Clock + ReadoutAccess + DitherAccess + Secrets> DeviceLink
 
     fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError> {
         self.ports.program_key(key)
+    }
+
+    fn thermal(&mut self) -> ThermalState {
+        *self.thermal
+    }
+
+    fn set_thermal_model(&mut self, model: Option<ThermalModel>, enabled: bool) {
+        let sf = self.readout.output.scale_factor_arcsec;
+        let input = self.thermal.set_model(model, enabled, sf);
+        self.ports.with_readout(|r| r.set_thermal(input));
+    }
+
+    fn thermal_scale_factor_arcsec(&mut self) -> f32 {
+        self.readout.output.scale_factor_arcsec
     }
 
     fn board_health(&mut self) -> crate::board_timing::health::BoardHealth {

@@ -12,7 +12,10 @@
 //!    control (`Service::restore_wrong_keys`): past the free attempts, unlock attempts are
 //!    checked only in the windows, the first one window period after the boot;
 //! 4. the readout, started with the loaded compensation and, when the record has them, the
-//!    stored stripping coefficients; the dither drive's stored setpoints are handed on.
+//!    stored stripping coefficients; the dither drive's stored setpoints are handed on;
+//! 5. the stored thermal model and its switch, in force in the service's thermal state
+//!    (`Service::boot`) and staged into the readout: its records are corrected from the
+//!    sensor's first result on (none before: the model needs the temperature).
 
 use embedded_storage::nor_flash::NorFlash;
 
@@ -60,6 +63,7 @@ pub fn power_up<F: NorFlash>(
         // The stripping starts from the stored K (its fit learns on from there).
         readout.restart_strip_from(&config.readout, strip.k(), strip.k_quadrature());
     }
+    readout.set_thermal(booted.service.thermal().input());
     Ok(PoweredUp {
         service: booted.service,
         readout,

@@ -615,3 +615,90 @@ fn the_boot_count_saturates() {
     let (record, _) = store.load_for_serial(&mut flash, 7);
     assert_eq!(record.boot_count, u32::MAX);
 }
+
+/// The thermal model set through the protocol (`thermal range|bias|sf`, `thermal apply`), stored
+/// with the calibration, is in force again after a power-up, with its switch: applied from the
+/// sensor's first result on (the model uses no rate), and the records say so. A model switched
+/// off and stored comes back off.
+#[test]
+fn the_thermal_model_is_stored_and_in_force_after_power_up() {
+    use super::power_up::power_up;
+    use crate::thermal::sensor::{Reading, SensorState, SensorUpdate};
+    use crate::thermal::state::ModelState;
+    let (mut s, mut p) = boot(Flash::new());
+    ask(&mut s, &mut p, &format!("unlock {KEY}"));
+    for line in [
+        "thermal set t_ref 25",
+        "thermal set t_min -20",
+        "thermal set t_max 60",
+        "thermal set b0 0.01",
+        "thermal set b1 0.002",
+        "thermal set b2 2e-5",
+        "thermal set s1 0.5",
+        "thermal set s2 0.005",
+    ] {
+        assert!(ask(&mut s, &mut p, line).starts_with("OK "), "{line}");
+    }
+    let applied = ask(&mut s, &mut p, "thermal apply");
+    assert!(applied.starts_with("OK thermal=on t_ref=25 "), "{applied}");
+    assert!(ask(&mut s, &mut p, "status").contains(" coeffs=unsaved"));
+    let model = s.thermal().model().unwrap();
+    assert!(ask(&mut s, &mut p, "store").starts_with("OK stored seq=1"));
+
+    let up = power_up(config(), s.into_flash(), 0, 0).unwrap();
+    let (mut s, mut p) = (up.service, TestPorts::new(up.readout));
+    assert_eq!(s.thermal().model(), Some(model));
+    assert!(s.thermal().enabled());
+    assert_eq!(s.thermal().model_state(), ModelState::NoSensor);
+    let reading = Reading {
+        raw: 45 * 128,
+        at_ms: 100,
+    };
+    s.on_sensor(
+        SensorUpdate {
+            state: SensorState::Ok,
+            reading: Some(reading),
+        },
+        &mut p,
+    );
+    assert_eq!(s.thermal().model_state(), ModelState::Applied);
+    let answer = ask(&mut s, &mut p, "thermal");
+    // x = 20 °C: 0.01 + 0.04 + 0.008 deg/h, 10 + 2 ppm.
+    assert!(
+        answer.contains(" model=applied bias_deg_h=0.05800 sf_ppm=12.000"),
+        "{answer}"
+    );
+
+    ask(&mut s, &mut p, &format!("unlock {KEY}"));
+    assert!(ask(&mut s, &mut p, "thermal off").starts_with("OK thermal=off"));
+    assert!(ask(&mut s, &mut p, "store").starts_with("OK stored seq=2"));
+    let up = power_up(config(), s.into_flash(), 0, 0).unwrap();
+    assert_eq!(up.service.thermal().model(), Some(model));
+    assert!(!up.service.thermal().enabled());
+}
+
+/// The thermal edits are protected (locked: `ERR 9`, nothing changes) and, typed without a CRC,
+/// wait for `yes`; the reads are neither.
+#[test]
+fn thermal_edits_are_protected_and_confirmed() {
+    let (mut s, mut p) = boot(Flash::new());
+    assert!(ask(&mut s, &mut p, "thermal set t_ref 25").starts_with("ERR 9 "));
+    assert!(ask(&mut s, &mut p, "thermal model").starts_with("OK thermal=none model=none"));
+    let typed = |s: &mut Service<Flash>, p: &mut TestPorts, line: &str| {
+        p.out.clear();
+        for &b in format!("{line}\n").as_bytes() {
+            s.on_byte(b, p);
+        }
+        StdString::from_utf8(p.out.clone()).unwrap()
+    };
+    assert!(typed(&mut s, &mut p, "thermal").starts_with("OK temp_c=none"));
+    ask(&mut s, &mut p, &format!("unlock {KEY}"));
+    let echo = typed(&mut s, &mut p, "thermal set S1 2.5e-1");
+    assert!(
+        echo.starts_with("ERR 18 confirm (send yes) cmd=thermal set s1 0.25"),
+        "{echo}"
+    );
+    assert!(typed(&mut s, &mut p, "yes").starts_with("OK s1=0.25 model=edited"));
+    assert!(ask(&mut s, &mut p, "thermal set t_max 151").starts_with("ERR 5 "));
+    assert!(ask(&mut s, &mut p, "thermal set x 1").starts_with("ERR 2 "));
+}

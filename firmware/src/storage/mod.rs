@@ -10,10 +10,10 @@
 //! # Scheme: an append-only log over two sectors
 //! Each store appends one record, with a sequence number one above the highest valid one in
 //! either sector, to the sector written last, at the end of its used part. When that sector is
-//! full (1365 records of 96 bytes per 128 KiB sector) the other sector is erased and the record
+//! full (910 records of 144 bytes per 128 KiB sector) the other sector is erased and the record
 //! goes to its start. `load` scans both sectors and takes the valid record with the highest
 //! sequence number. Erases alternate between the sectors, so they wear evenly: one erase per
-//! 1365 stores, against the F405's 10 000 cycles.
+//! 910 stores, against the F405's 10 000 cycles.
 //!
 //! A record is *valid* when its magic, length, CRC-32 and commit marker check, its format
 //! version is this firmware's and its contents are plausible. Anything else in the sectors is
@@ -69,7 +69,10 @@ pub mod ram_flash;
 pub mod record;
 pub mod store;
 
-pub use record::{CalibrationRecord, DitherSetpoints, FitSummary, RecordError, StripCoefficients};
+pub use record::{
+    CalibrationRecord, DitherSetpoints, FitSummary, RecordError, StripCoefficients,
+    ThermalCalibration,
+};
 pub use store::{
     CalibrationStore, DefaultsReason, Geometry, GeometryError, LoadOutcome, LoadReport,
     SkippedFrame, StoreError, Stored,

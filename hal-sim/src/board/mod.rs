@@ -121,7 +121,6 @@ struct EdgeSchedule {
 pub struct SimBoard {
     gyro: Gyro,
     config: BoardConfig,
-    eps_rad: f64,
     photodiodes: Photodiodes,
     pickoff: Pickoff,
     counter: QuadratureCounter,
@@ -185,8 +184,7 @@ impl SimBoard {
             f64::from(profile.drive_tick_hz),
             f64::from(profile.aperture_delay_ticks) / config.timer_hz,
         );
-        let eps_rad = gyro.params().eps_rad;
-        let psi_h0 = gyro.advance_to(0.0) - eps_rad;
+        let psi_h0 = gyro.advance_to(0.0) - gyro.eps_rad(0.0);
         let counter = QuadratureCounter::new(&config.photodiodes, config.counter, psi_h0)
             .map_err(BoardError::Counter)?;
         Ok(Self {
@@ -207,7 +205,6 @@ impl SimBoard {
             sync_edges: 0,
             stream,
             pickoff_lag_ticks: 0,
-            eps_rad,
             counter,
             config,
             gyro,
@@ -503,7 +500,8 @@ impl SimBoard {
 
     /// The photodiode phase offset at `t_s`, rad.
     pub fn eps_at(&self, t_s: f64) -> f64 {
-        self.eps_rad + self.config.eps_drift_rad_per_s * t_s.min(self.config.eps_drift_until_s)
+        self.gyro.eps_rad(t_s)
+            + self.config.eps_drift_rad_per_s * t_s.min(self.config.eps_drift_until_s)
     }
 
     /// Simulated time of the last latch, s.

@@ -33,33 +33,42 @@ use super::linear::{Complex, Forcing, LinearSystem, ResonatorState, SegmentRespo
 use crate::param_error::ParamError;
 use core::f64::consts::{PI, TAU};
 
-/// A scripted temperature: piecewise linear through up to [`TemperatureProfile::MAX_KNOTS`]
-/// knots `(t_s, temp_c)`, constant before the first and after the last.
+/// A scripted temperature of the gyro block: piecewise linear through up to
+/// [`TemperatureProfile::MAX_KNOTS`] knots `(t_s, temp_c)` (constant before the first and after
+/// the last: the chamber's constants, steps and ramps), plus an optional warm-up transient
+/// `d0 exp(-t / tau)` ([`TemperatureProfile::warm_up`]: the block starting `d0` away from the
+/// profile and settling with its thermal time constant).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TemperatureProfile {
     knots: [(f64, f64); TemperatureProfile::MAX_KNOTS],
     len: usize,
+    /// The warm-up transient: its amplitude at t = 0, °C, and time constant, s.
+    transient: Option<(f64, f64)>,
 }
 
 impl TemperatureProfile {
     /// Most knots a profile holds.
-    pub const MAX_KNOTS: usize = 8;
+    pub const MAX_KNOTS: usize = 16;
 
     /// A constant temperature, deg C.
     pub const fn constant(temp_c: f64) -> Self {
         let mut knots = [(0.0, 0.0); Self::MAX_KNOTS];
         knots[0] = (0.0, temp_c);
-        Self { knots, len: 1 }
+        Self {
+            knots,
+            len: 1,
+            transient: None,
+        }
     }
 
-    /// Through `knots` `(t_s, temp_c)`: 1..=8 knots, finite, times strictly increasing.
+    /// Through `knots` `(t_s, temp_c)`: 1..=16 knots, finite, times strictly increasing.
     pub fn knots(knots: &[(f64, f64)]) -> Result<Self, ParamError> {
         let ok = (1..=Self::MAX_KNOTS).contains(&knots.len())
             && knots.iter().all(|(t, c)| t.is_finite() && c.is_finite())
             && knots.windows(2).all(|w| w[1].0 > w[0].0);
         if !ok {
             return Err(ParamError::OutOfRange(
-                "temperature profile: 1..=8 finite knots, times strictly increasing",
+                "temperature profile: 1..=16 finite knots, times strictly increasing",
             ));
         }
         let mut p = Self::constant(0.0);
@@ -73,27 +82,77 @@ impl TemperatureProfile {
         Self::knots(&[(t0_s, temp0_c), (t1_s, temp1_c)])
     }
 
-    /// The temperature at `t_s`, deg C.
-    pub fn at(&self, t_s: f64) -> f64 {
+    /// A warm-up: the block starts at `from_c` and settles to `to_c` as
+    /// `to_c + (from_c - to_c) exp(-t / tau_s)` (`tau_s` in (0, 1e6]).
+    pub fn warm_up(from_c: f64, to_c: f64, tau_s: f64) -> Result<Self, ParamError> {
+        if !(from_c.is_finite() && to_c.is_finite() && tau_s > 0.0 && tau_s <= 1e6) {
+            return Err(ParamError::OutOfRange(
+                "warm-up: finite temperatures, time constant in (0, 1e6] s",
+            ));
+        }
+        Ok(Self {
+            transient: Some((from_c - to_c, tau_s)),
+            ..Self::constant(to_c)
+        })
+    }
+
+    fn linear_at(&self, t_s: f64) -> (f64, f64) {
         let k = &self.knots[..self.len];
         let i = k.partition_point(|&(t, _)| t <= t_s);
-        if i == 0 {
-            return k[0].1;
-        }
-        if i == k.len() {
-            return k[k.len() - 1].1;
+        if i == 0 || i == k.len() {
+            return (k[i.saturating_sub(1)].1, 0.0);
         }
         let ((ta, ca), (tb, cb)) = (k[i - 1], k[i]);
-        ca + (cb - ca) * (t_s - ta) / (tb - ta)
+        let slope = (cb - ca) / (tb - ta);
+        (ca + slope * (t_s - ta), slope)
+    }
+
+    /// The temperature at `t_s`, deg C.
+    pub fn at(&self, t_s: f64) -> f64 {
+        let (linear, _) = self.linear_at(t_s);
+        match self.transient {
+            Some((d0, tau)) => linear + d0 * (-t_s.max(0.0) / tau).exp(),
+            None => linear,
+        }
+    }
+
+    /// The temperature's rate at `t_s` (the right-hand rate at a knot), deg C/s.
+    pub fn rate_c_per_s(&self, t_s: f64) -> f64 {
+        let (_, slope) = self.linear_at(t_s);
+        match self.transient {
+            Some((d0, tau)) => slope - d0 / tau * (-t_s.max(0.0) / tau).exp(),
+            None => slope,
+        }
+    }
+
+    /// The times at which the profile is linear in between: its knots, and with a warm-up a
+    /// grid of tau/16 up to 12 tau (the transient is then 6e-6 of its start; a linear piece of
+    /// tau/16 is within 5e-4 of the transient's amplitude of the exponential). Sorted, from 0.
+    pub fn linear_pieces(&self) -> Vec<f64> {
+        let mut times: Vec<f64> = self.knots[..self.len]
+            .iter()
+            .map(|k| k.0)
+            .filter(|&t| t > 0.0)
+            .collect();
+        times.push(0.0);
+        if let Some((_, tau)) = self.transient {
+            let step = tau / 16.0;
+            times.extend((1..=16 * 12).map(|i| i as f64 * step));
+        }
+        times.sort_by(f64::total_cmp);
+        times.dedup();
+        times
     }
 
     /// Lowest and highest temperature, deg C.
     pub fn range_c(&self) -> (f64, f64) {
-        self.knots[..self.len]
+        let (lo, hi) = self.knots[..self.len]
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &(_, c)| {
                 (lo.min(c), hi.max(c))
-            })
+            });
+        let start = self.at(0.0);
+        (lo.min(start), hi.max(start))
     }
 
     /// True if the temperature never changes.

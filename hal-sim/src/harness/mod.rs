@@ -72,6 +72,7 @@ use crate::gyro::{Gyro, Traversal};
 use crate::input::InputProfile;
 use crate::param_error::ParamError;
 use crate::params::GyroParams;
+use crate::tmp117::SimTmp117;
 use firmware::profile::BoardProfile;
 use firmware::readout::{Readout, ReadoutConfig};
 use firmware::sample::TurnaroundSample;
@@ -79,6 +80,15 @@ use firmware::signal::compensation::CompensationSettings;
 use firmware::signal::lockin::CycleRecord;
 use firmware::signal::output::dither_model::PickoffSample;
 use firmware::signal::output::record::{OutputRecord, OutputStatus};
+use firmware::thermal::model::ThermalModel;
+use firmware::thermal::sensor::{SensorConfig, SensorMonitor, SensorUpdate};
+use firmware::thermal::state::ThermalState;
+use firmware::thermal::tmp117::{Tmp117, ADDRESS};
+
+/// The simulated TMP117's fixed error, °C (inside the part's ±0.1 °C).
+pub const SENSOR_OFFSET_C: f64 = 0.02;
+/// The simulated TMP117's noise, °C rms (about one LSB with 8 averages).
+pub const SENSOR_NOISE_C: f64 = 0.0078;
 
 /// How far ahead of the board's time the harness feeds an open-loop drive at most while it
 /// looks for the next turnaround, s.
@@ -249,6 +259,15 @@ pub struct Harness {
     /// Turnaround and output latches delivered to the readout since t = 0.
     turnarounds_fed: u64,
     outputs_fed: u64,
+    /// The block's temperature sensor on its I2C bus, with the firmware's driver and monitor,
+    /// polled after every step as the board's main loop polls it.
+    sensor: Tmp117<SimTmp117>,
+    monitor: SensorMonitor,
+    /// The thermal state and model, when the harness applies them itself (`None`: the caller
+    /// takes the sensor's updates, [`Harness::take_sensor_updates`], as the simulated device's
+    /// command service does).
+    thermal: Option<ThermalState>,
+    sensor_updates: Vec<SensorUpdate>,
 }
 
 impl Harness {
@@ -257,6 +276,12 @@ impl Harness {
         let gyro = Gyro::new(options.params, options.input).map_err(HarnessError::Gyro)?;
         let config = options.board.readout_config(options.params.dither_hz);
         let lead_s = gyro.drive_lead_s();
+        let sensor = SimTmp117::new(
+            options.params.thermal.profile,
+            SENSOR_OFFSET_C,
+            SENSOR_NOISE_C,
+            options.params.seed ^ 0x544d_5031_3137_0001,
+        );
         let drive = match options.params.resonator() {
             Some(_) => options.drive,
             None => DriveSource::External,
@@ -276,7 +301,61 @@ impl Harness {
             output_mark: OutputStatus::empty(),
             turnarounds_fed: 0,
             outputs_fed: 0,
+            sensor: Tmp117::new(sensor, ADDRESS),
+            monitor: SensorMonitor::new(),
+            thermal: Some(ThermalState::new()),
+            sensor_updates: Vec::new(),
         })
+    }
+
+    /// The sensor's poll after a step, at the board's time (the main loop's, on the board).
+    fn poll_sensor(&mut self) {
+        let t_s = self.board.time_s();
+        self.sensor.i2c_mut().set_time_s(t_s);
+        let now_ms = (t_s * 1e3) as u64;
+        let Some(update) = self
+            .monitor
+            .poll(&SensorConfig::DEFAULT, &mut self.sensor, now_ms)
+        else {
+            return;
+        };
+        match &mut self.thermal {
+            Some(state) => {
+                let input = state.on_sensor(update, self.config.output.scale_factor_arcsec);
+                self.readout.set_thermal(input);
+            }
+            None => self.sensor_updates.push(update),
+        }
+    }
+
+    /// Puts a thermal model in force (`None`: none) in the harness's own thermal state.
+    pub fn set_thermal_model(&mut self, model: Option<ThermalModel>) {
+        if let Some(state) = &mut self.thermal {
+            let sf = self.config.output.scale_factor_arcsec;
+            let input = state.set_model(model, model.is_some(), sf);
+            self.readout.set_thermal(input);
+        }
+    }
+
+    /// The harness's own thermal state (`None` when the caller keeps it).
+    pub fn thermal(&self) -> Option<&ThermalState> {
+        self.thermal.as_ref()
+    }
+
+    /// From now on the caller keeps the thermal state: the sensor's updates wait in
+    /// [`Self::take_sensor_updates`] (the simulated device's command service).
+    pub fn hand_over_thermal(&mut self) {
+        self.thermal = None;
+    }
+
+    /// The sensor's updates since the last call (after [`Self::hand_over_thermal`]).
+    pub fn take_sensor_updates(&mut self) -> Vec<SensorUpdate> {
+        core::mem::take(&mut self.sensor_updates)
+    }
+
+    /// The simulated sensor, for fault injection.
+    pub fn sensor_mut(&mut self) -> &mut SimTmp117 {
+        self.sensor.i2c_mut()
     }
 
     /// One half dither cycle with everything fed to the readout.
@@ -339,6 +418,9 @@ impl Harness {
         }
         self.board
             .set_pickoff_lag_ticks(self.readout.pickoff_lag_ticks(&self.config));
+        if feed != Feed::Stalled {
+            self.poll_sensor();
+        }
         self.last = Some((sample, feed));
         HalfCycle {
             sample,

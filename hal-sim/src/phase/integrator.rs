@@ -195,6 +195,8 @@ pub struct LockInDrift {
     pub rate_per_s: f64,
     /// End of the drift, s; the threshold stays constant after it.
     pub until_s: f64,
+    /// The block's temperature, when it moves Omega_L (`crate::thermal`).
+    pub thermal: Option<crate::thermal::GyroThermal>,
 }
 
 impl LockInDrift {
@@ -204,12 +206,17 @@ impl LockInDrift {
             omega_l0,
             rate_per_s: 0.0,
             until_s: 0.0,
+            thermal: None,
         }
     }
 
     /// The threshold at `t_s`, rad/s of beat phase.
     pub fn at(&self, t_s: f64) -> f64 {
-        self.omega_l0 * (1.0 + self.rate_per_s * t_s.min(self.until_s))
+        let drift = self.omega_l0 * (1.0 + self.rate_per_s * t_s.min(self.until_s));
+        match &self.thermal {
+            Some(th) => drift * th.lock_in_factor(t_s),
+            None => drift,
+        }
     }
 }
 

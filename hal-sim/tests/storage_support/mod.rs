@@ -69,6 +69,29 @@ pub fn record(i: u64) -> CalibrationRecord {
         )
         .expect("in range")
     });
+    let thermal = rng.random_bool(0.6).then(|| {
+        let reference_c: f32 = rng.random_range(15.0..35.0);
+        firmware::storage::ThermalCalibration {
+            model: firmware::thermal::model::ThermalModel {
+                reference_c,
+                min_c: reference_c - rng.random_range(10.0..60.0),
+                max_c: reference_c + rng.random_range(10.0..60.0),
+                bias_deg_h: [
+                    rng.random_range(-0.1..0.1),
+                    rng.random_range(-0.01..0.01),
+                    rng.random_range(-1e-4..1e-4),
+                    rng.random_range(-1e-6..1e-6),
+                ],
+                bias_deg_h_per_c_per_min: rng.random_range(-0.01..0.01),
+                scale_ppm: [
+                    rng.random_range(-10.0..10.0),
+                    rng.random_range(-2.0..2.0),
+                    rng.random_range(-0.02..0.02),
+                ],
+            },
+            enabled: rng.random_bool(0.8),
+        }
+    });
     CalibrationRecord {
         serial_number: 1000 + (i as u32 % 3),
         boot_count: i as u32,
@@ -77,6 +100,7 @@ pub fn record(i: u64) -> CalibrationRecord {
         reset_to_defaults: false,
         dither,
         strip,
+        thermal,
     }
 }
 

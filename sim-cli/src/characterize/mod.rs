@@ -11,7 +11,9 @@
 //! - [`noise`]: the static record's noise terms through the Allan estimator and fit
 //!   ([`crate::allan`]);
 //! - [`summary`]: the figures side by side and the conclusions, sentences chosen by the numbers;
-//! - [`charts`]: the SVG figures; [`report`]: `report.md` and the CSVs, written to `--out`.
+//! - [`charts`]: the SVG figures; [`report`]: `report.md` and the CSVs, written to `--out`;
+//! - [`thermal`]: with `--thermal`, bias and scale factor over temperature
+//!   ([`crate::thermal::procedure`]), its CSV, figure and section.
 //!
 //! The input rates: the **linear range**, `range_points` log-spaced magnitudes per sign from
 //! ten times the dead-band envelope to the maximum rate; and the **dense points**,
@@ -30,6 +32,7 @@ pub mod noise;
 pub mod procedure;
 pub mod report;
 pub mod summary;
+pub mod thermal;
 
 use crate::experiment::BoardSetup;
 use firmware::calibration::validation::chow_dead_band_rad_per_s;

@@ -10,6 +10,7 @@ use super::procedure::{ConfigurationResult, Outcome};
 use super::summary::{conclusions, num, table};
 use super::{DeadBandTheory, Plan};
 use crate::allan::output as allan_output;
+use crate::thermal::procedure::{ThermalOutcome, ThermalPlan};
 use hal_sim::params::GyroParams;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -29,6 +30,8 @@ pub struct Context {
     pub board: String,
     /// The calibration's result, if one was made.
     pub calibration: Option<String>,
+    /// `--thermal`: bias and scale factor over temperature, and the plan that gave them.
+    pub thermal: Option<(ThermalOutcome, ThermalPlan)>,
 }
 
 /// `scale_factor.csv`: every measured point of every configuration.
@@ -171,6 +174,9 @@ pub fn markdown(outcome: &Outcome, ctx: &Context) -> String {
             r.configuration.name, r.configuration.slug
         );
     }
+    if let Some((thermal, thermal_plan)) = &ctx.thermal {
+        s.push_str(&super::thermal::markdown(thermal, thermal_plan));
+    }
     s.push_str(&procedure_text(plan));
     s
 }
@@ -202,7 +208,8 @@ fn procedure_text(plan: &Plan) -> String {
          used.\n\n\
          ## Limits\n\n\
          - The simulated gyro has only the noise it is given (`--arw-deg-rt-h`, the dither's \
-         random noise, the readout's quantisation): no thermal drift, so the bias instability \
+         random noise, the readout's quantisation) and the temperature it is given \
+         (`--temperature-profile`, `--thermal`): no random drift, so the bias instability \
          and rate random walk of a real gyro do not appear; the bias instability here is \
          whatever floor the readout and the dither leave.\n\
          - A threshold is only as fine as the tested rates; each rate's output carries the \
@@ -262,6 +269,14 @@ pub fn write(dir: &Path, outcome: &Outcome, ctx: &Context) -> std::io::Result<Ve
                 allan_output::figure(a, &t).to_svg(),
             )?;
         }
+    }
+    if let Some((thermal, _)) = &ctx.thermal {
+        put("thermal.csv".into(), super::thermal::csv(thermal))?;
+        let t = format!("Bias and scale factor over temperature: {title}");
+        put(
+            "thermal.svg".into(),
+            super::thermal::chart(thermal, &t).to_svg(),
+        )?;
     }
     put("report.md".into(), markdown(outcome, ctx))?;
     Ok(written)

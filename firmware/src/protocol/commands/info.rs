@@ -16,7 +16,8 @@ use crate::signal::compensation::Coefficients;
 const HELP: &str =
     "commands: id status selftest output{status} get{a|b|coeffs} set{a|b}<rad/s> comp{on|off} track{on|off} \
 cal{start<n>[<warmup>]|status|abort|result|accept} store reload defaults stream{on[<n>]|output|off} \
-dither{on|off|amp<arcsec>|noise<percent>|status} unlock<key> lock key{provision<key>} help";
+dither{on|off|amp<arcsec>|noise<percent>|status} thermal[model|set<name><value>|apply|on|off] \
+unlock<key> lock key{provision<key>} help";
 
 /// What `status` reports of the executor's own state.
 #[derive(Clone, Copy, Debug, PartialEq)]

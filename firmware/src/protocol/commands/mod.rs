@@ -14,6 +14,7 @@
 //! | [`stream`] | `stream on/off` | [`stream::StreamState`] |
 //! | [`access`] | `unlock` `lock` | [`access::AccessState`] |
 //! | [`dither`] | `dither on/off/amp/noise/status` | none (the drive holds its setpoints) |
+//! | [`thermal`] | `thermal`, `thermal model/range/bias/sf/apply/on/off` | [`thermal::ThermalEdit`] (the model being edited), [`provenance::Provenance`] |
 //!
 //! A group function answers `Ok(response)` or `Err(code)`; a refusal changes nothing (the one
 //! deliberate exception is `cal result`, see [`calibration`]). Modules import downwards only:
@@ -28,6 +29,7 @@ pub mod provenance;
 pub mod settings;
 pub mod storage;
 pub mod stream;
+pub mod thermal;
 
 use super::respond::Response;
 use super::ErrorCode;
@@ -111,6 +113,8 @@ pub(crate) mod testing {
         pub otp_key: Option<Key>,
         /// What `board_health` reports.
         pub health: crate::board_timing::health::BoardHealth,
+        /// The thermal model in force and its switch.
+        pub thermal_model: Option<(crate::thermal::model::ThermalModel, bool)>,
     }
 
     impl DeviceLink for MemDevice {
@@ -190,6 +194,20 @@ pub(crate) mod testing {
         }
         fn board_health(&mut self) -> crate::board_timing::health::BoardHealth {
             self.health
+        }
+        fn thermal(&mut self) -> crate::thermal::state::ThermalState {
+            let mut state = crate::thermal::state::ThermalState::new();
+            if let Some((model, on)) = self.thermal_model {
+                state.set_model(Some(model), on, 1.0);
+            }
+            state
+        }
+        fn set_thermal_model(
+            &mut self,
+            model: Option<crate::thermal::model::ThermalModel>,
+            enabled: bool,
+        ) {
+            self.thermal_model = model.map(|m| (m, enabled));
         }
     }
 

@@ -58,7 +58,10 @@ pub fn tracking<D: DeviceLink>(
     on: bool,
 ) -> Response {
     match calibration.set_tracking(on, device.active_settings().coefficients) {
-        Some(memory_cycles) => ok_with(format_args!("track=on memory_cycles={memory_cycles}")),
+        Some(memory_cycles) => ok_with(format_args!(
+            "track=on memory_cycles={}",
+            memory_cycles as f32
+        )),
         None => ok_with(format_args!("track=off")),
     }
 }

@@ -7,7 +7,7 @@ use super::{ok_with, Answer};
 use crate::protocol::link::{DeviceLink, Identity};
 use crate::protocol::respond::Response;
 use crate::protocol::ErrorCode;
-use crate::storage::CalibrationRecord;
+use crate::storage::{CalibrationRecord, ThermalCalibration};
 
 /// `store`: the settings in force with the fit behind them; a flash failure is `ERR 13` and
 /// leaves the provenance as it was. `readout=continuous`: no sector was erased, the readout
@@ -22,6 +22,7 @@ pub fn store<D: DeviceLink>(device: &mut D, provenance: &mut Provenance, id: &Id
         reset_to_defaults: false,
         dither: Some(device.dither_setpoints()),
         strip: device.strip_coefficients(),
+        thermal: thermal_calibration(device),
     };
     let stored = device.store(&record).map_err(|_| ErrorCode::FlashError)?;
     provenance.source = Source::Flash {
@@ -38,11 +39,21 @@ pub fn store<D: DeviceLink>(device: &mut D, provenance: &mut Provenance, id: &Id
     )))
 }
 
+/// The thermal model in force and its switch, as `store` writes them.
+fn thermal_calibration<D: DeviceLink>(device: &mut D) -> Option<ThermalCalibration> {
+    let state = device.thermal();
+    state.model().map(|model| ThermalCalibration {
+        model,
+        enabled: state.enabled(),
+    })
+}
+
 /// `reload`: the newest valid record (or the defaults) staged, with where it came from; its
 /// dither setpoints applied when it holds any (`dither=stored`), else the drive's stay
 /// (`dither=kept`; also when the drive refuses the stored values, which a record of other
 /// firmware could hold: `dither=refused`); its stripping coefficients likewise (`strip=stored`,
-/// or `strip=kept`: the stripping goes on from where it is).
+/// or `strip=kept`: the stripping goes on from where it is), and its thermal model
+/// (`thermal=stored`, or `thermal=kept`: the model in force stays).
 pub fn reload<D: DeviceLink>(device: &mut D, provenance: &mut Provenance) -> Response {
     let (record, report) = device.load();
     device.stage_settings(record.settings);
@@ -60,8 +71,15 @@ pub fn reload<D: DeviceLink>(device: &mut D, provenance: &mut Provenance) -> Res
         }
         None => "kept",
     };
+    let thermal = match record.thermal {
+        Some(t) => {
+            device.set_thermal_model(Some(t.model), t.enabled);
+            "stored"
+        }
+        None => "kept",
+    };
     ok_with(format_args!(
-        "coeffs={} dither={dither} strip={strip}",
+        "coeffs={} dither={dither} strip={strip} thermal={thermal}",
         SourceText(provenance.source)
     ))
 }
@@ -131,7 +149,7 @@ mod tests {
         let mut p = unsaved();
         assert_eq!(
             text(reload(&mut device, &mut p)).trim_end(),
-            "OK coeffs=defaults:erased dither=kept strip=kept"
+            "OK coeffs=defaults:erased dither=kept strip=kept thermal=kept"
         );
         assert_eq!(p.source, Source::Defaults(DefaultsReason::Erased));
         assert_eq!((p.fit, device.staged), (None, 1));
@@ -141,7 +159,7 @@ mod tests {
         device.settings = CalibrationRecord::DEFAULTS.settings;
         assert_eq!(
             text(reload(&mut device, &mut p)).trim_end(),
-            "OK coeffs=flash:1 dither=stored strip=kept"
+            "OK coeffs=flash:1 dither=stored strip=kept thermal=kept"
         );
         assert!(device.settings.enabled);
     }
@@ -167,7 +185,7 @@ mod tests {
         let answer = text(reload(&mut device, &mut p));
         assert_eq!(
             answer.trim_end(),
-            "OK coeffs=flash:1 dither=stored strip=kept"
+            "OK coeffs=flash:1 dither=stored strip=kept thermal=kept"
         );
         assert_eq!(device.dither_setpoints(), chosen);
         // A record whose setpoints the drive refuses (another firmware's wider range): the
@@ -180,7 +198,7 @@ mod tests {
         let answer = text(reload(&mut device, &mut p));
         assert_eq!(
             answer.trim_end(),
-            "OK coeffs=flash:1 dither=refused strip=kept"
+            "OK coeffs=flash:1 dither=refused strip=kept thermal=kept"
         );
         assert_eq!(device.dither_setpoints(), other);
     }
@@ -205,8 +223,40 @@ mod tests {
         let answer = text(reload(&mut device, &mut p));
         assert_eq!(
             answer.trim_end(),
-            "OK coeffs=flash:2 dither=stored strip=stored"
+            "OK coeffs=flash:2 dither=stored strip=stored thermal=kept"
         );
         assert_eq!(device.strip, Some(learned));
+    }
+
+    /// `store` writes the thermal model in force with its switch; `reload` puts it back in
+    /// force (`thermal=stored`).
+    #[test]
+    fn store_saves_the_thermal_model_and_reload_applies_it() {
+        use crate::thermal::model::ThermalModel;
+        let mut device = MemDevice::default();
+        let model = ThermalModel {
+            reference_c: 25.0,
+            min_c: -20.0,
+            max_c: 60.0,
+            bias_deg_h: [0.001, 0.002, 0.0, 0.0],
+            bias_deg_h_per_c_per_min: 0.0,
+            scale_ppm: [0.0, 0.5, 0.0],
+        };
+        device.set_thermal_model(Some(model), false);
+        let mut p = unsaved();
+        store(&mut device, &mut p, &ID).unwrap();
+        assert_eq!(
+            device.stored[0].thermal,
+            Some(ThermalCalibration {
+                model,
+                enabled: false
+            })
+        );
+        device.set_thermal_model(None, false);
+        assert_eq!(
+            text(reload(&mut device, &mut p)).trim_end(),
+            "OK coeffs=flash:1 dither=stored strip=kept thermal=stored"
+        );
+        assert_eq!(device.thermal_model, Some((model, false)));
     }
 }

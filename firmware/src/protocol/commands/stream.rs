@@ -7,6 +7,7 @@ use super::ok_with;
 use crate::protocol::output_frame::MAX_OUTPUT_FRAME;
 use crate::protocol::respond::Response;
 use crate::protocol::stream::{StreamRecord, MAX_FRAME};
+use crate::protocol::thermal_frame::{ThermalFrame, ThermalFramer};
 use crate::signal::lockin::CycleRecord;
 use crate::signal::output::record::OutputRecord;
 
@@ -21,6 +22,17 @@ pub struct StreamState {
     sequence: u32,
     /// The output records are streamed (their own 64-bit sequence numbers count them).
     output: bool,
+    /// When the output stream's thermal frames go (`protocol::thermal_frame`).
+    thermal: ThermalFramer,
+}
+
+/// An output record to stream, and the thermal frame to send before it, if one is due.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StreamedOutput {
+    /// New temperature and rate values, sent first.
+    pub thermal: Option<ThermalFrame>,
+    /// The record.
+    pub record: OutputRecord,
 }
 
 impl StreamState {
@@ -33,12 +45,21 @@ impl StreamState {
     pub fn command_output(&mut self) -> Response {
         self.divider = None;
         self.output = true;
+        self.thermal.restart();
         ok_with(format_args!("stream=output frame_bytes={MAX_OUTPUT_FRAME}"))
     }
 
-    /// One output record: the frame to send, when the output is streamed.
-    pub fn on_output(&self, record: &OutputRecord) -> Option<OutputRecord> {
-        self.output.then_some(*record)
+    /// One output record: what to send, when the output is streamed.
+    pub fn on_output(&mut self, record: &OutputRecord) -> Option<StreamedOutput> {
+        self.output.then(|| StreamedOutput {
+            thermal: self.thermal.before(record),
+            record: *record,
+        })
+    }
+
+    /// A thermal frame could not be sent: the next streamed record gets one.
+    pub fn thermal_frame_lost(&mut self) {
+        self.thermal.restart();
     }
 
     /// `stream on <n>` (`Some(n)`) or `stream off` (`None`).
@@ -149,6 +170,8 @@ mod tests {
             angle_q16: 2,
             rate_deg_per_h: 3.0,
             status: Default::default(),
+            temperature_q7: crate::thermal::state::NO_VALUE,
+            temperature_rate_centi_c_per_min: crate::thermal::state::NO_VALUE,
         };
         assert_eq!(s.on_output(&out), None);
         assert_eq!(
@@ -156,7 +179,14 @@ mod tests {
             format!("OK stream=output frame_bytes={MAX_OUTPUT_FRAME}")
         );
         assert!(s.on());
-        assert_eq!(s.on_output(&out), Some(out));
+        // The stream's first record goes after a thermal frame; the next, unchanged, alone.
+        let first = s.on_output(&out).unwrap();
+        assert_eq!(first.record, out);
+        assert_eq!(first.thermal.map(|t| t.from_sequence), Some(out.sequence));
+        assert_eq!(s.on_output(&out).map(|o| o.thermal), Some(None));
+        // A new `stream output` restarts them.
+        s.command_output();
+        assert!(s.on_output(&out).unwrap().thermal.is_some());
         assert_eq!(s.on_cycle(&record()), None);
         s.command(Some(1));
         assert_eq!(s.on_output(&out), None);

@@ -27,6 +27,7 @@
 
 use super::dither_model::DitherModelConfig;
 use super::strip::StripConfig;
+use crate::thermal::state::{ThermalInput, NO_VALUE};
 
 /// The output stage's settings (immutable).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -74,10 +75,16 @@ impl OutputStatus {
     /// The model of the pick-off stream was not valid at the latch (start, a gap in the
     /// stream, a re-seed): the dither angle there is not known to the output's precision.
     pub const NO_DITHER_MODEL: Self = Self(1 << 10);
+    /// The gyro block's temperature sensor has a fault (`thermal::sensor`): no temperature, no
+    /// thermal correction. The increment stays valid (uncorrected).
+    pub const THERMAL_SENSOR_FAULT: Self = Self(1 << 11);
+    /// The thermal model corrected the record's increment (bias and scale factor at the
+    /// sensor's temperature and rate, `thermal::model`); clear: uncorrected.
+    pub const THERMAL_CORRECTED: Self = Self(1 << 12);
 
     /// Every bit with its name, in bit order: the output frame's status table
     /// (docs/protocol.md, checked against this list by `hal-sim/tests/protocol_doc.rs`).
-    pub const NAMED: [(&'static str, Self); 11] = [
+    pub const NAMED: [(&'static str, Self); 13] = [
         ("VALID", Self::VALID),
         ("DITHER_LOCKED", Self::DITHER_LOCKED),
         ("COMPENSATION_ON", Self::COMPENSATION_ON),
@@ -89,6 +96,8 @@ impl OutputStatus {
         ("RESTART", Self::RESTART),
         ("TIMING_FAULT", Self::TIMING_FAULT),
         ("NO_DITHER_MODEL", Self::NO_DITHER_MODEL),
+        ("THERMAL_SENSOR_FAULT", Self::THERMAL_SENSOR_FAULT),
+        ("THERMAL_CORRECTED", Self::THERMAL_CORRECTED),
     ];
 
     /// Bits that make a period invalid.
@@ -120,6 +129,11 @@ pub struct OutputRecord {
     pub rate_deg_per_h: f32,
     /// Status bits.
     pub status: OutputStatus,
+    /// The gyro block's temperature at the latch, 1/128 °C (the sensor's last result;
+    /// `thermal::state::NO_VALUE` without one).
+    pub temperature_q7: i16,
+    /// The temperature's rate at the latch, 0.01 °C/min (`NO_VALUE` while unknown).
+    pub temperature_rate_centi_c_per_min: i16,
 }
 
 impl OutputRecord {
@@ -130,6 +144,15 @@ impl OutputRecord {
     /// True when the increment is good.
     pub fn is_valid(&self) -> bool {
         self.status.contains(OutputStatus::VALID)
+    }
+    /// The temperature, °C, if the record carries one.
+    pub fn temperature_c(&self) -> Option<f64> {
+        (self.temperature_q7 != NO_VALUE).then(|| f64::from(self.temperature_q7) / 128.0)
+    }
+    /// The temperature's rate, °C/min, if the record carries one.
+    pub fn temperature_rate_c_per_min(&self) -> Option<f64> {
+        (self.temperature_rate_centi_c_per_min != NO_VALUE)
+            .then(|| f64::from(self.temperature_rate_centi_c_per_min) / 100.0)
     }
 }
 
@@ -143,6 +166,8 @@ pub struct OutputRecorder {
     previous_q32: Option<i64>,
     /// Integrated angle of the valid periods, Q32 fringes.
     angle_q32: i128,
+    /// The temperature, its rate and the thermal correction in force.
+    thermal: ThermalInput,
 }
 
 impl OutputRecorder {
@@ -154,6 +179,12 @@ impl OutputRecorder {
     /// Records made so far (the next record's sequence number).
     pub fn records(&self) -> u64 {
         self.sequence
+    }
+
+    /// The temperature, its rate and the thermal correction for the records from the next one
+    /// on (the main loop's thermal state, staged whole).
+    pub fn set_thermal(&mut self, thermal: ThermalInput) {
+        self.thermal = thermal;
     }
 
     /// Breaks the chain (a resynchronised count): the next record is a restart.
@@ -185,10 +216,22 @@ impl OutputRecorder {
         }
         let valid = status.contains(OutputStatus::DITHER_LOCKED)
             && !status.intersects(OutputStatus::FAULTS);
+        let thermal = self.thermal;
+        if thermal.sensor_fault {
+            status = status.union(OutputStatus::THERMAL_SENSOR_FAULT);
+        }
+        if thermal.correction.is_some() {
+            status = status.union(OutputStatus::THERMAL_CORRECTED);
+        }
         let before_q16 = (self.angle_q32 >> 16) as i64;
         if valid {
             if let Some(previous) = self.previous_q32 {
-                self.angle_q32 += i128::from(stripped_q32.wrapping_sub(previous));
+                let increment = stripped_q32.wrapping_sub(previous);
+                let corrected = match &thermal.correction {
+                    Some(c) => thermal_corrected(increment, period_ticks, config.timer_hz, c),
+                    None => increment,
+                };
+                self.angle_q32 += i128::from(corrected);
             }
             status = status.union(OutputStatus::VALID);
         }
@@ -215,10 +258,31 @@ impl OutputRecorder {
             angle_q16,
             rate_deg_per_h,
             status,
+            temperature_q7: thermal.temperature_q7,
+            temperature_rate_centi_c_per_min: thermal.rate_centi_c_per_min,
         };
         self.sequence += 1;
         record
     }
+}
+
+/// An increment (Q32 fringes) over `period_ticks` corrected by the thermal model:
+/// `(measured - bias dt) / (1 + scale_error)`. The correction itself is small (a bias of
+/// 0.1 deg/h is 2e-4 fringe per ms; 10 ppm of 32768 fringes is 0.3 fringe), so it is formed in
+/// `f32` (relative error 6e-8 of the correction) and subtracted from the exact increment.
+fn thermal_corrected(
+    increment_q32: i64,
+    period_ticks: u32,
+    timer_hz: u32,
+    correction: &crate::thermal::model::ThermalCorrection,
+) -> i64 {
+    let q32 = crate::units::Q32_PER_FRINGE as f32;
+    let bias_q32 = correction.bias_fringes_per_s * q32 * (period_ticks as f32 / timer_hz as f32);
+    let s = correction.scale_error;
+    let debiased = increment_q32 as f32 - bias_q32;
+    // (m - b) / (1 + s) = m - b - (m - b) s / (1 + s)
+    let total = bias_q32 + debiased * (s / (1.0 + s));
+    increment_q32.wrapping_sub(total as i64)
 }
 
 #[cfg(test)]
@@ -304,6 +368,48 @@ mod tests {
         assert!(bad.status.contains(OutputStatus::TIMING_FAULT));
         let next = r.record(&c, 252_000, 3 << 32, OK);
         assert!(!next.is_valid() && next.status.contains(OutputStatus::RESTART));
+    }
+
+    /// With a correction in force, each increment is `(measured - bias dt) / (1 + s)` to the
+    /// Q16 step, the records say so, and carry the temperature and its rate; a sensor fault
+    /// marks them and no correction is made.
+    #[test]
+    fn the_thermal_correction_and_its_marks() {
+        use crate::thermal::model::ThermalCorrection;
+        let c = config();
+        let mut r = OutputRecorder::new();
+        let correction = ThermalCorrection {
+            bias_fringes_per_s: 0.25,
+            scale_error: 40e-6,
+        };
+        r.set_thermal(ThermalInput {
+            temperature_q7: 30 * 128,
+            rate_centi_c_per_min: 150,
+            sensor_fault: false,
+            correction: Some(correction),
+        });
+        r.record(&c, 0, 0, OK);
+        // 1000 fringes per 1 ms period.
+        let step = 1000i64 << 32;
+        let rec = r.record(&c, 84_000, step, OK);
+        let want = (1000.0 - 0.25e-3) / (1.0 + 40e-6);
+        assert!(
+            (rec.delta_angle_fringes() - want).abs() < 2.0 / 65536.0,
+            "{rec:?}"
+        );
+        assert!(rec.status.contains(OutputStatus::THERMAL_CORRECTED));
+        assert_eq!(rec.temperature_c(), Some(30.0));
+        assert_eq!(rec.temperature_rate_c_per_min(), Some(1.5));
+        r.set_thermal(ThermalInput {
+            sensor_fault: true,
+            ..ThermalInput::NONE
+        });
+        let rec = r.record(&c, 168_000, 2 * step, OK);
+        assert_eq!(rec.delta_angle_q16, 1000 << 16, "uncorrected");
+        assert!(rec.is_valid());
+        assert!(rec.status.contains(OutputStatus::THERMAL_SENSOR_FAULT));
+        assert!(!rec.status.contains(OutputStatus::THERMAL_CORRECTED));
+        assert_eq!(rec.temperature_c(), None);
     }
 
     /// The 32-bit capture register wraps; the record's time does not.

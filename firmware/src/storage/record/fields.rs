@@ -1,10 +1,11 @@
 //! The record's parts besides the compensation settings, each with the plausibility check
 //! the store applies before writing and after loading: the fit's summary, the dither drive's
-//! setpoints, the dither stripping's coefficients. The byte layout is the module's
+//! setpoints, the dither stripping's coefficients, the thermal model. The byte layout is the module's
 //! ([`super`]); these are the values.
 
 use super::RecordError;
 use crate::calibration::fit::FitResult;
+use crate::thermal::model::ThermalModel;
 
 /// Largest dither amplitude setpoint a record may hold, arcsec (far above any dither: a sanity
 /// bound for the record; the drive applies its own, narrower range).
@@ -144,5 +145,25 @@ impl StripCoefficients {
         } else {
             Ok(())
         }
+    }
+}
+
+/// The thermal model as stored (`crate::thermal::model`), with its switch: what the board
+/// corrects its output with from power-up on.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ThermalCalibration {
+    /// The coefficients and the temperatures they hold for.
+    pub model: ThermalModel,
+    /// Applied (`thermal on`) or kept but not applied (`thermal off`).
+    pub enabled: bool,
+}
+
+impl ThermalCalibration {
+    /// The model's own plausibility checks (`ThermalModel::check`).
+    pub fn check(&self) -> Result<(), RecordError> {
+        self.model
+            .check()
+            .map_err(|_| RecordError::ImplausibleThermal)
     }
 }

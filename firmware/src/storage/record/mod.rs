@@ -1,5 +1,5 @@
-//! The calibration record: fixed 96-byte little-endian layout (80 bytes in version 2 and 64 in
-//! version 1, both still read), CRC-32, commit marker and the
+//! The calibration record: fixed 144-byte little-endian layout (96 bytes in version 3, 80 in
+//! version 2 and 64 in version 1, all still read), CRC-32, commit marker and the
 //! plausibility checks applied both before storing and after loading.
 //!
 //! # Frame (every format version, present and future)
@@ -18,20 +18,20 @@
 //! the length, the CRC and the marker all check; a valid frame of an unknown version is skipped
 //! by its length and left alone.
 //!
-//! # Format version 3 ([`RECORD_BYTES`] = 96 bytes, 24 words), written by this firmware
+//! # Format version 4 ([`RECORD_BYTES`] = 144 bytes, 36 words), written by this firmware
 //!
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 2 | magic `0xCA1B` |
-//! | 2 | 1 | format version = 3 |
-//! | 3 | 1 | length = 24 words |
+//! | 2 | 1 | format version = 4 |
+//! | 3 | 1 | length = 36 words |
 //! | 4 | 4 | sequence number (u32) |
 //! | 8 | 4 | gyro serial number (u32) |
 //! | 12 | 4 | boot count at the time of storing (u32, supplied by the caller) |
 //! | 16 | 4 | a, Q15.16 rad/s (i32) |
 //! | 20 | 4 | b, Q15.16 rad/s (i32) |
 //! | 24 | 1 | compensation enabled: 0 or 1 |
-//! | 25 | 1 | flags: bit 0 fit summary present, bit 1 reset-to-defaults record, bit 2 dither setpoints present, bit 3 stripping coefficients present, bit 4 the second stripping tap is the quadrature tap; others 0 |
+//! | 25 | 1 | flags: bit 0 fit summary present, bit 1 reset-to-defaults record, bit 2 dither setpoints present, bit 3 stripping coefficients present, bit 4 the second stripping tap is the quadrature tap, bit 5 thermal model present; others 0 |
 //! | 26 | 2 | fit: runs pooled (u16, saturated) |
 //! | 28 | 4 | fit: cycles (u32, saturated) |
 //! | 32 | 4 | fit: standard error of a, rad/s (f32) |
@@ -47,12 +47,24 @@
 //! | 72 | 4 | stripping: K, Q8.24 fringes per pick-off code (i32) |
 //! | 76 | 4 | stripping: K_q, the tap on the modelled dither in quadrature (flag bit 4; without it, an older firmware's tap on the previous latch's code, not loaded), Q8.24 fringes per code (i32) |
 //! | 80 | 8 | reserved, 0 |
-//! | 88 | 4 | CRC-32 of bytes 0..88 |
-//! | 92 | 4 | commit marker |
+//! | 88 | 1 | thermal model applied (`thermal on`), 0 or 1 |
+//! | 89 | 3 | reserved, 0 |
+//! | 92 | 44 | thermal model: 11 f32 in the protocol's order `t_ref t_min t_max b0 b1 b2 b3 b_rate s0 s1 s2` (°C; deg/h per °C^k, deg/h per °C/min; ppm per °C^k: `thermal::model`) |
+//! | 136 | 4 | CRC-32 of bytes 0..136 |
+//! | 140 | 4 | commit marker |
+//!
+//! The thermal model is stored as the f32 it is applied in (it is evaluated in f32 on the
+//! board); without one (flag bit 5 clear) bytes 88..136 are zero.
+//!
+//! # Format version 3 (96 bytes, 24 words), still read
+//!
+//! Bytes 0..88 as in version 4 (flag bit 5 unknown, so never set), then the CRC-32 of bytes
+//! 0..88 at 88 and the commit marker at 92. It loads with no thermal model (`thermal: None`: no
+//! correction until one is set); the next store writes version 4.
 //!
 //! # Format version 2 (80 bytes, 20 words), still read
 //!
-//! Bytes 0..72 as in version 3 (flag bit 3 unknown, so never set), then the CRC-32 of bytes
+//! Bytes 0..72 as in version 4 (flag bits 3-5 unknown, so never set), then the CRC-32 of bytes
 //! 0..72 at 72 and the commit marker at 76. It loads with no stripping coefficients (`strip:
 //! None`: the profile's nominal K applies and the fit learns it); the next store writes
 //! version 3. The stripping coefficients are fixed point, as a and b: Q8.24 spans +-128
@@ -80,15 +92,22 @@ mod fields;
 
 use super::crc::crc32;
 use crate::signal::compensation::{Coefficients, CompensationSettings};
-pub use fields::{DitherSetpoints, FitSummary, StripCoefficients, MAX_DITHER_AMPLITUDE_ARCSEC};
+use crate::thermal::model::ThermalModel;
+pub use fields::{
+    DitherSetpoints, FitSummary, StripCoefficients, ThermalCalibration, MAX_DITHER_AMPLITUDE_ARCSEC,
+};
 
 /// First half-word of every frame.
 pub const MAGIC: u16 = 0xCA1B;
 /// The format version this firmware writes.
-pub const FORMAT_VERSION: u8 = 3;
+pub const FORMAT_VERSION: u8 = 4;
 /// Length of a record of [`FORMAT_VERSION`].
-pub const RECORD_BYTES: usize = 96;
+pub const RECORD_BYTES: usize = 144;
 /// The previous format version, still read.
+pub const V3_FORMAT_VERSION: u8 = 3;
+/// Length of a version-3 record.
+pub const V3_RECORD_BYTES: usize = 96;
+/// An older format version, still read.
 pub const V2_FORMAT_VERSION: u8 = 2;
 /// Length of a version-2 record.
 pub const V2_RECORD_BYTES: usize = 80;
@@ -102,6 +121,7 @@ pub const fn readable_length(version: u8) -> Option<usize> {
     match version {
         V1_FORMAT_VERSION => Some(V1_RECORD_BYTES),
         V2_FORMAT_VERSION => Some(V2_RECORD_BYTES),
+        V3_FORMAT_VERSION => Some(V3_RECORD_BYTES),
         FORMAT_VERSION => Some(RECORD_BYTES),
         _ => None,
     }
@@ -115,7 +135,8 @@ pub const MAX_FRAME_BYTES: usize = 252 * 4;
 /// never equals this value.
 pub const COMMIT_MARKER: u32 = 0xA5C3_3C5A;
 
-/// Byte offsets of the version-2 fields (see the module table); version 1 shares 0..56.
+/// Byte offsets of the version-4 fields (see the module table); the older versions share
+/// their prefixes.
 pub mod offset {
     /// Magic [`super::MAGIC`], u16.
     pub const MAGIC: usize = 0;
@@ -165,12 +186,20 @@ pub mod offset {
     pub const STRIP_K: usize = 72;
     /// Stripping coefficient K_q (the quadrature tap), Q8.24, i32.
     pub const STRIP_K_QUADRATURE: usize = 76;
-    /// Reserved bytes after the stripping coefficients, 0, up to [`CRC`].
+    /// Reserved bytes after the stripping coefficients, 0, up to [`THERMAL_ENABLED`].
     pub const RESERVED_2: usize = 80;
+    /// Thermal model applied, u8: 0 or 1.
+    pub const THERMAL_ENABLED: usize = 88;
+    /// Reserved bytes after it, 0, up to [`THERMAL_MODEL`].
+    pub const RESERVED_3: usize = 89;
+    /// The thermal model, 11 f32 in `ThermalModel::NAMES`' order.
+    pub const THERMAL_MODEL: usize = 92;
     /// CRC of `[0, CRC)`; in any frame of length n bytes it sits at n - 8.
-    pub const CRC: usize = 88;
+    pub const CRC: usize = 136;
     /// Commit marker; in any frame of length n bytes it sits at n - 4.
-    pub const COMMIT: usize = 92;
+    pub const COMMIT: usize = 140;
+    /// Version 3: CRC of `[0, V3_CRC)`.
+    pub const V3_CRC: usize = 88;
     /// Version 2: CRC of `[0, V2_CRC)`.
     pub const V2_CRC: usize = 72;
     /// Version 1: CRC of `[0, V1_CRC)`.
@@ -185,9 +214,11 @@ const FLAG_STRIP_PRESENT: u8 = 1 << 3;
 /// without it holds an older firmware's tap on the previous latch's pick-off code, which means
 /// nothing to the quadrature fit: it loads as 0 (K is kept), and the fit learns the tap anew.
 const FLAG_STRIP_QUADRATURE: u8 = 1 << 4;
+const FLAG_THERMAL_PRESENT: u8 = 1 << 5;
 const V1_KNOWN_FLAGS: u8 = FLAG_FIT_PRESENT | FLAG_RESET;
 const V2_KNOWN_FLAGS: u8 = V1_KNOWN_FLAGS | FLAG_DITHER_PRESENT;
-const KNOWN_FLAGS: u8 = V2_KNOWN_FLAGS | FLAG_STRIP_PRESENT | FLAG_STRIP_QUADRATURE;
+const V3_KNOWN_FLAGS: u8 = V2_KNOWN_FLAGS | FLAG_STRIP_PRESENT | FLAG_STRIP_QUADRATURE;
+const KNOWN_FLAGS: u8 = V3_KNOWN_FLAGS | FLAG_THERMAL_PRESENT;
 
 /// Why bytes are not a usable record, or a record may not be stored.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -216,6 +247,9 @@ pub enum RecordError {
     /// Stripping coefficients with a zero K, bytes without coefficients, or reserved bytes
     /// after them that are not 0.
     ImplausibleStrip,
+    /// A thermal model that fails its checks (`ThermalModel::check`), an enabled byte that is
+    /// neither 0 nor 1, bytes without a model, or reserved bytes that are not 0.
+    ImplausibleThermal,
 }
 
 /// What is stored: the compensation settings and where they came from.
@@ -239,6 +273,9 @@ pub struct CalibrationRecord {
     /// The dither stripping's coefficients; `None` when never stored (or an older record): the
     /// profile's nominal K applies until the fit learns it.
     pub strip: Option<StripCoefficients>,
+    /// The thermal model and its switch; `None` when never stored (or an older record): no
+    /// thermal correction.
+    pub thermal: Option<ThermalCalibration>,
 }
 
 impl CalibrationRecord {
@@ -254,6 +291,7 @@ impl CalibrationRecord {
         reset_to_defaults: false,
         dither: None,
         strip: None,
+        thermal: None,
     };
 
     /// The record `reset_to_defaults` writes.
@@ -289,10 +327,14 @@ impl CalibrationRecord {
         if let Some(strip) = &self.strip {
             strip.check()?;
         }
+        if let Some(thermal) = &self.thermal {
+            thermal.check()?;
+        }
         let is_default = self.settings == Self::DEFAULTS.settings
             && self.fit.is_none()
             && self.dither.is_none()
-            && self.strip.is_none();
+            && self.strip.is_none()
+            && self.thermal.is_none();
         if self.reset_to_defaults && !is_default {
             return Err(RecordError::ImplausibleReset);
         }
@@ -322,7 +364,7 @@ pub fn parse_header(unit: &[u8; ALIGN_BYTES]) -> Option<FrameHeader> {
     })
 }
 
-/// The version-3 bytes of `record` with sequence number `sequence`, CRC and commit marker.
+/// The version-4 bytes of `record` with sequence number `sequence`, CRC and commit marker.
 /// Does not check the record (the store does, before it writes).
 pub fn encode(record: &CalibrationRecord, sequence: u32) -> [u8; RECORD_BYTES] {
     let mut bytes = [0u8; RECORD_BYTES];
@@ -375,6 +417,17 @@ pub fn encode(record: &CalibrationRecord, sequence: u32) -> [u8; RECORD_BYTES] {
             &strip.k_quadrature_q24.to_le_bytes(),
         );
     }
+    if let Some(thermal) = &record.thermal {
+        flags |= FLAG_THERMAL_PRESENT;
+        bytes[offset::THERMAL_ENABLED] = thermal.enabled as u8;
+        for (k, value) in thermal.model.values().iter().enumerate() {
+            put(
+                &mut bytes,
+                offset::THERMAL_MODEL.saturating_add(k.saturating_mul(4)),
+                &value.to_le_bytes(),
+            );
+        }
+    }
     bytes[offset::FLAGS] = flags;
     seal(&mut bytes);
     bytes
@@ -411,9 +464,10 @@ fn encode_fit(bytes: &mut [u8], fit: &FitSummary) {
     }
 }
 
-/// Checks a frame of a readable version (1, 2 or 3) completely (magic, version, length, CRC,
+/// Checks a frame of a readable version (1 to 4) completely (magic, version, length, CRC,
 /// marker, plausibility) and returns its sequence number and record. `bytes` is the whole
-/// frame: [`V1_RECORD_BYTES`], [`V2_RECORD_BYTES`] or [`RECORD_BYTES`] long.
+/// frame: [`V1_RECORD_BYTES`], [`V2_RECORD_BYTES`], [`V3_RECORD_BYTES`] or [`RECORD_BYTES`]
+/// long.
 pub fn decode(bytes: &[u8]) -> Result<(u32, CalibrationRecord), RecordError> {
     let header: &[u8; ALIGN_BYTES] = bytes
         .get(..ALIGN_BYTES)
@@ -448,6 +502,7 @@ fn decode_body(bytes: &[u8], version: u8) -> Result<CalibrationRecord, RecordErr
     let known = match version {
         V1_FORMAT_VERSION => V1_KNOWN_FLAGS,
         V2_FORMAT_VERSION => V2_KNOWN_FLAGS,
+        V3_FORMAT_VERSION => V3_KNOWN_FLAGS,
         _ => KNOWN_FLAGS,
     };
     if flags & !known != 0 || enabled > 1 {
@@ -465,12 +520,17 @@ fn decode_body(bytes: &[u8], version: u8) -> Result<CalibrationRecord, RecordErr
     } else {
         decode_dither(bytes, flags & FLAG_DITHER_PRESENT != 0)?
     };
-    let strip = if version == FORMAT_VERSION {
+    let strip = if version >= V3_FORMAT_VERSION {
         decode_strip(
             bytes,
             flags & FLAG_STRIP_PRESENT != 0,
             flags & FLAG_STRIP_QUADRATURE != 0,
         )?
+    } else {
+        None
+    };
+    let thermal = if version == FORMAT_VERSION {
+        decode_thermal(bytes, flags & FLAG_THERMAL_PRESENT != 0)?
     } else {
         None
     };
@@ -488,16 +548,43 @@ fn decode_body(bytes: &[u8], version: u8) -> Result<CalibrationRecord, RecordErr
         reset_to_defaults: flags & FLAG_RESET != 0,
         dither,
         strip,
+        thermal,
     })
 }
 
-/// The version-3 stripping bytes: coefficients when `present`, else zero; reserved bytes zero.
+/// The version-4 thermal bytes: a model when `present`, else zero; reserved bytes zero. The
+/// model's own checks follow in `CalibrationRecord::check`.
+fn decode_thermal(bytes: &[u8], present: bool) -> Result<Option<ThermalCalibration>, RecordError> {
+    let enabled = byte_at(bytes, offset::THERMAL_ENABLED);
+    if !all_zero(bytes, offset::RESERVED_3..offset::THERMAL_MODEL) || enabled > 1 {
+        return Err(RecordError::ImplausibleThermal);
+    }
+    if !present {
+        return if all_zero(bytes, offset::THERMAL_ENABLED..offset::CRC) {
+            Ok(None)
+        } else {
+            Err(RecordError::ImplausibleThermal)
+        };
+    }
+    let mut values = [0.0f32; 11];
+    for (k, value) in values.iter_mut().enumerate() {
+        let at = offset::THERMAL_MODEL.saturating_add(k.saturating_mul(4));
+        *value = f32::from_bits(get_u32(bytes, at));
+    }
+    Ok(Some(ThermalCalibration {
+        model: ThermalModel::from_values(values),
+        enabled: enabled == 1,
+    }))
+}
+
+/// The stripping bytes (versions 3 and 4): coefficients when `present`, else zero; reserved
+/// bytes zero.
 fn decode_strip(
     bytes: &[u8],
     present: bool,
     quadrature: bool,
 ) -> Result<Option<StripCoefficients>, RecordError> {
-    let reserved_clear = all_zero(bytes, offset::RESERVED_2..offset::CRC);
+    let reserved_clear = all_zero(bytes, offset::RESERVED_2..offset::V3_CRC);
     let strip = StripCoefficients {
         k_q24: get_u32(bytes, offset::STRIP_K) as i32,
         k_quadrature_q24: get_u32(bytes, offset::STRIP_K_QUADRATURE) as i32,

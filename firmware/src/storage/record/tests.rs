@@ -1,4 +1,4 @@
-//! The record's tests: round trips of the three format versions, the documented layout, every
+//! The record's tests: round trips of the four format versions, the documented layout, every
 //! single bit flip refused, the plausibility checks.
 
 use super::*;
@@ -31,13 +31,41 @@ fn sample() -> CalibrationRecord {
             noise_percent: 12.5,
         }),
         strip: StripCoefficients::from_fringes_per_code(0.2144199, -0.0012),
+        thermal: Some(ThermalCalibration {
+            model: thermal_model(),
+            enabled: true,
+        }),
     }
+}
+
+fn thermal_model() -> ThermalModel {
+    ThermalModel {
+        reference_c: 25.0,
+        min_c: -20.0,
+        max_c: 60.0,
+        bias_deg_h: [0.001, 0.002, 2e-5, -1.25e-7],
+        bias_deg_h_per_c_per_min: 0.002,
+        scale_ppm: [0.1, 0.5, 0.005],
+    }
+}
+
+/// The version-3 bytes of a record without a thermal model (what the firmware before the
+/// thermal model wrote).
+fn encode_v3(record: &CalibrationRecord, sequence: u32) -> [u8; V3_RECORD_BYTES] {
+    assert!(record.thermal.is_none());
+    let v4 = encode(record, sequence);
+    let mut bytes = [0u8; V3_RECORD_BYTES];
+    bytes[..offset::V3_CRC].copy_from_slice(&v4[..offset::V3_CRC]);
+    bytes[offset::VERSION] = V3_FORMAT_VERSION;
+    bytes[offset::LENGTH_WORDS] = (V3_RECORD_BYTES / 4) as u8;
+    seal(&mut bytes);
+    bytes
 }
 
 /// The version-2 bytes of a record without stripping coefficients (what the firmware of issue
 /// 12 wrote).
 fn encode_v2(record: &CalibrationRecord, sequence: u32) -> [u8; V2_RECORD_BYTES] {
-    assert!(record.strip.is_none());
+    assert!(record.strip.is_none() && record.thermal.is_none());
     let v3 = encode(record, sequence);
     let mut bytes = [0u8; V2_RECORD_BYTES];
     bytes[..offset::V2_CRC].copy_from_slice(&v3[..offset::V2_CRC]);
@@ -49,7 +77,7 @@ fn encode_v2(record: &CalibrationRecord, sequence: u32) -> [u8; V2_RECORD_BYTES]
 
 /// The version-1 bytes of a record without dither setpoints (what older firmware wrote).
 fn encode_v1(record: &CalibrationRecord, sequence: u32) -> [u8; V1_RECORD_BYTES] {
-    assert!(record.dither.is_none() && record.strip.is_none());
+    assert!(record.dither.is_none() && record.strip.is_none() && record.thermal.is_none());
     let v2 = encode(record, sequence);
     let mut bytes = [0u8; V1_RECORD_BYTES];
     bytes[..offset::V1_CRC].copy_from_slice(&v2[..offset::V1_CRC]);
@@ -74,22 +102,101 @@ fn round_trip() {
 #[test]
 fn layout_is_little_endian_at_documented_offsets() {
     let bytes = encode(&sample(), 0x0102_0304);
-    assert_eq!(&bytes[..4], &[0x1B, 0xCA, 3, 24]);
+    assert_eq!(&bytes[..4], &[0x1B, 0xCA, 4, 36]);
     assert_eq!(&bytes[4..8], &[4, 3, 2, 1]);
     assert_eq!(&bytes[8..12], &[0x78, 0x56, 0x34, 0x12]);
     assert_eq!(&bytes[56..60], &450.0f32.to_le_bytes());
     assert_eq!(&bytes[60..64], &12.5f32.to_le_bytes());
     assert_eq!(
-        bytes[25], 0b1_1101,
-        "fit, dither, stripping present, quadrature tap"
+        bytes[25], 0b11_1101,
+        "fit, dither, stripping present, quadrature tap, thermal model"
     );
     assert_eq!(&bytes[64..72], &[1, 0, 0, 0, 0, 0, 0, 0]);
     // K = 0.2144199 in Q8.24: round(0.2144199 * 2^24) = 3597369.
     assert_eq!(get_u32(&bytes, offset::STRIP_K) as i32, 3_597_369);
     assert_eq!(get_u32(&bytes, offset::STRIP_K_QUADRATURE) as i32, -20_133);
     assert_eq!(&bytes[80..88], &[0; 8]);
-    assert_eq!(get_u32(&bytes, offset::CRC), crc32(&bytes[..88]));
+    assert_eq!(&bytes[88..92], &[1, 0, 0, 0], "thermal model applied");
+    assert_eq!(&bytes[92..96], &25.0f32.to_le_bytes(), "t_ref");
+    assert_eq!(&bytes[104..108], &0.001f32.to_le_bytes(), "b0");
+    assert_eq!(&bytes[116..120], &(-1.25e-7f32).to_le_bytes(), "b3");
+    assert_eq!(&bytes[132..136], &0.005f32.to_le_bytes(), "s2");
+    assert_eq!(get_u32(&bytes, offset::CRC), crc32(&bytes[..136]));
     assert_eq!(get_u32(&bytes, offset::COMMIT), COMMIT_MARKER);
+}
+
+/// A version-3 record (no thermal model) still loads, with `thermal: None`; it cannot claim
+/// the version-4 flag; every bit flip of it is refused.
+#[test]
+fn version_3_records_still_load_without_a_thermal_model() {
+    let mut record = sample();
+    record.thermal = None;
+    let v3 = encode_v3(&record, 11);
+    assert_eq!(&v3[..4], &[0x1B, 0xCA, 3, 24]);
+    assert_eq!(decode(&v3), Ok((11, record)));
+    let mut bad = v3;
+    bad[offset::FLAGS] |= FLAG_THERMAL_PRESENT;
+    seal(&mut bad);
+    assert_eq!(decode(&bad), Err(RecordError::BadFlags));
+    for bit in 0..V3_RECORD_BYTES * 8 {
+        let mut flipped = v3;
+        flipped[bit / 8] ^= 1 << (bit % 8);
+        assert!(decode(&flipped).is_err(), "v3 bit {bit}");
+    }
+}
+
+/// The thermal model: one that fails its own checks is refused before storing and at load;
+/// bytes without the flag, an enabled byte other than 0 or 1 and non-zero reserved bytes are
+/// refused; a model switched off round-trips off.
+#[test]
+fn the_thermal_model_is_checked() {
+    let mut record = sample();
+    let bad_models = [
+        ThermalModel {
+            reference_c: f32::NAN,
+            ..thermal_model()
+        },
+        ThermalModel {
+            min_c: 70.0,
+            ..thermal_model()
+        },
+        ThermalModel {
+            bias_deg_h: [200.0, 0.0, 0.0, 0.0],
+            ..thermal_model()
+        },
+    ];
+    for model in bad_models {
+        record.thermal = Some(ThermalCalibration {
+            model,
+            enabled: true,
+        });
+        assert_eq!(record.check(), Err(RecordError::ImplausibleThermal));
+        assert_eq!(
+            decode(&encode(&record, 1)),
+            Err(RecordError::ImplausibleThermal)
+        );
+    }
+    record.thermal = Some(ThermalCalibration {
+        model: thermal_model(),
+        enabled: false,
+    });
+    assert_eq!(decode(&encode(&record, 2)), Ok((2, record)));
+    let mut bytes = encode(&record, 2);
+    bytes[offset::THERMAL_ENABLED] = 2;
+    seal(&mut bytes);
+    assert_eq!(decode(&bytes), Err(RecordError::ImplausibleThermal));
+    let mut bytes = encode(&record, 2);
+    bytes[offset::RESERVED_3 + 1] = 1;
+    seal(&mut bytes);
+    assert_eq!(decode(&bytes), Err(RecordError::ImplausibleThermal));
+    record.thermal = None;
+    let mut bytes = encode(&record, 3);
+    bytes[offset::THERMAL_MODEL + 7] = 1; // bytes without the flag
+    seal(&mut bytes);
+    assert_eq!(decode(&bytes), Err(RecordError::ImplausibleThermal));
+    let mut reset = CalibrationRecord::reset(1, 1);
+    reset.thermal = sample().thermal;
+    assert_eq!(reset.check(), Err(RecordError::ImplausibleReset));
 }
 
 /// A version-2 record (no stripping coefficients) still loads, with `strip: None`; it cannot
@@ -98,6 +205,7 @@ fn layout_is_little_endian_at_documented_offsets() {
 fn version_2_records_still_load_without_stripping_coefficients() {
     let mut record = sample();
     record.strip = None;
+    record.thermal = None;
     let v2 = encode_v2(&record, 8);
     assert_eq!(&v2[..4], &[0x1B, 0xCA, 2, 20]);
     assert_eq!(decode(&v2), Ok((8, record)));
@@ -162,6 +270,7 @@ fn version_1_records_still_load_without_dither_setpoints() {
     let mut record = sample();
     record.dither = None;
     record.strip = None;
+    record.thermal = None;
     let v1 = encode_v1(&record, 7);
     assert_eq!(&v1[..4], &[0x1B, 0xCA, 1, 16]);
     assert_eq!(decode(&v1), Ok((7, record)));
@@ -229,6 +338,7 @@ fn every_single_bit_flip_is_refused() {
     let mut record = sample();
     record.dither = None;
     record.strip = None;
+    record.thermal = None;
     let v1 = encode_v1(&record, 5);
     for bit in 0..V1_RECORD_BYTES * 8 {
         let mut flipped = v1;
