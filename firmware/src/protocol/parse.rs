@@ -33,7 +33,7 @@ pub enum DitherCommand {
     Status,
 }
 
-/// Every command of the protocol (see the README for examples).
+/// Every command of the protocol (see docs/protocol.md "Commands" for examples).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Command {
     /// `help` | `?`: the command list.
