@@ -8,7 +8,7 @@ sample period) and requires the same octave taus and every deviation equal to 1e
 
 usage: allantools_check.py PATH/TO/rlg-sim [WORKDIR]
        allantools_check.py --write-record PATH SAMPLES   (only the record, e.g. 15000000 for
-                                                          the README's 10 h timing)
+                                                          docs/results.md's 15 M-sample timing)
 """
 import csv
 import os

@@ -315,7 +315,7 @@ def main(elf: str, board: bool) -> int:
                                          capture_output=True, timeout=10)
                 print("defmt log:\n" + out.stdout.decode(errors="replace")[-4000:])
         elif shutil.which("defmt-print"):
-            # The firmware's painted-stack figure for the run (README "Stack").
+            # The firmware's painted-stack figure for the run (docs/firmware.md "Stack").
             with open(log.name, "rb") as f:
                 out = subprocess.run(["defmt-print", "-e", elf], stdin=f,
                                      capture_output=True, timeout=10)

@@ -241,7 +241,7 @@ fn noise_dither_randomises_the_amplitude_and_holds_its_mean() {
 /// The paper's experiment with the closed-loop drive (a short version of `rlg-sim sweep
 /// --dither-drive closed-loop`): the calibration still finds Omega_L and eps within 1 %, and
 /// compensation still removes most of the dead band; what is left (0.085 deg/h at 10 s per point
-/// in the CLI's full sweep, README) is the amplitude wander the output issue strips. Bound:
+/// in the CLI's full sweep) is the amplitude wander the output issue strips. Bound:
 /// 0.2 deg/h at 5 s per point, against 2.8 deg/h uncompensated at the band's edge.
 #[test]
 fn the_sweep_with_the_closed_loop_drive() {

@@ -41,7 +41,7 @@ pub struct MemoryMap {
     /// First byte after the statics.
     pub static_end: u32,
     /// Lowest address of the stack: with flip-link the start of SRAM, below the statics, so
-    /// an overflow faults instead of overwriting them (README "Stack").
+    /// an overflow faults instead of overwriting them (docs/firmware.md "Stack").
     pub stack_bottom: u32,
     /// Initial stack pointer: the stack grows down from here to `stack_bottom`.
     pub stack_top: u32,

@@ -6,10 +6,10 @@
 //! stack pointer at painting time is the depth everything since then used, interrupts included
 //! (they run on the same main stack). [`depth_of`] measures one call from thread mode.
 //!
-//! Used by `examples/stack_depth.rs` (`cargo fw-run --example stack_depth`) and the serial
-//! protocol run in QEMU; the README's "Stack" section quotes the figures. A measurement, not a
-//! proof: it covers the paths the run took (the static bound would need cargo-call-stack, which
-//! needs nightly).
+//! Used by `examples/board_cost.rs`, `examples/dither_cost.rs` and `examples/serial_protocol.rs`
+//! (the serial protocol run in QEMU); docs/firmware.md "Stack" quotes the figures. A
+//! measurement, not a proof: it covers the paths the run took (the static bound would need
+//! cargo-call-stack, which needs nightly).
 
 const PAINT: u32 = 0x5AC3_A53C;
 /// Words left untouched just below the stack pointer (the painting function's own frame).

@@ -33,7 +33,7 @@ fn a_calibration_the_board_refuses_exits_1_with_its_reason() {
     }
 }
 
-/// The default calibration passes the board's checks: the README's fit on the default
+/// The default calibration passes the board's checks: docs/results.md's fit on the default
 /// (realistic) board, Omega_L 200.010 deg/h, eps 0.29997 rad, and exit 0. (Two points of 1 s:
 /// the calibration is the defaults'.)
 #[test]

@@ -1,6 +1,6 @@
 //! The board's calibration key: 128 bits, written once at production, never a published default.
 //!
-//! # Life cycle (see README "Security model")
+//! # Life cycle (see docs/rlg-cal.md "Security model")
 //! - A board leaves the factory **unprovisioned**: OTP block 0 words 1..=4 read all ones. It
 //!   answers every read, but every protected command is refused (`ERR 9`), `unlock` is refused
 //!   with `ERR 16 no key provisioned`, and `status` reports `key=unprovisioned`.

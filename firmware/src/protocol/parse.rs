@@ -57,7 +57,7 @@ impl ThermalCommand {
     }
 }
 
-/// Every command of the protocol (see the README for examples).
+/// Every command of the protocol (see docs/protocol.md "Commands" for examples).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Command {
     /// `help` | `?`: the command list.

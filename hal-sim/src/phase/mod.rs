@@ -27,7 +27,7 @@
 //!
 //! Measured (tests `theory_convergence`, bench `phase`): per-traversal error 1.3e-8 rad at
 //! the defaults against the converged reference, order >= 10 under step halving; the speed
-//! is in the README (`cargo bench -p hal-sim --bench phase`, `rlg-sim speed`).
+//! is in docs/results.md (`cargo bench -p hal-sim --bench phase`, `rlg-sim speed`).
 //!
 //! Where the time goes (callgrind, the docs/physics.md set at 13.888 deg/h: 54 M
 //! instructions per gyro-second, 69 k per half cycle; 57 M before the far series' short

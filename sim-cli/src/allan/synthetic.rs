@@ -1,5 +1,5 @@
 //! Synthetic rate records with known IEEE 952 noise terms: the estimator's and the fit's
-//! tests, and the acceptance figures of the README.
+//! tests, and the acceptance figures of docs/results.md.
 //!
 //! Per sample of period `tau0` (rates in deg/h, angles in arcsec):
 //! - quantisation `Q` (arcsec): white angle noise `e` of rms `Q` read into the rate as
