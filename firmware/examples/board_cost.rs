@@ -21,7 +21,7 @@
 mod app {
     use firmware::board::isr;
     use firmware::board::resources::{init_core, init_readout, READOUT};
-    use firmware::board::turnaround::{self, Edge, Scheduler};
+    use firmware::board::turnaround::{self, Edge, PlanLock, Scheduler};
     use firmware::board::{pac, usart};
     use firmware::calibration::session::CalibrationSession;
     use firmware::calibration::validation::AcceptanceLimits;
@@ -91,9 +91,9 @@ mod app {
             compare_ticks: tim2.cnt().read().bits().wrapping_add(1 << 30),
             kind: TurnaroundKind::Minus,
         };
-        turnaround::arm(tim2, armed, tim2.cnt().read().bits());
+        turnaround::arm(tim2, armed, tim2.cnt().read().bits(), &mut PlanLock);
         let latch = counter.count(isr::adc);
-        turnaround::arm(tim2, armed, tim2.cnt().read().bits());
+        turnaround::arm(tim2, armed, tim2.cnt().read().bits(), &mut PlanLock);
         let latch_stack = firmware::stack::depth_of(isr::adc);
 
         let pickoff_registers = counter.count(isr::tim2);
