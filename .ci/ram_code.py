@@ -2,6 +2,7 @@
 """Checks that the board firmware's RAM-resident code never touches flash, and prints its size.
 
 Usage: python3 .ci/ram_code.py target/thumbv7em-none-eabihf/release/firmware
+       python3 .ci/ram_code.py --rtic target/thumbv7em-none-eabihf/release/examples/rtic_board
 
 While the F405's single flash bank programs or erases, every fetch from flash stalls (RM0090
 3.5); what must run then lives in RAM (firmware/src/board/ram.rs). This script reads the ELF
@@ -14,6 +15,12 @@ fails when one of them
   - makes an indirect call or jump (which cannot be checked),
 and when one of the REQUIRED functions or tables is not in RAM. It prints each RAM-resident
 function and table with its bytes.
+
+The RAM-resident handlers are the board's `board::ram::{tim4, usart1, systick}` (patched into the
+RAM copy of the vector table), or with --rtic those of the RTIC study (examples/rtic_board.rs:
+the vector symbols TIM4, USART1 and SysTick that RTIC generates, linked into RAM by the tasks'
+link_section); there the linked vector table is copied unchanged, so its entries for the three
+must point into RAM, which is checked too.
 """
 import re
 import struct
@@ -23,11 +30,21 @@ sys.path.insert(0, __import__("os").path.dirname(__file__))
 from image_size import FLASH, RAM  # noqa: E402
 
 STT_FUNC = 2
-# (what, pattern of its mangled name): must be linked into RAM.
+# The RAM-resident handlers, by binding: (what, pattern of the symbol, vector table entry).
+HANDLERS = {
+    "board": [
+        ("drive tick (TIM4)", r"board3ram4tim4", None),
+        ("serial link (USART1)", r"board3ram6usart1", None),
+        ("millisecond tick (SysTick)", r"board3ram7systick", None),
+    ],
+    "rtic": [
+        ("drive tick (TIM4)", r"^TIM4$", 16 + 30),
+        ("serial link (USART1)", r"^USART1$", 16 + 37),
+        ("millisecond tick (SysTick)", r"^SysTick$", 15),
+    ],
+}
+# (what, pattern of its mangled name): must be linked into RAM (with the handlers above).
 REQUIRED = [
-    ("drive tick (TIM4)", r"board3ram4tim4"),
-    ("serial link (USART1)", r"board3ram6usart1"),
-    ("millisecond tick (SysTick)", r"board3ram7systick"),
     ("flash erase: start and wait", r"board3ram14start_and_wait"),
     ("flash program: write and wait", r"board3ram16program_and_wait"),
     ("cossin", r"math6cossin6cossin"),
@@ -151,15 +168,24 @@ def decode(image, start, end):
                 yield here, "constant", imm << 16 | movw.pop(rd)
 
 
-def main(path):
+def main(path, binding):
     image = Image(path)
     funcs = [s for s in image.symbols if s["type"] == STT_FUNC and in_range(s["value"], RAM)]
     by_addr = {s["value"] & ~1: s for s in image.symbols if s["type"] == STT_FUNC}
     ram_objects = [s for s in image.symbols if in_range(s["value"], RAM) and s["size"]]
     failures = []
-    for what, pattern in REQUIRED:
+    required = [(what, pattern) for what, pattern, _ in HANDLERS[binding]] + REQUIRED
+    for what, pattern in required:
         if not any(re.search(pattern, s["name"]) for s in ram_objects):
             failures.append(f"not in RAM: {what} (/{pattern}/)")
+    table = next((s["value"] for s in image.symbols if s["name"] == "__RESET_VECTOR"), None)
+    for what, _, entry in HANDLERS[binding]:
+        if entry is None:
+            continue
+        # __RESET_VECTOR is entry 1 of the linked table (cortex-m-rt's .vector_table).
+        word = table is not None and image.read(table + 4 * (entry - 1), 4)
+        if not word or not in_range(struct.unpack("<I", word)[0] & ~1, RAM):
+            failures.append(f"the linked vector table's entry {entry} ({what}) does not point into RAM")
     thunk = re.compile(r"^__Thumbv7\w*LongThunk_(.+)$")
     code_bytes, allowed_seen = 0, {}
     for f in sorted(funcs, key=lambda s: s["value"]):
@@ -203,9 +229,9 @@ def main(path):
                     failures.append(f"{f['name']} +{at - start:#x}: loads {value:#010x}, an address in flash")
     print("RAM-resident code and tables (bytes):")
     for s in sorted(ram_objects, key=lambda s: s["value"]):
-        if s["type"] == STT_FUNC or any(re.search(p, s["name"]) for _, p in REQUIRED):
+        if s["type"] == STT_FUNC or any(re.search(p, s["name"]) for _, p in required):
             print(f"  {s['size']:>6}  {s['name']}")
-    tables = sum(s["size"] for s in ram_objects if s["type"] != STT_FUNC and any(re.search(p, s["name"]) for _, p in REQUIRED))
+    tables = sum(s["size"] for s in ram_objects if s["type"] != STT_FUNC and any(re.search(p, s["name"]) for _, p in required))
     print(f"  code {code_bytes} bytes, tables {tables} bytes: {code_bytes + tables} bytes of RAM in all")
     for name, why in sorted(allowed_seen.items()):
         print(f"  calls into flash allowed: {name} ({why})")
@@ -216,6 +242,9 @@ def main(path):
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
+    args = sys.argv[1:]
+    binding = "rtic" if "--rtic" in args else "board"
+    args = [a for a in args if a != "--rtic"]
+    if len(args) != 1:
         sys.exit(__doc__)
-    main(sys.argv[1])
+    main(args[0], binding)

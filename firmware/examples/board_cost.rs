@@ -14,17 +14,27 @@
 //!   stream on: rate averaging, `CalibrationSession::on_cycle`, frame encoding (the record comes
 //!   from the firmware's readout fed with a synthetic steady dither, as in `cost.rs`).
 //!
+//! Then, with the interrupts unmasked, each handler taken through its exception, the locks and
+//! the main loop's sections under them, as `rtic_cost.rs` measures the RTIC binding of the same
+//! handlers (the shared module `binding_cost`; docs/firmware.md#concurrency).
+//!
 //! The counter is TIM5 (32-bit), whose only use by the measured code is reading `CCR3`/`SR`.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
+mod binding_cost;
+
+#[cfg(target_os = "none")]
 mod app {
     use firmware::board::isr;
-    use firmware::board::resources::{init_core, init_readout, READOUT};
-    use firmware::board::turnaround::{self, Edge, Scheduler};
+    use firmware::board::resources::{
+        self, init_core, init_readout, start_dither, unmask_readout, READOUT, SCHEDULER,
+    };
+    use firmware::board::turnaround::{self, Edge, PlanLock, Scheduler};
     use firmware::board::{pac, usart};
     use firmware::calibration::session::CalibrationSession;
     use firmware::calibration::validation::AcceptanceLimits;
+    use firmware::dither::DitherConfig;
     use firmware::icount::{InstructionCounter, Timer};
     use firmware::protocol::stream::{encode_frame, StreamRecord, MAX_FRAME};
     use firmware::readout::{Readout, ReadoutConfig};
@@ -32,9 +42,15 @@ mod app {
     use firmware::signal::compensation::{Coefficients, CompensationSettings};
     use firmware::signal::lockin::CycleRecord;
     use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
+    use firmware::storage::DitherSetpoints;
     use micromath::F32Ext;
 
     firmware::bind_board_interrupts!();
+
+    /// The binding's own code: an empty handler.
+    #[cortex_m_rt::interrupt]
+    fn EXTI2() {}
+    use firmware::rt::pac::interrupt;
 
     /// Cycle records of a steady 389 Hz dither at a small rate (the synthetic gyro of `cost.rs`).
     fn records(config: &ReadoutConfig, out: &mut [Option<CycleRecord>; 8]) {
@@ -91,9 +107,9 @@ mod app {
             compare_ticks: tim2.cnt().read().bits().wrapping_add(1 << 30),
             kind: TurnaroundKind::Minus,
         };
-        turnaround::arm(tim2, armed, tim2.cnt().read().bits());
+        turnaround::arm(tim2, armed, tim2.cnt().read().bits(), &mut PlanLock);
         let latch = counter.count(isr::adc);
-        turnaround::arm(tim2, armed, tim2.cnt().read().bits());
+        turnaround::arm(tim2, armed, tim2.cnt().read().bits(), &mut PlanLock);
         let latch_stack = firmware::stack::depth_of(isr::adc);
 
         let pickoff_registers = counter.count(isr::tim2);
@@ -211,6 +227,28 @@ mod app {
             readout_stack,
             cycle_stack
         );
+
+        // Through the exceptions: the handlers' state as the board sets it (the controller
+        // off), every line unmasked.
+        SCHEDULER.init(Scheduler::new());
+        let dither = DitherConfig::for_profile(&firmware::profile::BoardProfile::F405);
+        let off = DitherSetpoints {
+            enabled: false,
+            amplitude_arcsec: dither.default_setpoint_arcsec,
+            noise_percent: 0.0,
+        };
+        start_dither(dither, Some(off), None);
+        // SAFETY: every handler's state is set; EXTI2's handler is empty.
+        unsafe {
+            cp.NVIC
+                .set_priority(pac::Interrupt::EXTI2, resources::priority::READOUT_TASK);
+            cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART1);
+            cortex_m::peripheral::NVIC::unmask(pac::Interrupt::EXTI2);
+        }
+        unmask_readout(true);
+        let mut locks = resources::STATIC_LOCKS;
+        super::binding_cost::measure("board", &counter, &mut locks);
+
         semihosting::process::exit(if scheduled.is_some() && measured > 0 {
             0
         } else {

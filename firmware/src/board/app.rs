@@ -16,16 +16,20 @@ use cortex_m::peripheral::NVIC;
 use embedded_storage::nor_flash::NorFlash;
 
 use super::ports::BoardPorts;
-use super::resources::{self, init_core, start_dither, unmask_readout, ReadoutQueues, SCHEDULER};
+use super::resources::{
+    self, init_core, DitherTask, ReadoutParts, ReadoutQueues, ReadoutTask, SCHEDULER,
+};
 use super::{
     adc, backup, clocks, dither, encoder, flash, otp, pac, selftest, sync, turnaround, usart,
-    watchdog,
+    watchdog, Shared,
 };
-use crate::dither::DitherConfig;
+use crate::board_timing::selftest::SelfTestReport;
+use crate::dither::{Coast, DitherConfig};
 use crate::profile::BoardProfile;
 use crate::protocol::execute::Identity;
 use crate::service::power_up::power_up;
 use crate::service::{Service, ServiceConfig};
+use crate::signal::output::latch_plan::LatchPlan;
 use crate::storage::{DitherSetpoints, Geometry};
 use crate::thermal::sensor::{SensorConfig, SensorMonitor};
 use crate::thermal::tmp117::{Tmp117, ADDRESS};
@@ -82,8 +86,8 @@ pub struct Health {
 }
 
 impl Health {
-    /// The counters now; `frames_dropped` is the service's.
-    pub fn now(frames_dropped: u32) -> Self {
+    /// The counters now; `frames_dropped` is the service's, `sync_overruns` the latch plan's.
+    pub fn now(frames_dropped: u32, sync_overruns: u32) -> Self {
         let get = |c: &AtomicU32| c.load(Ordering::Relaxed);
         Self {
             turnarounds_late: get(&turnaround::LATE),
@@ -94,7 +98,7 @@ impl Health {
             records_dropped: get(&resources::RECORDS_DROPPED),
             output_latches_dropped: get(&resources::OUTPUT_LATCHES_DROPPED),
             output_records_dropped: get(&resources::OUTPUT_RECORDS_DROPPED),
-            sync_overruns: turnaround::sync_overruns(),
+            sync_overruns,
             lissajous_block_overruns: get(&adc::BLOCK_OVERRUNS),
             dma_errors: get(&adc::DMA_ERRORS),
             adc_overruns: get(&adc::OVERRUNS),
@@ -135,6 +139,15 @@ pub fn boot<F: NorFlash>(
     config: ServiceConfig,
     flash: F,
 ) -> (Service<F>, ReadoutQueues, Option<DitherSetpoints>) {
+    let (service, readout, dither) = boot_parts(config, flash);
+    (service, resources::install_readout(readout), dither)
+}
+
+/// [`boot`], the readout's parts handed back instead of put into their statics.
+pub fn boot_parts<F: NorFlash>(
+    config: ServiceConfig,
+    flash: F,
+) -> (Service<F>, ReadoutParts, Option<DitherSetpoints>) {
     let up = power_up(
         config,
         flash,
@@ -146,20 +159,73 @@ pub fn boot<F: NorFlash>(
         defmt::warn!("wrong keys before the reset: {}", up.wrong_keys);
     }
     defmt::info!("calibration: {}", up.report);
-    let queues = resources::init_readout(config.readout, up.readout);
-    (up.service, queues, up.dither)
+    let readout = resources::readout_parts(config.readout, up.readout);
+    (up.service, readout, up.dither)
 }
 
-/// Brings the board up and runs it: clocks, watchdog, serial link, calibration from flash,
-/// encoder, turnaround timer, ADCs, the drive's peripherals, the power-up self-test (its clock,
-/// timer and trigger checks, [`super::selftest`]), the dither drive (its pick-off check first,
-/// then, enabled, it finds the resonance and locks by itself; inhibited if a check failed),
-/// interrupts, then the main loop. Needs [`crate::bind_board_interrupts`] in the binary.
-#[allow(clippy::unwrap_used)] // at reset, once: the peripherals and the static queues are taken for the first time
+/// What start-up hands the contexts: [`run`] puts it into the statics of [`resources`],
+/// `examples/rtic_board.rs` into RTIC's resources.
+pub struct Board {
+    /// The command service (the main loop's).
+    pub service: Service<flash::InternalFlash>,
+    /// The readout task's state and the queue ends of the latch, the tick and the main loop.
+    pub readout: ReadoutParts,
+    /// The drive tick's controller, and the coast state it hands over to.
+    pub dither: (DitherTask, Coast),
+    /// The pick-off handler's prediction state.
+    pub scheduler: turnaround::Scheduler,
+    /// The main loop's side of the serial link.
+    pub serial: usart::SerialPort,
+    /// The USART1 handler's side.
+    pub serial_isr: usart::IsrSide,
+    /// The running watchdog (the main loop refreshes it).
+    pub watchdog: watchdog::Watchdog,
+    /// The power-up self-test's clock, timer and trigger checks.
+    pub selftest: SelfTestReport,
+    /// The gyro block's temperature sensor (the main loop polls it).
+    pub sensor: BlockSensor,
+}
+
+/// Brings the board up and runs it: [`bring_up`] (with [`init_core`]: the RAM vector table, the
+/// priorities, the 1 ms tick), its state into the handlers' statics, the drive tick unmasked
+/// (its pick-off check first, then, enabled, it finds the resonance and locks by itself;
+/// inhibited if a check failed), the readout's and the serial link's interrupts, then the main
+/// loop. Needs [`crate::bind_board_interrupts`] in the binary.
+#[allow(clippy::unwrap_used)] // at reset, once: the peripherals are taken for the first time
 pub fn run() -> ! {
-    let profile = BoardProfile::F405;
     let mut cp = cortex_m::Peripherals::take().unwrap();
     let dp = pac::Peripherals::take().unwrap();
+    let board = bring_up(&mut cp, dp, |cp| {
+        init_core(&mut cp.SCB, &mut cp.NVIC, &mut cp.SYST)
+    });
+    let queues = resources::install_readout(board.readout);
+    SCHEDULER.init(board.scheduler);
+    usart::install(board.serial_isr);
+    resources::install_dither(board.dither);
+    resources::unmask_readout(true);
+    // SAFETY: the USART's handler side is in place (`usart::install`).
+    unsafe { NVIC::unmask(pac::Interrupt::USART1) };
+    let ports = BoardPorts::new(board.serial, Some(board.watchdog), true, board.selftest);
+    serve(
+        board.service,
+        queues,
+        ports,
+        Some(board.sensor),
+        Some("# rlg-readout ready"),
+    )
+}
+
+/// Brings the board up: clocks, watchdog, `start_core` (the caller's: vector table, priorities,
+/// the 1 ms tick), serial link, calibration from flash, encoder, turnaround timer, ADCs, the
+/// drive's peripherals, the power-up self-test (its clock, timer and trigger checks,
+/// [`super::selftest`]) and the dither controller it decides on. No interrupt is unmasked:
+/// the returned state goes to its contexts first.
+pub fn bring_up(
+    cp: &mut cortex_m::Peripherals,
+    dp: pac::Peripherals,
+    start_core: impl FnOnce(&mut cortex_m::Peripherals),
+) -> Board {
+    let profile = BoardProfile::F405;
     let source = clocks::init(&dp.RCC, &dp.FLASH);
     let watchdog = watchdog::Watchdog::start(dp.IWDG);
     clocks::enable(
@@ -187,23 +253,23 @@ pub fn run() -> ! {
     if !backup::init(&dp.PWR) {
         defmt::warn!("backup regulator not ready: the wrong-key count does not survive power loss");
     }
-    init_core(&mut cp.SCB, &mut cp.NVIC, &mut cp.SYST);
-    let serial = usart::init(dp.USART1);
+    start_core(cp);
+    let (serial, serial_isr) = usart::configure(dp.USART1);
     let config = ServiceConfig::for_profile(
         &profile,
         profile.nominal_dither_hz,
         identity(&profile),
         Geometry::F405_SECTORS_10_11,
     );
-    let (service, queues, dither_setpoints) = boot(config, flash::InternalFlash::new(dp.FLASH));
+    let (service, readout, dither_setpoints) =
+        boot_parts(config, flash::InternalFlash::new(dp.FLASH));
     let _encoder = encoder::Encoder::new(dp.TIM5);
-    SCHEDULER.init(turnaround::Scheduler::new());
     adc::init(&dp.ADC_COMMON, &dp.ADC1, &dp.ADC2, &dp.TIM3, &dp.DMA2);
     turnaround::init(&dp.TIM2);
     sync::init(&dp.TIM2);
     let dither_config = DitherConfig::for_profile(&profile);
     dither::init(&dp.TIM4, &dp.DAC, &dp.ADC3, dither_config.dac_mid_code);
-    let report = selftest::run(
+    let selftest = selftest::run(
         &selftest::Under {
             rcc: &dp.RCC,
             tim2: &dp.TIM2,
@@ -217,38 +283,43 @@ pub fn run() -> ! {
         },
         dither_config.dac_mid_code,
     );
-    match report.first_failure() {
+    match selftest.first_failure() {
         Some((check, why)) => {
             defmt::error!("self-test: {} failed ({}): drive inhibited", check, why)
         }
         None => defmt::info!("self-test: clock, timers, triggers pass"),
     }
-    start_dither(dither_config, dither_setpoints, Some(&report));
-    unmask_readout(true);
-    // SAFETY: the USART's queues were set up in `usart::init`.
-    unsafe { NVIC::unmask(pac::Interrupt::USART1) };
-    let ports = BoardPorts::new(serial, Some(watchdog), true, report);
     let sensor = Tmp117::new(super::i2c::I2c1::init(dp.I2C1, &dp.RCC), ADDRESS);
-    serve(
+    Board {
         service,
-        queues,
-        ports,
-        Some(sensor),
-        Some("# rlg-readout ready"),
-    )
+        readout,
+        dither: resources::dither_task(dither_config, dither_setpoints, Some(&selftest)),
+        scheduler: turnaround::Scheduler::new(),
+        serial,
+        serial_isr,
+        watchdog,
+        selftest,
+        sensor,
+    }
 }
 
 /// The main loop (see the module docs). `sensor`: the block's TMP117, polled here (never in
 /// an interrupt: a poll is 95-190 us of I2C, `super::i2c`), its updates handed to the
 /// service. `banner` is sent once at the start, so a host knows the receiver is on (QEMU drops
 /// bytes sent before its serial socket is connected).
-pub fn serve<F: NorFlash>(
+pub fn serve<F, R, D, P>(
     mut service: Service<F>,
     mut queues: ReadoutQueues,
-    mut ports: BoardPorts,
+    mut ports: BoardPorts<R, D, P>,
     mut sensor: Option<BlockSensor>,
     banner: Option<&str>,
-) -> ! {
+) -> !
+where
+    F: NorFlash,
+    R: Shared<Value = ReadoutTask>,
+    D: Shared<Value = DitherTask>,
+    P: Shared<Value = LatchPlan>,
+{
     use crate::service::ports::SerialTx;
     if let Some(banner) = banner {
         ports.send(banner.as_bytes());
@@ -276,27 +347,31 @@ pub fn serve<F: NorFlash>(
         // again.
         let ReadoutQueues { cycles, outputs } = &mut queues;
         let scale_factor = service.config().identity.scale_factor_arcsec;
+        // Every closed cycle's count amplitude against the mechanical limit: the
+        // over-amplitude trip that does not rely on the pick-off. The largest of the pass is
+        // checked after it (the service holds the ports meanwhile).
+        let mut largest_amplitude_arcsec: Option<f32> = None;
         let busy = service.pass(
             &mut ports,
             |p| p.serial.read_byte(),
             || {
-                // Every closed cycle's count amplitude against the mechanical limit: the
-                // over-amplitude trip that does not rely on the pick-off.
                 let record = cycles.dequeue();
                 if let Some(r) = &record {
                     let arcsec = crate::dither::count_amplitude_arcsec(&r.record, scale_factor);
-                    resources::DITHER
-                        .lock(|task| task.controller.check_count_amplitude(&task.config, arcsec));
+                    largest_amplitude_arcsec =
+                        Some(largest_amplitude_arcsec.map_or(arcsec, |a| a.max(arcsec)));
                 }
                 record
             },
             || outputs.dequeue(),
         );
-        let state = resources::DITHER.lock(|task| task.controller.state());
+        let dither = &mut ports.locks.dither;
+        if let Some(arcsec) = largest_amplitude_arcsec {
+            dither.lock(|task| task.controller.check_count_amplitude(&task.config, arcsec));
+        }
+        let state = dither.lock(|task| task.controller.state());
         if state != dither_state {
-            if let Some(status) =
-                resources::DITHER.lock(|task| task.controller.status(&task.config))
-            {
+            if let Some(status) = dither.lock(|task| task.controller.status(&task.config)) {
                 defmt::info!("dither: {}", status);
             }
             dither_state = state;
@@ -304,7 +379,8 @@ pub fn serve<F: NorFlash>(
         let now = resources::now_ms();
         if now - health_logged_ms >= HEALTH_LOG_MS {
             health_logged_ms = now;
-            let current = Health::now(service.frames_dropped());
+            let sync_overruns = turnaround::sync_overruns(&mut ports.locks.plan);
+            let current = Health::now(service.frames_dropped(), sync_overruns);
             if current != health {
                 defmt::warn!("board health: {}", current);
                 health = current;

@@ -49,9 +49,9 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use super::pac;
 use super::ram::FLASH_BUSY;
-use super::resources::DITHER;
+use super::resources::DitherTask;
 use super::turnaround::DRIVE_LOCKED;
-use super::Owned;
+use super::{Owned, Shared};
 use crate::dither::{Coast, DitherState};
 use crate::profile::BoardProfile;
 use crate::signal::output::dither_model::PickoffSample;
@@ -97,7 +97,7 @@ const ADC_SR_JEOC: u32 = 1 << 2;
 
 /// Configures DAC1, ADC3 and TIM4 and starts the tick (clocks for TIM4, DAC, ADC3, GPIOA and
 /// GPIOC must be on; the ADC common clock is set by `adc::init`). The controller must be in
-/// [`DITHER`] before the TIM4 interrupt is unmasked.
+/// place (`super::resources::DITHER`) before the TIM4 interrupt is unmasked.
 pub fn init(tim: &pac::TIM4, dac: &pac::DAC, adc3: &pac::ADC3, mid_code: u16) {
     super::Port::A.analog(4); // DAC_OUT1
     super::Port::C.analog(2); // ADC3 IN12: the pick-off
@@ -147,8 +147,8 @@ pub fn force_mid(dac: &pac::dac::RegisterBlock, mid_code: u16) {
     dac.dhr12r1().write(|w| unsafe { w.bits(mid_code as u32) });
 }
 
-/// The drive tick: the pick-off code to the controller, its DAC code to the holding register
-/// (or, while a flash operation is under way, the drive in force continued: [`Coast`]);
+/// The drive tick: the pick-off code to the controller (`dither`), its DAC code to the holding
+/// register (or, while a flash operation is under way, the drive in force continued: `coast`);
 /// returns the code stamped with TIM2's time of this tick's update edge (the pick-off stream's
 /// sample, on the output latches' time base: their stamps are their compare edges, and both
 /// conversions follow their edge by the same aperture). Runs from RAM (`super::ram::tim4`):
@@ -160,6 +160,8 @@ pub fn on_tick(
     adc3: &pac::adc1::RegisterBlock,
     dac: &pac::dac::RegisterBlock,
     tim2: &pac::tim2::RegisterBlock,
+    coast: Option<&mut Coast>,
+    dither: &mut impl Shared<Value = DitherTask>,
 ) -> PickoffSample {
     // The update edge in TIM2's time: both timers count the same 84 MHz clock, TIM4 from 0 at
     // its update. The two reads are taken together (a latch between them would move one by
@@ -169,13 +171,12 @@ pub fn on_tick(
         cortex_m::interrupt::free(|_| (tim2.cnt().read().bits(), tim.cnt().read().bits()));
     let code = take_pickoff(tim, adc3);
     TICKS.fetch_add(1, Ordering::Relaxed);
-    // SAFETY: the drive tick owns the coast state.
-    if let Some(coast) = unsafe { COAST.get() } {
+    if let Some(coast) = coast {
         if FLASH_BUSY.load(Ordering::Relaxed) {
             let next = coast.code();
             dac.dhr12r1().write(|w| unsafe { w.bits(next as u32) });
         } else {
-            controller_tick(code, dac, coast);
+            controller_tick(code, dac, coast, dither);
         }
     }
     PickoffSample {
@@ -187,8 +188,13 @@ pub fn on_tick(
 /// The controller's tick (in flash, reached only while the flash is idle): first the ticks it
 /// missed, then this one; its DAC code to the holding register, its drive to the coast state.
 #[inline(never)]
-pub fn controller_tick(code: u16, dac: &pac::dac::RegisterBlock, coast: &mut Coast) {
-    DITHER.lock(|task| {
+pub fn controller_tick(
+    code: u16,
+    dac: &pac::dac::RegisterBlock,
+    coast: &mut Coast,
+    dither: &mut impl Shared<Value = DitherTask>,
+) {
+    dither.lock(|task| {
         coast.hand_over(&mut task.controller, &task.config);
         let tick = task.controller.on_tick(&task.config, code);
         dac.dhr12r1()

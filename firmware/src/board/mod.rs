@@ -131,6 +131,21 @@ impl<T> Default for Owned<T> {
     }
 }
 
+/// A value that several contexts share, reached through its lock for the span of a closure.
+///
+/// The handler bodies and drivers that touch a shared value take it as `impl Shared` instead of
+/// naming a static, so the binding decides how it is locked: the board binds the statics of
+/// [`resources`] (a [`resources::PriorityLock`], or [`turnaround::PlanLock`]'s critical
+/// section), `examples/rtic_board.rs` binds RTIC's resource proxies (the same stack resource
+/// policy, with the ceilings computed by RTIC). docs/firmware.md#concurrency compares the two.
+pub trait Shared {
+    /// The value.
+    type Value;
+    /// Runs `f` with the value, no other user of it running meanwhile; `None` while the value
+    /// is not set (start-up sets each before the interrupts of its users are unmasked).
+    fn lock<R>(&mut self, f: impl FnOnce(&mut Self::Value) -> R) -> Option<R>;
+}
+
 /// A GPIO port by base address. The ports' register blocks are different PAC types with one
 /// layout, so pin set-up goes through the addresses (RM0090 8.4: MODER 0x00, OSPEEDR 0x08,
 /// PUPDR 0x0C, AFRL 0x20, AFRH 0x24). Used only during start-up, from one context.

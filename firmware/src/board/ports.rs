@@ -1,18 +1,24 @@
 //! The board's side of the command service's ports (`crate::service::ports`): the SysTick
-//! clock, the USART1 transmit queue, the readout behind its priority lock, stopped for a flash
-//! store by masking the readout interrupts, the dither controller behind the drive tick's
-//! priority lock, and the key's OTP block.
+//! clock, the USART1 transmit queue, the readout behind its lock, stopped for a flash store by
+//! masking the readout interrupts, the dither controller behind the drive tick's lock, and the
+//! key's OTP block. The locks are the board's statics (`resources::STATIC_LOCKS`: priority
+//! locks and the latch plan's critical section) or, in `examples/rtic_board.rs`, RTIC's
+//! resource proxies ([`BoardPorts::with_locks`]).
 //!
 //! The watchdog lives here too: the service may wait (a full TX queue, a flash stall), and every
 //! wait refreshes it, so the main loop's own refresh is not the only one.
 
 use core::sync::atomic::Ordering;
 
-use super::resources::{self, DITHER, READOUT, TURNAROUNDS_DROPPED};
-use super::turnaround;
+use super::resources::{
+    self, DitherLock, DitherTask, Locks, ReadoutLock, ReadoutTask, STATIC_LOCKS,
+    TURNAROUNDS_DROPPED,
+};
+use super::turnaround::{self, PlanLock};
 use super::usart::SerialPort;
 use super::watch::Watch;
 use super::watchdog::Watchdog;
+use super::Shared;
 use crate::board_timing::health::BoardHealth;
 use crate::board_timing::selftest::SelfTestReport;
 use crate::dither::{DitherConfig, DitherController};
@@ -21,9 +27,11 @@ use crate::protocol::link::KeyWriteError;
 use crate::protocol::respond::MAX_RESPONSE;
 use crate::readout::Readout;
 use crate::service::ports::{Clock, DitherAccess, ReadoutAccess, Secrets, SerialTx};
+use crate::signal::output::latch_plan::LatchPlan;
 
-/// What the main loop hands the service.
-pub struct BoardPorts {
+/// What the main loop hands the service; `R`, `D` and `P` reach the readout, the dither
+/// controller and the latch plan (by default the board's statics).
+pub struct BoardPorts<R = ReadoutLock, D = DitherLock, P = PlanLock> {
     /// The main loop's side of USART1, the protocol's serial link.
     pub serial: SerialPort,
     /// The IWDG, refreshed every loop pass and every wait (`None`: no watchdog).
@@ -35,16 +43,31 @@ pub struct BoardPorts {
     pub selftest: SelfTestReport,
     /// The rate monitors (run only with the hardware).
     pub watch: Watch,
+    /// The values the main loop shares with the handlers.
+    pub locks: Locks<R, D, P>,
 }
 
 impl BoardPorts {
     /// The ports of a board (`hardware`) or of the serial-only QEMU example, with the power-up
-    /// self-test's report.
+    /// self-test's report, on the board's statics.
     pub fn new(
         serial: SerialPort,
         watchdog: Option<Watchdog>,
         hardware: bool,
         selftest: SelfTestReport,
+    ) -> Self {
+        Self::with_locks(serial, watchdog, hardware, selftest, STATIC_LOCKS)
+    }
+}
+
+impl<R, D, P> BoardPorts<R, D, P> {
+    /// [`BoardPorts::new`] on other locks.
+    pub fn with_locks(
+        serial: SerialPort,
+        watchdog: Option<Watchdog>,
+        hardware: bool,
+        selftest: SelfTestReport,
+        locks: Locks<R, D, P>,
     ) -> Self {
         Self {
             serial,
@@ -52,13 +75,7 @@ impl BoardPorts {
             hardware,
             selftest,
             watch: Watch::new(),
-        }
-    }
-
-    /// The rate monitors' pass (every main-loop pass; nothing without the hardware).
-    pub fn watch_pass(&mut self) {
-        if self.hardware {
-            self.watch.pass(resources::now_ms());
+            locks,
         }
     }
 
@@ -70,13 +87,22 @@ impl BoardPorts {
     }
 }
 
-impl Clock for BoardPorts {
+impl<R, D: Shared<Value = DitherTask>, P> BoardPorts<R, D, P> {
+    /// The rate monitors' pass (every main-loop pass; nothing without the hardware).
+    pub fn watch_pass(&mut self) {
+        if self.hardware {
+            self.watch.pass(resources::now_ms(), &mut self.locks.dither);
+        }
+    }
+}
+
+impl<R, D, P> Clock for BoardPorts<R, D, P> {
     fn now_ms(&self) -> u64 {
         resources::now_ms()
     }
 }
 
-impl SerialTx for BoardPorts {
+impl<R, D, P> SerialTx for BoardPorts<R, D, P> {
     /// Queues all of `bytes`, sleeping until the USART handler drains room.
     fn send(&mut self, mut bytes: &[u8]) {
         while !bytes.is_empty() {
@@ -101,11 +127,16 @@ impl SerialTx for BoardPorts {
     }
 }
 
-impl ReadoutAccess for BoardPorts {
+impl<R, D, P> ReadoutAccess for BoardPorts<R, D, P>
+where
+    R: Shared<Value = ReadoutTask>,
+    P: Shared<Value = LatchPlan>,
+{
     /// Under the readout task's priority lock (BASEPRI at its ceiling for the few instructions
     /// `f` takes). The readout exists from `resources::init_readout` on, before the main loop.
-    fn with_readout<R>(&mut self, f: impl FnOnce(&mut Readout) -> R) -> R {
-        READOUT
+    fn with_readout<T>(&mut self, f: impl FnOnce(&mut Readout) -> T) -> T {
+        self.locks
+            .readout
             .lock(|task| f(&mut task.readout))
             .unwrap_or_else(|| defmt::panic!("readout used before init_readout"))
     }
@@ -113,7 +144,7 @@ impl ReadoutAccess for BoardPorts {
     /// Masks the readout interrupts and drains the sample queue; the watchdog is refreshed
     /// right before the flash stall.
     fn stop_readout(&mut self) {
-        resources::pause_readout(self.hardware);
+        resources::pause_readout(self.hardware, &mut self.locks.plan);
         self.refresh_watchdog();
     }
 
@@ -121,7 +152,7 @@ impl ReadoutAccess for BoardPorts {
     /// monitors start afresh (the events stopped on purpose).
     fn restart_readout(&mut self) {
         self.refresh_watchdog();
-        resources::resume_readout(self.hardware);
+        resources::resume_readout(self.hardware, &mut self.locks.readout);
         self.watch.restart();
     }
 
@@ -141,7 +172,7 @@ impl ReadoutAccess for BoardPorts {
     }
 }
 
-impl Secrets for BoardPorts {
+impl<R, D, P> Secrets for BoardPorts<R, D, P> {
     /// OTP block 0 ([`super::otp`]); the watchdog is refreshed around the few programming
     /// stalls (16 us per word).
     fn program_key(&mut self, key: &Key) -> Result<(), KeyWriteError> {
@@ -157,12 +188,13 @@ impl Secrets for BoardPorts {
     }
 }
 
-impl DitherAccess for BoardPorts {
+impl<R, D: Shared<Value = DitherTask>, P> DitherAccess for BoardPorts<R, D, P> {
     /// Under the drive tick's priority lock (BASEPRI at its ceiling; only the turnaround latch
     /// stays unmasked). The controller exists from `resources::start_dither` on, before the
     /// main loop.
-    fn with_dither<R>(&mut self, f: impl FnOnce(&mut DitherController, &DitherConfig) -> R) -> R {
-        DITHER
+    fn with_dither<T>(&mut self, f: impl FnOnce(&mut DitherController, &DitherConfig) -> T) -> T {
+        self.locks
+            .dither
             .lock(|task| f(&mut task.controller, &task.config))
             .unwrap_or_else(|| defmt::panic!("dither used before start_dither"))
     }

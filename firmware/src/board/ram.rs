@@ -72,23 +72,40 @@ const RAM_IRQS: [Interrupt; 2] = [Interrupt::TIM4, Interrupt::USART1];
 /// Copies the vector table to RAM with the RAM-resident handlers in it and points VTOR at it.
 /// Call once at start-up, before any interrupt (SysTick included) is enabled.
 pub fn install_vectors(scb: &mut SCB) {
+    relocate_vectors(
+        scb,
+        &[
+            (SYSTICK_VECTOR, systick as extern "C" fn() as usize),
+            (
+                16 + Interrupt::TIM4 as usize,
+                tim4 as extern "C" fn() as usize,
+            ),
+            (
+                16 + Interrupt::USART1 as usize,
+                usart1 as extern "C" fn() as usize,
+            ),
+        ],
+    );
+}
+
+/// Copies the linked vector table to RAM, writes each `(entry, handler address)` of
+/// `handlers` over it and points VTOR at it. A binary whose RAM-resident handlers are the
+/// linked ones (RTIC's tasks given a `.data.ramfunc` section: `examples/rtic_board.rs`)
+/// passes none. Call once at start-up, before any interrupt (SysTick included) is enabled.
+pub fn relocate_vectors(scb: &mut SCB, handlers: &[(usize, usize)]) {
     let table = core::ptr::addr_of_mut!(RAM_VECTORS).cast::<usize>();
     // SAFETY: VTOR points at the linked table (flash) at reset, VECTORS entries long; the RAM
-    // table is written here only, before any interrupt can read it.
+    // table is written here only, before any interrupt can read it; entries are below VECTORS.
     unsafe {
         let flash = scb.vtor.read() as *const usize;
         for i in 0..VECTORS {
             table.add(i).write(flash.add(i).read());
         }
-        table
-            .add(SYSTICK_VECTOR)
-            .write(systick as extern "C" fn() as usize);
-        table
-            .add(16 + Interrupt::TIM4 as usize)
-            .write(tim4 as extern "C" fn() as usize);
-        table
-            .add(16 + Interrupt::USART1 as usize)
-            .write(usart1 as extern "C" fn() as usize);
+        for &(entry, handler) in handlers {
+            if entry < VECTORS {
+                table.add(entry).write(handler);
+            }
+        }
         cortex_m::asm::dsb();
         scb.vtor.write(table as u32);
         cortex_m::asm::dsb();

@@ -68,14 +68,16 @@ use core::sync::atomic::AtomicU32;
 use cortex_m::peripheral::{scb::SystemHandler, NVIC, SCB, SYST};
 use heapless::spsc::{Consumer, Producer, Queue};
 
-use super::{adc, pac, turnaround, Owned};
+use super::{adc, pac, turnaround, Owned, Shared};
 use crate::board_timing::selftest::SelfTestReport;
+use crate::dither::Coast;
 use crate::dither::{DitherConfig, DitherController};
 use crate::readout::{Readout, ReadoutConfig};
 use crate::sample::{OutputSample, TurnaroundSample};
 use crate::service::record_queue::{LossyProducer, Tagged};
 use crate::signal::lockin::CycleRecord;
 use crate::signal::output::dither_model::PickoffSample;
+use crate::signal::output::latch_plan::LatchPlan;
 use crate::signal::output::record::OutputRecord;
 use crate::storage::DitherSetpoints;
 use pac::Interrupt;
@@ -208,6 +210,30 @@ pub static DITHER: PriorityLock<DitherTask> = PriorityLock::new(priority::DITHER
 
 /// The readout, shared by the readout task and the main loop.
 pub static READOUT: PriorityLock<ReadoutTask> = PriorityLock::new(priority::READOUT_TASK);
+
+/// [`DITHER`] as a [`Shared`] value (a handle without size: nothing to pass).
+pub struct DitherLock;
+
+impl Shared for DitherLock {
+    type Value = DitherTask;
+
+    #[inline(always)]
+    fn lock<R>(&mut self, f: impl FnOnce(&mut DitherTask) -> R) -> Option<R> {
+        DITHER.lock(f)
+    }
+}
+
+/// [`READOUT`] as a [`Shared`] value.
+pub struct ReadoutLock;
+
+impl Shared for ReadoutLock {
+    type Value = ReadoutTask;
+
+    #[inline(always)]
+    fn lock<R>(&mut self, f: impl FnOnce(&mut ReadoutTask) -> R) -> Option<R> {
+        READOUT.lock(f)
+    }
+}
 /// The turnaround latch's end of the sample queue (owner: `isr::adc`).
 pub static LATCH_SIDE: Owned<Producer<'static, TurnaroundSample>> = Owned::new();
 /// The latch's end of the output latch queue (owner: `isr::adc`).
@@ -217,9 +243,44 @@ pub static PICKOFF_SIDE: Owned<Producer<'static, PickoffSample>> = Owned::new();
 /// The pick-off handler's prediction state (owner: `isr::tim2`).
 pub static SCHEDULER: Owned<turnaround::Scheduler> = Owned::new();
 
-/// Creates the queues and the readout; returns the main loop's ends of the record queues.
-#[allow(clippy::unwrap_used)] // at reset, once: the peripherals and the static queues are taken for the first time
-pub fn init_readout(config: ReadoutConfig, readout: Readout) -> ReadoutQueues {
+/// The main loop's ways to the values it shares with the handlers (`super::ports::BoardPorts`
+/// holds them): the board's statics ([`STATIC_LOCKS`]), or an RTIC app's resource proxies.
+pub struct Locks<R, D, P> {
+    /// The readout task's state ([`READOUT`]).
+    pub readout: R,
+    /// The drive tick's controller ([`DITHER`]).
+    pub dither: D,
+    /// The latch's compare plan (`turnaround::PlanLock`).
+    pub plan: P,
+}
+
+/// The board's statics, as the main loop reaches them.
+pub type StaticLocks = Locks<ReadoutLock, DitherLock, turnaround::PlanLock>;
+
+/// The board's statics.
+pub const STATIC_LOCKS: StaticLocks = Locks {
+    readout: ReadoutLock,
+    dither: DitherLock,
+    plan: turnaround::PlanLock,
+};
+
+/// The readout's state and every end of its queues, before they go to their contexts.
+pub struct ReadoutParts {
+    /// The readout task's state.
+    pub task: ReadoutTask,
+    /// The latch's end of the turnaround sample queue.
+    pub latch: Producer<'static, TurnaroundSample>,
+    /// The latch's end of the output latch queue.
+    pub output_latch: Producer<'static, OutputSample>,
+    /// The drive tick's end of the pick-off stream.
+    pub pickoff: Producer<'static, PickoffSample>,
+    /// The main loop's ends of the record queues.
+    pub queues: ReadoutQueues,
+}
+
+/// Creates the queues and the readout task's state (once: the queues are static singletons).
+#[allow(clippy::unwrap_used)] // at reset, once: the static queues are taken for the first time
+pub fn readout_parts(config: ReadoutConfig, readout: Readout) -> ReadoutParts {
     let samples =
         cortex_m::singleton!(: Queue<TurnaroundSample, TURNAROUND_QUEUE> = Queue::new()).unwrap();
     let records =
@@ -231,27 +292,45 @@ pub fn init_readout(config: ReadoutConfig, readout: Readout) -> ReadoutQueues {
     let pickoff =
         cortex_m::singleton!(: Queue<PickoffSample, PICKOFF_QUEUE> = Queue::new()).unwrap();
     let (pickoff_in, pickoff_out) = pickoff.split();
-    PICKOFF_SIDE.init(pickoff_in);
     let (sample_in, sample_out) = samples.split();
     let (record_in, record_out) = records.split();
     let (output_sample_in, output_sample_out) = output_samples.split();
     let (output_in, output_out) = outputs.split();
-    LATCH_SIDE.init(sample_in);
-    OUTPUT_LATCH_SIDE.init(output_sample_in);
-    READOUT.init(ReadoutTask {
-        config,
-        readout,
-        samples: sample_out,
-        records: LossyProducer::new(record_in),
-        output_samples: output_sample_out,
-        outputs: output_in,
-        pickoff: pickoff_out,
-        output_latches_dropped_seen: 0,
-    });
-    ReadoutQueues {
-        cycles: record_out,
-        outputs: output_out,
+    ReadoutParts {
+        task: ReadoutTask {
+            config,
+            readout,
+            samples: sample_out,
+            records: LossyProducer::new(record_in),
+            output_samples: output_sample_out,
+            outputs: output_in,
+            pickoff: pickoff_out,
+            output_latches_dropped_seen: 0,
+        },
+        latch: sample_in,
+        output_latch: output_sample_in,
+        pickoff: pickoff_in,
+        queues: ReadoutQueues {
+            cycles: record_out,
+            outputs: output_out,
+        },
     }
+}
+
+/// Puts the readout's parts into the statics of their contexts; returns the main loop's ends
+/// of the record queues.
+pub fn install_readout(parts: ReadoutParts) -> ReadoutQueues {
+    PICKOFF_SIDE.init(parts.pickoff);
+    LATCH_SIDE.init(parts.latch);
+    OUTPUT_LATCH_SIDE.init(parts.output_latch);
+    READOUT.init(parts.task);
+    parts.queues
+}
+
+/// Creates the queues and the readout ([`readout_parts`], [`install_readout`]); returns the
+/// main loop's ends of the record queues.
+pub fn init_readout(config: ReadoutConfig, readout: Readout) -> ReadoutQueues {
+    install_readout(readout_parts(config, readout))
 }
 
 /// Milliseconds since start (64 bits, monotonic).
@@ -268,6 +347,12 @@ pub fn tick_ms() {
 /// starts the 1 ms tick. Interrupt lines stay masked; the callers unmask what they use.
 pub fn init_core(scb: &mut SCB, nvic: &mut NVIC, syst: &mut SYST) {
     super::ram::install_vectors(scb);
+    set_priorities(scb, nvic);
+    start_tick(syst);
+}
+
+/// Sets the NVIC and SysTick priorities of [`priority`].
+fn set_priorities(scb: &mut SCB, nvic: &mut NVIC) {
     // SAFETY: priorities are set before any of these interrupts is unmasked.
     unsafe {
         nvic.set_priority(Interrupt::ADC, priority::TURNAROUND_LATCH);
@@ -278,6 +363,10 @@ pub fn init_core(scb: &mut SCB, nvic: &mut NVIC, syst: &mut SYST) {
         nvic.set_priority(READOUT_TASK_IRQ, priority::READOUT_TASK);
         scb.set_priority(SystemHandler::SysTick, priority::TICK);
     }
+}
+
+/// Starts SysTick's 1 ms interrupt.
+pub fn start_tick(syst: &mut SYST) {
     syst.set_clock_source(cortex_m::peripheral::syst::SystClkSource::Core);
     syst.set_reload(super::SYSCLK_HZ / 1000 - 1);
     syst.clear_current();
@@ -310,6 +399,16 @@ pub fn start_dither(
     stored: Option<DitherSetpoints>,
     selftest: Option<&SelfTestReport>,
 ) {
+    install_dither(dither_task(config, stored, selftest));
+}
+
+/// The drive tick's state as [`start_dither`] starts it: the controller with the stored
+/// setpoints (and the pick-off check, or inhibited) and the coast state that follows it.
+pub fn dither_task(
+    config: DitherConfig,
+    stored: Option<DitherSetpoints>,
+    selftest: Option<&SelfTestReport>,
+) -> (DitherTask, Coast) {
     let mut controller = DitherController::new(&config);
     controller.apply_stored(&config, stored);
     match selftest {
@@ -317,8 +416,14 @@ pub fn start_dither(
         Some(_) => controller.inhibit(),
         None => {}
     }
-    super::dither::COAST.init(crate::dither::Coast::new(&controller));
-    DITHER.init(DitherTask { config, controller });
+    let coast = Coast::new(&controller);
+    (DitherTask { config, controller }, coast)
+}
+
+/// Puts the drive tick's state into its statics and unmasks the tick.
+pub fn install_dither((task, coast): (DitherTask, Coast)) {
+    super::dither::COAST.init(coast);
+    DITHER.init(task);
     // SAFETY: the tick's state was initialised just above.
     unsafe { NVIC::unmask(Interrupt::TIM4) };
 }
@@ -327,13 +432,13 @@ pub fn start_dither(
 /// producers first, then the readout task is run once to empty the sample queue (it preempts
 /// the caller at once), then masked too. The dither drive goes on: its tick runs from RAM and
 /// coasts through the erase (`super::ram`).
-pub fn pause_readout(hardware: bool) {
+pub fn pause_readout(hardware: bool, plan: &mut impl Shared<Value = LatchPlan>) {
     if hardware {
         NVIC::mask(Interrupt::ADC);
         NVIC::mask(Interrupt::TIM2);
         NVIC::mask(Interrupt::DMA2_STREAM0);
         // SAFETY: TIM2's handler is masked: the main loop may park its compare.
-        turnaround::pause(unsafe { &*pac::TIM2::ptr() });
+        turnaround::pause(unsafe { &*pac::TIM2::ptr() }, plan);
     }
     NVIC::pend(READOUT_TASK_IRQ);
     // The pended task (priority 0x50, above thread mode) is taken before the next instruction
@@ -345,8 +450,8 @@ pub fn pause_readout(hardware: bool) {
 
 /// Resumes after a store (`ports::BoardPorts::restart_readout`): the readout re-synchronises (count reference, quadrant, open cycle are
 /// dropped), stale hardware results are discarded, interrupts unmasked.
-pub fn resume_readout(hardware: bool) {
-    READOUT.lock(|task| task.readout.resynchronise());
+pub fn resume_readout(hardware: bool, readout: &mut impl Shared<Value = ReadoutTask>) {
+    readout.lock(|task| task.readout.resynchronise());
     if hardware {
         // SAFETY: the latch handler is masked; a result taken before the stall is stale.
         adc::discard_injected(unsafe { &*pac::ADC1::ptr() });

@@ -38,7 +38,7 @@ use core::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, Ordering};
 
 use cortex_m::interrupt::Mutex;
 
-use super::pac;
+use super::{pac, Shared};
 use crate::board_timing::phase::keep_out_now;
 use crate::profile::BoardProfile;
 use crate::sample::{OutputSample, TurnaroundKind, TurnaroundSample};
@@ -69,11 +69,27 @@ pub static RATE_SHIFT_TICKS: AtomicI32 = AtomicI32::new(0);
 /// ([`publish_pickoff_lag`]), read by the pick-off handler. 0 until measured.
 pub static PICKOFF_LAG_TICKS: AtomicI32 = AtomicI32::new(0);
 /// What the compare is armed for: the next turnaround, an output latch (`super::sync`), or
-/// both in turn ([`LatchPlan`]). Shared by the pick-off handler (priority 0x20) and the latch
-/// (0x00): every use is a short critical section that also writes CCR1, so the plan and the
-/// register never disagree. A compare match nobody armed (the parked compare coming round after
-/// 25 s without dither) is discarded.
+/// both in turn ([`LatchPlan`]). Shared by the pick-off handler (priority 0x20), the latch
+/// (0x00) and the main loop (a pause): every use is a short critical section that also writes
+/// CCR1, so the plan and the register never disagree. A compare match nobody armed (the parked
+/// compare coming round after 25 s without dither) is discarded. The functions here take it as
+/// a [`Shared`] value: [`PlanLock`] on the board, an RTIC resource in `examples/rtic_board.rs`.
 static PLAN: Mutex<RefCell<LatchPlan>> = Mutex::new(RefCell::new(LatchPlan::new()));
+
+/// The board's latch plan ([`PLAN`]): its users include the highest-priority context, so its
+/// lock is a critical section (PRIMASK; BASEPRI cannot mask priority 0x00).
+pub struct PlanLock;
+
+impl Shared for PlanLock {
+    type Value = LatchPlan;
+
+    #[inline(always)]
+    fn lock<R>(&mut self, f: impl FnOnce(&mut LatchPlan) -> R) -> Option<R> {
+        Some(cortex_m::interrupt::free(|cs| {
+            f(&mut PLAN.borrow(cs).borrow_mut())
+        }))
+    }
+}
 /// Output latches whose pick-off conversion (ADC3 regular) had not ended when the latch was
 /// read: the code is replaced by a rail code, so the record is flagged (`PICKOFF_FAULT`) and
 /// invalid rather than carrying the previous latch's pick-off.
@@ -260,7 +276,11 @@ impl Scheduler {
 /// About 55 instructions for one edge (`examples/board_cost.rs`); no floating point, no
 /// division.
 #[inline(always)]
-pub fn on_pickoff_interrupt(tim: &pac::tim2::RegisterBlock, scheduler: &mut Scheduler) {
+pub fn on_pickoff_interrupt(
+    tim: &pac::tim2::RegisterBlock,
+    scheduler: &mut Scheduler,
+    plan: &mut impl Shared<Value = LatchPlan>,
+) {
     let sr = tim.sr().read().bits();
     if sr & (SR_CC3OF | SR_CC4OF) != 0 {
         // An edge captured over an unread one: lost (the scheduler sees the gap).
@@ -270,11 +290,10 @@ pub fn on_pickoff_interrupt(tim: &pac::tim2::RegisterBlock, scheduler: &mut Sche
     }
     // The output latch's sync edge (or internal period), if CC2 fired.
     if let Some(edge) = super::sync::take_edge(tim, sr) {
-        cortex_m::interrupt::free(|cs| {
-            let mut plan = PLAN.borrow(cs).borrow_mut();
-            let now = anchor_keep_out(tim, &mut plan);
+        plan.lock(|plan| {
+            let now = anchor_keep_out(tim, plan);
             let arm = plan.on_sync(edge, now);
-            write_armed(tim, &mut plan, arm, now);
+            write_armed(tim, plan, arm, now);
         });
     }
     // Reading CCR3/CCR4 clears CC3IF/CC4IF.
@@ -297,7 +316,7 @@ pub fn on_pickoff_interrupt(tim: &pac::tim2::RegisterBlock, scheduler: &mut Sche
         let Some(s) = scheduler.on_edge(edge, t, shift, lag) else {
             continue;
         };
-        if !arm(tim, s, now) {
+        if !arm(tim, s, now, plan) {
             LATE.fetch_add(1, Ordering::Relaxed);
         }
     }
@@ -305,17 +324,21 @@ pub fn on_pickoff_interrupt(tim: &pac::tim2::RegisterBlock, scheduler: &mut Sche
 
 /// Arms the compare for `schedule` if it lies at least [`MIN_LEAD_TICKS`] after `now`; else
 /// parks it and returns false (that turnaround is skipped: the readout sees a gap).
-pub fn arm(tim: &pac::tim2::RegisterBlock, schedule: Schedule, now: u32) -> bool {
+pub fn arm(
+    tim: &pac::tim2::RegisterBlock,
+    schedule: Schedule,
+    now: u32,
+    plan: &mut impl Shared<Value = LatchPlan>,
+) -> bool {
     let in_time = schedule.compare_ticks.wrapping_sub(now) as i32 >= MIN_LEAD_TICKS as i32;
-    cortex_m::interrupt::free(|cs| {
-        let mut plan = PLAN.borrow(cs).borrow_mut();
-        let now = anchor_keep_out(tim, &mut plan);
+    plan.lock(|plan| {
+        let now = anchor_keep_out(tim, plan);
         let arm = if in_time {
             plan.on_turnaround(schedule.kind, schedule.compare_ticks)
         } else {
             plan.cancel_turnaround()
         };
-        write_armed(tim, &mut plan, arm, now);
+        write_armed(tim, plan, arm, now);
     });
     in_time
 }
@@ -339,6 +362,7 @@ pub fn latch(
     adc3: &pac::adc1::RegisterBlock,
     tim2: &pac::tim2::RegisterBlock,
     tim5: &pac::tim5::RegisterBlock,
+    plan: &mut impl Shared<Value = LatchPlan>,
 ) -> Option<Latched> {
     super::adc::clear_jeoc(adc1);
     let (encoder_count, overwritten) = super::encoder::take_latched(tim5);
@@ -350,13 +374,14 @@ pub fn latch(
     // ADC3's regular group converts the pick-off at every latch: taken at every latch (so an
     // EOC left over can never pass for the next latch's), used by output latches.
     let pickoff = take_pickoff_conversion(adc3);
-    let fired = cortex_m::interrupt::free(|cs| {
-        let mut plan = PLAN.borrow(cs).borrow_mut();
-        let now = anchor_keep_out(tim2, &mut plan);
-        let (fired, next) = plan.on_fired();
-        write_armed(tim2, &mut plan, next, now);
-        fired
-    });
+    let fired = plan
+        .lock(|plan| {
+            let now = anchor_keep_out(tim2, plan);
+            let (fired, next) = plan.on_fired();
+            write_armed(tim2, plan, next, now);
+            fired
+        })
+        .flatten();
     let adc_a_code = adc1.jdr1().read().bits() as u16;
     let adc_b_code = adc2.jdr1().read().bits() as u16;
     let timestamp_ticks = fired_at.wrapping_add(APERTURE_DELAY_TICKS);
@@ -409,8 +434,8 @@ fn take_pickoff_conversion(adc3: &pac::adc1::RegisterBlock) -> Option<u16> {
 }
 
 /// Sync edges dropped because an output latch was still pending (the plan's overruns).
-pub fn sync_overruns() -> u32 {
-    cortex_m::interrupt::free(|cs| PLAN.borrow(cs).borrow().overruns)
+pub fn sync_overruns(plan: &mut impl Shared<Value = LatchPlan>) -> u32 {
+    plan.lock(|plan| plan.overruns).unwrap_or(0)
 }
 
 /// Publishes the input-rate shift of the next turnarounds from one cycle (the cycle task, after
@@ -435,12 +460,11 @@ pub fn rate_shift_ticks(rate_rad_per_s: f32, amplitude_rad: f32, dither_hz: f32)
 
 /// The readout pauses (TIM2's interrupt is masked by the caller): park the compare, drop
 /// pending captures, and make the handler forget its edge history when it runs again.
-pub fn pause(tim: &pac::tim2::RegisterBlock) {
-    cortex_m::interrupt::free(|cs| {
-        let overruns = PLAN.borrow(cs).borrow().overruns;
-        let mut plan = LatchPlan::new();
+pub fn pause(tim: &pac::tim2::RegisterBlock, plan: &mut impl Shared<Value = LatchPlan>) {
+    plan.lock(|plan| {
+        let overruns = plan.overruns;
+        *plan = LatchPlan::new();
         plan.overruns = overruns;
-        *PLAN.borrow(cs).borrow_mut() = plan;
     });
     park(tim, tim.cnt().read().bits());
     tim.sr().write(|w| unsafe { w.bits(0) });

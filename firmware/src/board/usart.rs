@@ -84,19 +84,33 @@ fn regs() -> &'static pac::usart1::RegisterBlock {
 }
 
 /// Configures USART1 and its pins (clocks for USART1 and GPIOA must be on) and returns the main
-/// loop's side. Call once; the caller unmasks `USART1` in the NVIC afterwards.
-#[allow(clippy::unwrap_used)] // at reset, once: the peripherals and the static queues are taken for the first time
+/// loop's side; the handler's side goes to its static. Call once; the caller unmasks `USART1`
+/// in the NVIC afterwards.
 pub fn init(usart: pac::USART1) -> SerialPort {
+    let (port, side) = configure(usart);
+    install(side);
+    port
+}
+
+/// Puts the handler's side into the static [`on_interrupt`] serves (once, before `USART1` is
+/// unmasked).
+pub fn install(side: IsrSide) {
+    ISR_SIDE.init(side);
+}
+
+/// [`init`], handing both sides back (the handler's to the caller's binding: an RTIC local).
+#[allow(clippy::unwrap_used)] // at reset, once: the peripherals and the static queues are taken for the first time
+pub fn configure(usart: pac::USART1) -> (SerialPort, IsrSide) {
     super::Port::A.alternate(9, 7);
     super::Port::A.alternate_pull_up(10, 7);
     let rx = cortex_m::singleton!(: Queue<u8, RX_QUEUE_BYTES> = Queue::new()).unwrap();
     let tx = cortex_m::singleton!(: Queue<u8, TX_QUEUE_BYTES> = Queue::new()).unwrap();
     let (rx_producer, rx_consumer) = rx.split();
     let (tx_producer, tx_consumer) = tx.split();
-    ISR_SIDE.init(IsrSide {
+    let side = IsrSide {
         rx: rx_producer,
         tx: tx_consumer,
-    });
+    };
     usart.cr1().write(|w| unsafe { w.bits(0) });
     usart
         .brr()
@@ -106,20 +120,28 @@ pub fn init(usart: pac::USART1) -> SerialPort {
     usart
         .cr1()
         .write(|w| unsafe { w.bits(CR1_UE | CR1_TE | CR1_RE | CR1_RXNEIE) });
-    SerialPort {
-        rx: rx_consumer,
-        tx: tx_producer,
-    }
+    (
+        SerialPort {
+            rx: rx_consumer,
+            tx: tx_producer,
+        },
+        side,
+    )
 }
 
-/// The USART1 handler's work: received bytes into the RX queue, queued bytes out. Runs from RAM
+/// The USART1 handler on the board's static ([`transfer`] with it). Runs from RAM
 /// (`super::ram`): inlined there whole.
 #[inline(always)]
 pub fn on_interrupt() {
     // SAFETY: only this handler uses the ISR side (set in `init` before the IRQ was unmasked).
-    let Some(side) = (unsafe { ISR_SIDE.get() }) else {
-        return;
-    };
+    if let Some(side) = unsafe { ISR_SIDE.get() } {
+        transfer(side);
+    }
+}
+
+/// The USART1 handler's work: received bytes into the RX queue, queued bytes out.
+#[inline(always)]
+pub fn transfer(side: &mut IsrSide) {
     let usart = regs();
     loop {
         let sr = usart.sr().read().bits();

@@ -17,8 +17,8 @@
 
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
-use super::resources::DITHER;
-use super::{adc, clocks, dither, pac, sync, turnaround};
+use super::resources::DitherTask;
+use super::{adc, clocks, dither, pac, sync, turnaround, Shared};
 use crate::board_timing::monitor::{Event, TimingFaults, TimingWatch};
 use crate::dither::DitherState;
 use crate::profile::BoardProfile;
@@ -44,8 +44,8 @@ impl Watch {
         Self::default()
     }
 
-    /// One main-loop pass at `now_ms`.
-    pub fn pass(&mut self, now_ms: u64) {
+    /// One main-loop pass at `now_ms`; `dither` is the drive tick's controller.
+    pub fn pass(&mut self, now_ms: u64, dither: &mut impl Shared<Value = DitherTask>) {
         let get = |c: &AtomicU32| c.load(Ordering::Relaxed);
         let counts = [
             get(&adc::HALVES),
@@ -54,7 +54,7 @@ impl Watch {
             get(&turnaround::OUTPUTS_LATCHED),
             get(&sync::EDGES),
         ];
-        let locked_hz = DITHER
+        let locked_hz = dither
             .lock(|task| {
                 (task.controller.state() == DitherState::Locked)
                     .then(|| task.controller.estimate().frequency_hz)
@@ -81,7 +81,7 @@ impl Watch {
             // SAFETY: the DAC's CR and holding register; the drive tick is inhibited below
             // (and is not running: that is the fault), the store's pause is not under way.
             let dac = unsafe { &*pac::DAC::ptr() };
-            let mid = DITHER
+            let mid = dither
                 .lock(|task| {
                     task.controller.inhibit();
                     task.config.dac_mid_code
