@@ -87,12 +87,12 @@ coeffs={} locked={} key={}",
 
 /// `output status`: the fixed-rate output's dither stripping (`strip=converged|learning`, the
 /// taps on the modelled dither in phase and in quadrature in fringes per pick-off code, the
-/// fit's relative standard deviation) and the records made since boot (the next record's
-/// sequence number).
+/// fit's relative standard deviation in ppm: in decimal, so the image carries no exponential
+/// float formatting) and the records made since boot (the next record's sequence number).
 pub fn output_status<D: DeviceLink>(device: &mut D) -> Response {
     let s = device.status();
     ok_with(format_args!(
-        "strip={} strip_k={:.7} strip_k_quad={:.7} strip_k_std_rel={:.1e} records={}",
+        "strip={} strip_k={:.7} strip_k_quad={:.7} strip_k_std_ppm={:.2} records={}",
         if s.strip.converged {
             "converged"
         } else {
@@ -100,7 +100,7 @@ pub fn output_status<D: DeviceLink>(device: &mut D) -> Response {
         },
         s.strip.k,
         s.strip.k_quadrature,
-        s.strip.k_std_rel,
+        s.strip.k_std_rel * 1e6,
         s.output_records,
     ))
 }
@@ -269,7 +269,7 @@ comp=off track=on coeffs=flash:3 locked=yes key=unprovisioned"
         );
         assert_eq!(
             text(output_status(&mut device)).trim_end(),
-            "OK strip=converged strip_k=0.2144199 strip_k_quad=-0.0001234 strip_k_std_rel=2.1e-5 \
+            "OK strip=converged strip_k=0.2144199 strip_k_quad=-0.0001234 strip_k_std_ppm=21.00 \
 records=12345"
         );
     }
@@ -297,7 +297,7 @@ records=12345"
                 strip: crate::signal::output::strip::StripStatus {
                     k: -1234.5678,
                     k_quadrature: -1234.5678,
-                    k_std_rel: -1.0e-30,
+                    k_std_rel: -f32::MAX / 1e6, // the most digits in ppm
                     updates: u32::MAX,
                     converged: false,
                 },
