@@ -1,11 +1,12 @@
 #!/usr/bin/env python3
 """Size of the firmware image and a check that the linker kept out of the calibration sectors.
 
-Usage: python3 .ci/image_size.py target/thumbv7em-none-eabihf/release/firmware
+Usage: python3 .ci/image_size.py [--budget] target/thumbv7em-none-eabihf/release/firmware
 
 Reads the ELF itself (standard library only: no llvm-tools, no arm-none-eabi binutils).
 Prints Berkeley-style text/data/bss, flash and RAM use, and exits 1 if any loaded byte lies at or
-beyond __calibration_start (0x080C0000, sectors 10 and 11) or the static RAM overflows.
+beyond __calibration_start (0x080C0000, sectors 10 and 11) or the static RAM overflows; with
+--budget also if the board image passes its budgets (docs/board.md "Image size").
 """
 import struct
 import sys
@@ -13,6 +14,8 @@ import sys
 SHF_WRITE, SHF_ALLOC, SHT_NOBITS, PT_LOAD = 0x1, 0x2, 8, 1
 FLASH = (0x0800_0000, 1024 * 1024)
 RAM = (0x2000_0000, 128 * 1024)
+# The board image's budgets (docs/board.md "Image size"): ceilings against unnoticed growth.
+BUDGET_FLASH, BUDGET_STATIC_RAM = 128 * 1024, 16 * 1024
 
 
 def read_elf(path):
@@ -41,7 +44,7 @@ def read_elf(path):
     return secs, segs, symbols
 
 
-def main(path):
+def main(path, budget=False):
     secs, segs, sym = read_elf(path)
     alloc = [s for s in secs if s["flags"] & SHF_ALLOC and s["size"]]
     text = sum(s["size"] for s in alloc if not s["flags"] & SHF_WRITE)
@@ -73,10 +76,19 @@ def main(path):
     if ram_end > RAM[0] + RAM[1]:
         print(f"ERROR: static RAM ends at 0x{ram_end:08x}, beyond the 128 KiB SRAM")
         ok = False
+    if budget and text + data > BUDGET_FLASH:
+        print(f"ERROR: {text + data} bytes of flash, over the budget of {BUDGET_FLASH}")
+        ok = False
+    if budget and data + bss > BUDGET_STATIC_RAM:
+        print(f"ERROR: {data + bss} bytes of static RAM, over the budget of {BUDGET_STATIC_RAM}")
+        ok = False
     return 0 if ok else 1
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
+    args = sys.argv[1:]
+    budget = "--budget" in args
+    paths = [a for a in args if a != "--budget"]
+    if len(paths) != 1:
         sys.exit(__doc__)
-    sys.exit(main(sys.argv[1]))
+    sys.exit(main(paths[0], budget))
