@@ -2,9 +2,11 @@
 
 use clap::{Args, Parser, Subcommand};
 use hal_sim::dither::resonator::TemperatureProfile;
+use hal_sim::params::GyroParams;
 use hal_sim::thermal::{GyroThermal, ThermalCoefficients};
 use std::path::PathBuf;
 
+use rlg_sim::dither_run::DitherRunOptions;
 pub use rlg_sim::experiment::PAPER_RANGE_DEG_H;
 
 #[derive(Parser, Debug)]
@@ -100,29 +102,29 @@ pub const SYNC_HZ_RANGE: std::ops::RangeInclusive<f64> = 100.0..=2000.0;
 #[derive(Args, Debug, Clone)]
 pub struct DitherArgs {
     /// Simulated seconds.
-    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DitherRunOptions::DEFAULT.seconds, allow_negative_numbers = true)]
     pub seconds: f64,
     /// Resonance f0 at the start, Hz (300..=600).
-    #[arg(long, default_value_t = 389.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DitherRunOptions::DEFAULT.resonance_hz, allow_negative_numbers = true)]
     pub dither_hz: f64,
     /// Quality factor of the dither resonator (100..=100000).
-    #[arg(long, default_value_t = 1000.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DitherRunOptions::DEFAULT.q_factor, allow_negative_numbers = true)]
     pub q_factor: f64,
     /// The drive's amplitude setpoint, arcsec (50..=650).
-    #[arg(long, default_value_t = 450.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DitherRunOptions::DEFAULT.setpoint_arcsec, allow_negative_numbers = true)]
     pub dither_amplitude_arcsec: f64,
     /// Linear drift of the resonance over the run, Hz (-10..=10).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DitherRunOptions::DEFAULT.resonance_drift_hz, allow_negative_numbers = true)]
     pub resonance_drift_hz: f64,
     /// The pick-off signal disappears at this time, s.
     #[arg(long, allow_negative_numbers = true)]
     pub pickoff_lost_at_s: Option<f64>,
     /// Random-noise dither: the drive's amplitude randomised every half cycle by this depth,
     /// percent (0..=50).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DitherRunOptions::DEFAULT.noise_percent, allow_negative_numbers = true)]
     pub dither_noise_percent: f64,
     /// Random seed (pick-off noise, noise dither).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = DitherRunOptions::DEFAULT.seed)]
     pub seed: u64,
     /// Write one row per dither cycle as CSV (t_s,amplitude_arcsec,resonance_hz,drive_hz,state).
     #[arg(long)]
@@ -139,30 +141,30 @@ pub struct DitherArgs {
 #[derive(Args, Debug, Clone)]
 pub struct GyroArgs {
     /// Scale factor, arcsec of input angle per counter pulse (fringe) (0.1..=20).
-    #[arg(long, default_value_t = 1.8655, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = GyroParams::DEFAULT.scale_factor_arcsec, allow_negative_numbers = true)]
     pub scale_factor_arcsec: f64,
     /// Dither frequency, Hz (200..=1500: the board's scheduler range).
-    #[arg(long, default_value_t = 389.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = GyroParams::DEFAULT.dither_hz, allow_negative_numbers = true)]
     pub dither_hz: f64,
     /// Dither peak amplitude, arcsec (50..=800: the pick-off saturates at 819).
-    #[arg(long, default_value_t = 450.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = GyroParams::DEFAULT.dither_amplitude_arcsec, allow_negative_numbers = true)]
     pub dither_amplitude_arcsec: f64,
     /// Lock-in threshold Omega_L, deg/h (0..=5000).
-    #[arg(long, default_value_t = 200.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = GyroParams::DEFAULT.lock_in_deg_per_h, allow_negative_numbers = true)]
     pub lock_in_deg_h: f64,
     /// Photodiode phase offset eps, rad (-pi..=pi).
-    #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = GyroParams::DEFAULT.eps_rad, allow_negative_numbers = true)]
     pub eps_rad: f64,
     /// Angle random walk, deg/sqrt(h) (0..=1; 0 = no noise).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = GyroParams::DEFAULT.arw_deg_per_rt_h, allow_negative_numbers = true)]
     pub arw_deg_rt_h: f64,
     /// Relative rms of smooth dither amplitude jitter, 0.1-2 Hz (0..=0.1; 0 = steady dither):
     /// of the prescribed sine's amplitude, or with --dither-drive closed-loop of the drive's
     /// gain, which the firmware's amplitude loop then holds the amplitude against.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = GyroParams::DEFAULT.amplitude_jitter.relative_rms, allow_negative_numbers = true)]
     pub amplitude_jitter: f64,
     /// Random seed (same seed, same output).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = GyroParams::DEFAULT.seed)]
     pub seed: u64,
     #[command(flatten)]
     pub thermal: ThermalArgs,

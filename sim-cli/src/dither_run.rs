@@ -40,19 +40,25 @@ pub struct DitherRunOptions {
     pub seed: u64,
 }
 
+impl DitherRunOptions {
+    /// The default gyro's dither (`GyroParams::DEFAULT`: the board profile's nominal frequency
+    /// and amplitude), Q = 1000, no drift, no fault, no noise dither, 5 s, seed 1.
+    pub const DEFAULT: Self = Self {
+        resonance_hz: GyroParams::DEFAULT.dither_hz,
+        q_factor: 1000.0,
+        setpoint_arcsec: GyroParams::DEFAULT.dither_amplitude_arcsec,
+        resonance_drift_hz: 0.0,
+        pickoff_lost_at_s: None,
+        noise_percent: 0.0,
+        seconds: 5.0,
+        seed: 1,
+    };
+}
+
 impl Default for DitherRunOptions {
-    /// 389 Hz, Q = 1000, 450 arcsec, no drift, no fault, no noise dither, 5 s, seed 1.
+    /// [`DitherRunOptions::DEFAULT`].
     fn default() -> Self {
-        Self {
-            resonance_hz: 389.0,
-            q_factor: 1000.0,
-            setpoint_arcsec: 450.0,
-            resonance_drift_hz: 0.0,
-            pickoff_lost_at_s: None,
-            noise_percent: 0.0,
-            seconds: 5.0,
-            seed: 1,
-        }
+        Self::DEFAULT
     }
 }
 
