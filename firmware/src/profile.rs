@@ -42,6 +42,8 @@ pub struct BoardProfile {
     pub nominal_dither_hz: f64,
     /// Scale factor of that gyro, arcsec per fringe (only the rate output in deg/h uses it).
     pub scale_factor_arcsec: f64,
+    /// Peak dither amplitude of that gyro, arcsec of body angle: the drive's default setpoint.
+    pub nominal_dither_amplitude_arcsec: f64,
     /// Tick rate of the dither drive, Hz: the rate at which the DAC takes a new drive sample and
     /// the ADC samples the pick-off (one timer update, `board::dither`). Divides [`Self::timer_hz`]
     /// exactly ([`Self::drive_tick_period_timer_ticks`]); `crate::dither` justifies the value.
@@ -69,12 +71,12 @@ pub struct BoardProfile {
 impl BoardProfile {
     /// The STM32F405 readout board (docs/board.md) for the docs/physics.md gyro: 84 MHz APB1
     /// timers, 32-bit TIM5 encoder, 18 ticks pick-off path, 70 ticks ADC aperture (2.5 + 15 ADC
-    /// clocks at 21 MHz), 200-1500 Hz dither, 389 Hz nominal, 1.8655 arcsec per fringe; the
-    /// dither drive ticks at 40 kHz (84 MHz / 2100), 0.4 arcsec per pick-off code (450 arcsec =
-    /// 1125 codes, 700 arcsec before the rails), 12-bit DAC, resonance searched in 280-620 Hz, the
-    /// drive amplifier's output low-pass at 3 kHz; the buffered DAC linear over codes 249-3846
-    /// (0.2 V to 3.1 V at VDDA = 3.3 V: 0.2 / 3.3 x 4095 = 248.2 rounded up, 3.1 / 3.3 x 4095
-    /// = 3846.8 rounded down).
+    /// clocks at 21 MHz), 200-1500 Hz dither, 389 Hz and 450 arcsec nominal, 1.8655 arcsec per
+    /// fringe; the dither drive ticks at 40 kHz (84 MHz / 2100), 0.4 arcsec per pick-off code
+    /// (the nominal amplitude is 1125 codes, 700 arcsec before the rails), 12-bit DAC, resonance
+    /// searched in 280-620 Hz, the drive amplifier's output low-pass at 3 kHz; the buffered DAC
+    /// linear over codes 249-3846 (0.2 V to 3.1 V at VDDA = 3.3 V: 0.2 / 3.3 x 4095 = 248.2
+    /// rounded up, 3.1 / 3.3 x 4095 = 3846.8 rounded down).
     pub const F405: Self = Self {
         name: "rlg-readout-f405",
         timer_hz: 84_000_000,
@@ -85,6 +87,7 @@ impl BoardProfile {
         dither_hz_range: (200, 1500),
         nominal_dither_hz: 389.0,
         scale_factor_arcsec: 1.8655,
+        nominal_dither_amplitude_arcsec: 450.0,
         drive_tick_hz: 40_000,
         pickoff_arcsec_per_code: 0.4,
         pickoff_mid_code: 2048,

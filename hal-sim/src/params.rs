@@ -1,5 +1,6 @@
 //! The gyro's parameter set: physical constants in the units an engineer quotes, plus the
-//! solver settings, with the docs/physics.md set as `Default`.
+//! solver settings, with the docs/physics.md set as [`GyroParams::DEFAULT`] (its scale factor
+//! and nominal dither read from the board profile, the one place those facts are written).
 //!
 //! Design: [`GyroParams`] is plain, `Copy` and immutable once a gyro is built (what would live
 //! in a data sheet); [`GyroParams::derive`] validates it and converts everything once into the
@@ -16,6 +17,7 @@ use crate::units::{
     arcsec_to_beat_rad, arw_deg_per_rt_h_to_beat_rad_per_rt_s, deg_per_h_to_beat_rad_per_s,
     hz_to_rad_per_s,
 };
+use firmware::profile::BoardProfile;
 
 /// Settings of the integrator (see [`crate::phase`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -46,14 +48,19 @@ impl SolverParams {
     }
 }
 
+impl SolverParams {
+    /// Order-10 steps of 2 rad, far series from 5e5 rad/s, 1 ms pieces.
+    pub const DEFAULT: Self = Self {
+        step_phase_rad: 2.0,
+        far_threshold_rad_per_s: 5.0e5,
+        far_max_adiabatic: 0.04,
+        max_piece_s: 1.0e-3,
+    };
+}
+
 impl Default for SolverParams {
     fn default() -> Self {
-        Self {
-            step_phase_rad: 2.0,
-            far_threshold_rad_per_s: 5.0e5,
-            far_max_adiabatic: 0.04,
-            max_piece_s: 1.0e-3,
-        }
+        Self::DEFAULT
     }
 }
 
@@ -101,26 +108,34 @@ pub struct GyroParams {
     pub thermal: GyroThermal,
 }
 
+impl GyroParams {
+    /// The docs/physics.md parameter set, noise and jitter off: the gyro the board is built
+    /// for, so its scale factor and nominal dither are the board profile's
+    /// ([`BoardProfile::F405`]); the lock-in and eps are this model's alone. `rlg-sim`'s flags
+    /// default to these values.
+    pub const DEFAULT: Self = Self {
+        scale_factor_arcsec: BoardProfile::F405.scale_factor_arcsec,
+        dither_hz: BoardProfile::F405.nominal_dither_hz,
+        dither_amplitude_arcsec: BoardProfile::F405.nominal_dither_amplitude_arcsec,
+        lock_in_deg_per_h: 200.0,
+        eps_rad: 0.3,
+        arw_deg_per_rt_h: 0.0,
+        amplitude_jitter: AmplitudeModulation::OFF,
+        random_noise_dither: AmplitudeModulation::OFF,
+        seed: 1,
+        initial_psi_rad: 0.0,
+        lock_in_drift_per_s: 0.0,
+        lock_in_drift_until_s: 0.0,
+        solver: SolverParams::DEFAULT,
+        dither_model: DitherModel::Ideal,
+        thermal: GyroThermal::DEFAULT,
+    };
+}
+
 impl Default for GyroParams {
-    /// The docs/physics.md parameter set, noise and jitter off.
+    /// [`GyroParams::DEFAULT`].
     fn default() -> Self {
-        Self {
-            scale_factor_arcsec: 1.8655,
-            dither_hz: 389.0,
-            dither_amplitude_arcsec: 450.0,
-            lock_in_deg_per_h: 200.0,
-            eps_rad: 0.3,
-            arw_deg_per_rt_h: 0.0,
-            amplitude_jitter: AmplitudeModulation::OFF,
-            random_noise_dither: AmplitudeModulation::OFF,
-            seed: 1,
-            initial_psi_rad: 0.0,
-            lock_in_drift_per_s: 0.0,
-            lock_in_drift_until_s: 0.0,
-            solver: SolverParams::default(),
-            dither_model: DitherModel::Ideal,
-            thermal: GyroThermal::DEFAULT,
-        }
+        Self::DEFAULT
     }
 }
 
@@ -321,6 +336,20 @@ impl GyroParams {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The set docs/physics.md and docs/rlg-sim.md document (and `rlg-sim`'s flags default to):
+    /// SF 1.8655 arcsec/pulse, 389 Hz / 450 arcsec dither, Omega_L 200 deg/h, eps 0.3 rad,
+    /// no noise. Written out on purpose: a change of the board profile shows here.
+    #[test]
+    fn default_is_the_documented_set() {
+        let p = GyroParams::DEFAULT;
+        assert_eq!(p.scale_factor_arcsec, 1.8655);
+        assert_eq!(p.dither_hz, 389.0);
+        assert_eq!(p.dither_amplitude_arcsec, 450.0);
+        assert_eq!((p.lock_in_deg_per_h, p.eps_rad), (200.0, 0.3));
+        assert_eq!((p.arw_deg_per_rt_h, p.seed), (0.0, 1));
+        assert_eq!(p, GyroParams::default());
+    }
 
     #[test]
     fn default_derives_paper_numbers() {

@@ -11,14 +11,15 @@
 //! Rates: a cycle's increment in Q32 fringes times the scale factor (arcsec per fringe) over
 //! its duration (capture-timer ticks over the timer frequency) is arcsec/s, which is deg/h.
 
+use firmware::profile::BoardProfile;
 use firmware::protocol::stream::{decode_frame, sequence_step, GapCounter, StreamRecord};
 use firmware::units::Q32_PER_FRINGE;
 use rlg_sim::plot::{Figure, Panel, Series, Style};
 use std::io::{self, Write};
 use std::time::{Duration, Instant};
 
-/// Capture-timer frequency of the board (the F405's TIM2/TIM5 at 84 MHz), Hz.
-pub const DEFAULT_TIMER_HZ: f64 = 84e6;
+/// Capture-timer frequency of the board (the F405's TIM2/TIM5), Hz: the board profile's.
+pub const DEFAULT_TIMER_HZ: f64 = BoardProfile::F405.timer_hz as f64;
 
 /// What turns frame fields into physical units.
 #[derive(Clone, Copy, Debug, PartialEq)]

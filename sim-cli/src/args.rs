@@ -1,8 +1,19 @@
 //! Command-line flags: every physical parameter of the simulated gyro, named with its unit.
+//!
+//! Defaults are read from the library's parameter sets (`GyroParams::DEFAULT`, ...), ranges
+//! from [`Range`] constants: clap's value parser refuses a value outside (exit 2, the range in
+//! the message) and the help prints the same constant. The `validate` methods check only what
+//! involves two flags.
 
 use clap::{Args, Parser, Subcommand};
+use firmware::profile::BoardProfile;
 use hal_sim::dither::resonator::TemperatureProfile;
-use hal_sim::thermal::{GyroThermal, ThermalCoefficients};
+use hal_sim::params::GyroParams;
+use hal_sim::thermal::{GyroThermal, ThermalCoefficients, LIMITS};
+use rlg_sim::characterize::{self, Plan};
+use rlg_sim::dither_run::{self, DitherRunOptions};
+use rlg_sim::experiment::WARMUP_SECONDS;
+use rlg_sim::range::Range;
 use std::path::PathBuf;
 
 pub use rlg_sim::experiment::PAPER_RANGE_DEG_H;
@@ -65,64 +76,112 @@ pub enum LatchArg {
     Exact,
 }
 
-/// `value` inside `lo..=hi`, or an error naming `flag` and the range.
-fn in_range(flag: &str, value: f64, lo: f64, hi: f64) -> Result<(), String> {
-    if value.is_finite() && (lo..=hi).contains(&value) {
-        Ok(())
-    } else {
-        Err(format!("{flag} must be in {lo}..={hi}, got {value:?}"))
-    }
-}
-
-impl GyroArgs {
-    /// Every physical parameter against its stated range; the message names the flag.
-    pub fn validate(&self) -> Result<(), String> {
-        in_range("--scale-factor-arcsec", self.scale_factor_arcsec, 0.1, 20.0)?;
-        in_range("--dither-hz", self.dither_hz, 200.0, 1500.0)?;
-        in_range(
-            "--dither-amplitude-arcsec",
-            self.dither_amplitude_arcsec,
-            50.0,
-            800.0,
-        )?;
-        in_range("--lock-in-deg-h", self.lock_in_deg_h, 0.0, 5000.0)?;
-        use std::f64::consts::PI;
-        in_range("--eps-rad", self.eps_rad, -PI, PI)?;
-        in_range("--arw-deg-rt-h", self.arw_deg_rt_h, 0.0, 1.0)?;
-        in_range("--amplitude-jitter", self.amplitude_jitter, 0.0, 0.1)?;
-        self.thermal.validate()
-    }
-}
-
-/// Valid range of the sync rate, Hz.
-pub const SYNC_HZ_RANGE: std::ops::RangeInclusive<f64> = 100.0..=2000.0;
+const SCALE_FACTOR_ARCSEC: Range<f64> = Range::closed("--scale-factor-arcsec", 0.1, 20.0, "arcsec");
+/// The board's turnaround scheduler accepts these dither frequencies.
+const DITHER_HZ: Range<f64> = Range::closed(
+    "--dither-hz",
+    BoardProfile::F405.dither_hz_range.0 as f64,
+    BoardProfile::F405.dither_hz_range.1 as f64,
+    "Hz",
+);
+const DITHER_AMPLITUDE_ARCSEC: Range<f64> =
+    Range::closed("--dither-amplitude-arcsec", 50.0, 800.0, "arcsec");
+const LOCK_IN_DEG_H: Range<f64> = Range::closed("--lock-in-deg-h", 0.0, 5000.0, "deg/h");
+const EPS_RAD: Range<f64> =
+    Range::symmetric("--eps-rad", std::f64::consts::PI, "rad").shown_as("-pi..=pi");
+const ARW_DEG_RT_H: Range<f64> = Range::closed("--arw-deg-rt-h", 0.0, 1.0, "deg/sqrt(h)");
+const AMPLITUDE_JITTER: Range<f64> = Range::closed("--amplitude-jitter", 0.0, 0.1, "");
+/// An input rate (`sweep`'s ends, `record`, `speed`).
+const RATE_DEG_H: Range<f64> = Range::closed("--rate-deg-h", -1e6, 1e6, "deg/h");
+const SWEEP_POINTS: Range<usize> = Range::closed("--points", 1, 10_000, "");
+const SWEEP_SECONDS_PER_POINT: Range<f64> =
+    Range::closed("--seconds-per-point", 1e-3, 36_000.0, "s");
+const SYNC_HZ: Range<f64> = Range::closed("--sync-hz", 100.0, 2000.0, "Hz");
+const PICKOFF_GAIN_ERROR: Range<f64> = Range::symmetric("--pickoff-gain-error", 0.2, "");
+const PICKOFF_LAG_US: Range<f64> = Range::closed("--pickoff-lag-us", 0.0, 100.0, "us");
+const RECORD_SECONDS: Range<f64> = Range::above("--seconds", 0.0, 360_000.0, "s");
+const SPEED_SECONDS: Range<f64> = Range::above("--seconds", 0.0, 3600.0, "s");
+const MIN_FIT_TAU_S: Range<f64> = Range::closed("--min-fit-tau-s", 0.0, 1e6, "s");
+const COMPARE_NOISE_PERCENT: Range<f64> = Range::closed("--compare-noise-percent", 1.0, 50.0, "%");
+/// The thermal coefficients: within hal-sim's [`LIMITS`], as `ThermalCoefficients::validate`.
+const THERMAL_REFERENCE_C: Range<f64> =
+    Range::symmetric("--thermal-reference-c", LIMITS.reference_c, "C");
+const THERMAL_BIAS_DEG_H_PER_C: Range<f64> = Range::symmetric(
+    "--thermal-bias-deg-h-per-c",
+    LIMITS.bias_deg_h_per_c,
+    "deg/h per C",
+);
+const THERMAL_BIAS_DEG_H_PER_C2: Range<f64> = Range::symmetric(
+    "--thermal-bias-deg-h-per-c2",
+    LIMITS.bias_deg_h_per_c2,
+    "deg/h per C^2",
+);
+const THERMAL_BIAS_DEG_H_PER_C_PER_MIN: Range<f64> = Range::symmetric(
+    "--thermal-bias-deg-h-per-c-per-min",
+    LIMITS.bias_deg_h_per_c_per_min,
+    "deg/h per C/min",
+);
+const THERMAL_SF_PPM_PER_C: Range<f64> = Range::symmetric(
+    "--thermal-sf-ppm-per-c",
+    LIMITS.scale_factor_ppm_per_c,
+    "ppm per C",
+);
+const THERMAL_SF_PPM_PER_C2: Range<f64> = Range::symmetric(
+    "--thermal-sf-ppm-per-c2",
+    LIMITS.scale_factor_ppm_per_c2,
+    "ppm per C^2",
+);
+const THERMAL_LOCK_IN_PER_C: Range<f64> =
+    Range::symmetric("--thermal-lock-in-per-c", LIMITS.lock_in_per_c, "per C");
+const THERMAL_EPS_RAD_PER_C: Range<f64> =
+    Range::symmetric("--thermal-eps-rad-per-c", LIMITS.eps_rad_per_c, "rad per C");
+const THERMAL_PICKOFF_GAIN_PER_C: Range<f64> = Range::symmetric(
+    "--thermal-pickoff-gain-per-c",
+    LIMITS.pickoff_gain_per_c,
+    "per C",
+);
+const THERMAL_DITHER_HZ_PER_C: Range<f64> = Range::symmetric(
+    "--thermal-dither-hz-per-c",
+    LIMITS.dither_hz_per_c,
+    "Hz per C",
+);
+const THERMAL_DITHER_Q_PER_C: Range<f64> =
+    Range::symmetric("--thermal-dither-q-per-c", LIMITS.dither_q_per_c, "per C");
 
 #[derive(Args, Debug, Clone)]
 pub struct DitherArgs {
-    /// Simulated seconds.
-    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DitherRunOptions::DEFAULT.seconds, allow_negative_numbers = true,
+        value_parser = dither_run::SECONDS.parser(),
+        help = dither_run::SECONDS.help("Simulated seconds"))]
     pub seconds: f64,
-    /// Resonance f0 at the start, Hz (300..=600).
-    #[arg(long, default_value_t = 389.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DitherRunOptions::DEFAULT.resonance_hz, allow_negative_numbers = true,
+        value_parser = dither_run::RESONANCE_HZ.parser(),
+        help = dither_run::RESONANCE_HZ.help_why("Resonance f0 at the start",
+            "inside the drive's start-up search"))]
     pub dither_hz: f64,
-    /// Quality factor of the dither resonator (100..=100000).
-    #[arg(long, default_value_t = 1000.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DitherRunOptions::DEFAULT.q_factor, allow_negative_numbers = true,
+        value_parser = dither_run::Q_FACTOR.parser(),
+        help = dither_run::Q_FACTOR.help("Quality factor of the dither resonator"))]
     pub q_factor: f64,
-    /// The drive's amplitude setpoint, arcsec (50..=650).
-    #[arg(long, default_value_t = 450.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DitherRunOptions::DEFAULT.setpoint_arcsec, allow_negative_numbers = true,
+        value_parser = dither_run::setpoint_arcsec_range().parser(),
+        help = dither_run::setpoint_arcsec_range().help_why("The drive's amplitude setpoint",
+            "the firmware's setpoint range"))]
     pub dither_amplitude_arcsec: f64,
-    /// Linear drift of the resonance over the run, Hz (-10..=10).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DitherRunOptions::DEFAULT.resonance_drift_hz, allow_negative_numbers = true,
+        value_parser = dither_run::RESONANCE_DRIFT_HZ.parser(),
+        help = dither_run::RESONANCE_DRIFT_HZ.help("Linear drift of the resonance over the run"))]
     pub resonance_drift_hz: f64,
     /// The pick-off signal disappears at this time, s.
     #[arg(long, allow_negative_numbers = true)]
     pub pickoff_lost_at_s: Option<f64>,
-    /// Random-noise dither: the drive's amplitude randomised every half cycle by this depth,
-    /// percent (0..=50).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DitherRunOptions::DEFAULT.noise_percent, allow_negative_numbers = true,
+        value_parser = dither_run::NOISE_PERCENT.parser(),
+        help = dither_run::NOISE_PERCENT.help("Random-noise dither: the drive's amplitude \
+            randomised every half cycle by this depth"))]
     pub dither_noise_percent: f64,
     /// Random seed (pick-off noise, noise dither).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = DitherRunOptions::DEFAULT.seed)]
     pub seed: u64,
     /// Write one row per dither cycle as CSV (t_s,amplitude_arcsec,resonance_hz,drive_hz,state).
     #[arg(long)]
@@ -138,31 +197,40 @@ pub struct DitherArgs {
 /// The gyro and its dither (defaults: the docs/physics.md parameter set, after the paper).
 #[derive(Args, Debug, Clone)]
 pub struct GyroArgs {
-    /// Scale factor, arcsec of input angle per counter pulse (fringe) (0.1..=20).
-    #[arg(long, default_value_t = 1.8655, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = GyroParams::DEFAULT.scale_factor_arcsec, allow_negative_numbers = true,
+        value_parser = SCALE_FACTOR_ARCSEC.parser(),
+        help = SCALE_FACTOR_ARCSEC.help("Scale factor, arcsec of input angle per counter pulse (fringe)"))]
     pub scale_factor_arcsec: f64,
-    /// Dither frequency, Hz (200..=1500: the board's scheduler range).
-    #[arg(long, default_value_t = 389.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = GyroParams::DEFAULT.dither_hz, allow_negative_numbers = true,
+        value_parser = DITHER_HZ.parser(),
+        help = DITHER_HZ.help_why("Dither frequency", "the board's scheduler range"))]
     pub dither_hz: f64,
-    /// Dither peak amplitude, arcsec (50..=800: the pick-off saturates at 819).
-    #[arg(long, default_value_t = 450.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = GyroParams::DEFAULT.dither_amplitude_arcsec, allow_negative_numbers = true,
+        value_parser = DITHER_AMPLITUDE_ARCSEC.parser(),
+        help = DITHER_AMPLITUDE_ARCSEC.help_why("Dither peak amplitude",
+            "the pick-off saturates at 819 arcsec"))]
     pub dither_amplitude_arcsec: f64,
-    /// Lock-in threshold Omega_L, deg/h (0..=5000).
-    #[arg(long, default_value_t = 200.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = GyroParams::DEFAULT.lock_in_deg_per_h, allow_negative_numbers = true,
+        value_parser = LOCK_IN_DEG_H.parser(),
+        help = LOCK_IN_DEG_H.help("Lock-in threshold Omega_L"))]
     pub lock_in_deg_h: f64,
-    /// Photodiode phase offset eps, rad (-pi..=pi).
-    #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = GyroParams::DEFAULT.eps_rad, allow_negative_numbers = true,
+        value_parser = EPS_RAD.parser(),
+        help = EPS_RAD.help("Photodiode phase offset eps"))]
     pub eps_rad: f64,
-    /// Angle random walk, deg/sqrt(h) (0..=1; 0 = no noise).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = GyroParams::DEFAULT.arw_deg_per_rt_h, allow_negative_numbers = true,
+        value_parser = ARW_DEG_RT_H.parser(),
+        help = ARW_DEG_RT_H.help_why("Angle random walk", "0 = no noise"))]
     pub arw_deg_rt_h: f64,
-    /// Relative rms of smooth dither amplitude jitter, 0.1-2 Hz (0..=0.1; 0 = steady dither):
-    /// of the prescribed sine's amplitude, or with --dither-drive closed-loop of the drive's
-    /// gain, which the firmware's amplitude loop then holds the amplitude against.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = GyroParams::DEFAULT.amplitude_jitter.relative_rms, allow_negative_numbers = true,
+        value_parser = AMPLITUDE_JITTER.parser(),
+        help = AMPLITUDE_JITTER.help_why("Relative rms of smooth dither amplitude jitter, 0.1-2 Hz, \
+            of the prescribed sine's amplitude or, with --dither-drive closed-loop, of the drive's \
+            gain, which the firmware's amplitude loop then holds the amplitude against",
+            "0 = steady dither"))]
     pub amplitude_jitter: f64,
     /// Random seed (same seed, same output).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = GyroParams::DEFAULT.seed)]
     pub seed: u64,
     #[command(flatten)]
     pub thermal: ThermalArgs,
@@ -179,39 +247,38 @@ pub struct ThermalArgs {
     /// from the start of the simulation).
     #[arg(long, value_parser = rlg_sim::thermal::profile_arg::parse)]
     pub temperature_profile: Option<hal_sim::dither::resonator::TemperatureProfile>,
-    /// T_ref: the temperature at which every thermal effect is zero, C (-150..=150).
-    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.reference_c, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.reference_c, allow_negative_numbers = true,
+        value_parser = THERMAL_REFERENCE_C.parser(), help = THERMAL_REFERENCE_C.help("T_ref: the temperature at which every thermal effect is zero"))]
     pub thermal_reference_c: f64,
-    /// Bias b1, deg/h per C (-1..=1).
-    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.bias_deg_h_per_c, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.bias_deg_h_per_c, allow_negative_numbers = true,
+        value_parser = THERMAL_BIAS_DEG_H_PER_C.parser(), help = THERMAL_BIAS_DEG_H_PER_C.help("Bias b1"))]
     pub thermal_bias_deg_h_per_c: f64,
-    /// Bias b2, deg/h per C^2 (-0.01..=0.01).
-    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.bias_deg_h_per_c2, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.bias_deg_h_per_c2, allow_negative_numbers = true,
+        value_parser = THERMAL_BIAS_DEG_H_PER_C2.parser(), help = THERMAL_BIAS_DEG_H_PER_C2.help("Bias b2"))]
     pub thermal_bias_deg_h_per_c2: f64,
-    /// Bias rate term, deg/h per C/min of dT/dt (-1..=1).
-    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.bias_deg_h_per_c_per_min, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.bias_deg_h_per_c_per_min, allow_negative_numbers = true,
+        value_parser = THERMAL_BIAS_DEG_H_PER_C_PER_MIN.parser(), help = THERMAL_BIAS_DEG_H_PER_C_PER_MIN.help("Bias rate term, of dT/dt"))]
     pub thermal_bias_deg_h_per_c_per_min: f64,
-    /// Scale-factor error s1, ppm per C (-100..=100).
-    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.scale_factor_ppm_per_c, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.scale_factor_ppm_per_c, allow_negative_numbers = true,
+        value_parser = THERMAL_SF_PPM_PER_C.parser(), help = THERMAL_SF_PPM_PER_C.help("Scale-factor error s1"))]
     pub thermal_sf_ppm_per_c: f64,
-    /// Scale-factor error s2, ppm per C^2 (-1..=1).
-    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.scale_factor_ppm_per_c2, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.scale_factor_ppm_per_c2, allow_negative_numbers = true,
+        value_parser = THERMAL_SF_PPM_PER_C2.parser(), help = THERMAL_SF_PPM_PER_C2.help("Scale-factor error s2"))]
     pub thermal_sf_ppm_per_c2: f64,
-    /// Lock-in threshold Omega_L, relative change per C (-0.01..=0.01).
-    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.lock_in_per_c, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.lock_in_per_c, allow_negative_numbers = true,
+        value_parser = THERMAL_LOCK_IN_PER_C.parser(), help = THERMAL_LOCK_IN_PER_C.help("Lock-in threshold Omega_L, relative change"))]
     pub thermal_lock_in_per_c: f64,
-    /// Photodiode phase eps, rad per C (-0.05..=0.05).
-    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.eps_rad_per_c, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.eps_rad_per_c, allow_negative_numbers = true,
+        value_parser = THERMAL_EPS_RAD_PER_C.parser(), help = THERMAL_EPS_RAD_PER_C.help("Photodiode phase eps"))]
     pub thermal_eps_rad_per_c: f64,
-    /// Pick-off gain, relative change per C (-0.01..=0.01).
-    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.pickoff_gain_per_c, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.pickoff_gain_per_c, allow_negative_numbers = true,
+        value_parser = THERMAL_PICKOFF_GAIN_PER_C.parser(), help = THERMAL_PICKOFF_GAIN_PER_C.help("Pick-off gain, relative change"))]
     pub thermal_pickoff_gain_per_c: f64,
-    /// Dither resonance f0 (with --dither-drive closed-loop), Hz per C (-1..=1).
-    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.dither_hz_per_c, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.dither_hz_per_c, allow_negative_numbers = true,
+        value_parser = THERMAL_DITHER_HZ_PER_C.parser(), help = THERMAL_DITHER_HZ_PER_C.help("Dither resonance f0, with --dither-drive closed-loop"))]
     pub thermal_dither_hz_per_c: f64,
-    /// Dither resonator Q (with --dither-drive closed-loop), relative change per C
-    /// (-0.1..=0.1).
-    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.dither_q_per_c, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.dither_q_per_c, allow_negative_numbers = true,
+        value_parser = THERMAL_DITHER_Q_PER_C.parser(), help = THERMAL_DITHER_Q_PER_C.help("Dither resonator Q, with --dither-drive closed-loop, relative change"))]
     pub thermal_dither_q_per_c: f64,
 }
 
@@ -243,41 +310,29 @@ impl ThermalArgs {
             coefficients,
         }
     }
-
-    /// Every coefficient in its range; the message names the flag.
-    pub fn validate(&self) -> Result<(), String> {
-        let limit = hal_sim::thermal::LIMITS.reference_c;
-        in_range(
-            "--thermal-reference-c",
-            self.thermal_reference_c,
-            -limit,
-            limit,
-        )?;
-        for (name, value, limit) in self.coefficients().each() {
-            in_range(&format!("--thermal-{name}"), value, -limit, limit)?;
-        }
-        Ok(())
-    }
 }
 
 #[derive(Args, Debug, Clone)]
 pub struct SweepArgs {
     #[command(flatten)]
     pub gyro: GyroArgs,
-    /// Lowest input rate, deg/h (-1e6..=1e6).
-    #[arg(long, default_value_t = -PAPER_RANGE_DEG_H, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = -PAPER_RANGE_DEG_H, allow_negative_numbers = true,
+        value_parser = RATE_DEG_H.parser(), help = RATE_DEG_H.help("Lowest input rate"))]
     pub rate_min_deg_h: f64,
-    /// Highest input rate, deg/h (-1e6..=1e6).
-    #[arg(long, default_value_t = PAPER_RANGE_DEG_H, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = PAPER_RANGE_DEG_H, allow_negative_numbers = true,
+        value_parser = RATE_DEG_H.parser(), help = RATE_DEG_H.help("Highest input rate"))]
     pub rate_max_deg_h: f64,
-    /// Number of input rates, evenly spaced from min to max (1..=10000).
-    #[arg(long, default_value_t = 41)]
+    #[arg(long, default_value_t = 41, allow_negative_numbers = true,
+        value_parser = SWEEP_POINTS.parser(),
+        help = SWEEP_POINTS.help("Number of input rates, evenly spaced from min to max"))]
     pub points: usize,
-    /// Simulated seconds recorded per input rate, after the warm-up (0.001..=36000).
-    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true,
+        value_parser = SWEEP_SECONDS_PER_POINT.parser(),
+        help = SWEEP_SECONDS_PER_POINT.help("Simulated seconds recorded per input rate, after the warm-up"))]
     pub seconds_per_point: f64,
-    /// Simulated seconds discarded before recording, lets the Lissajous fit settle (0..=60).
-    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true,
+        value_parser = WARMUP_SECONDS.parser(),
+        help = WARMUP_SECONDS.help("Simulated seconds discarded before recording, lets the Lissajous fit settle"))]
     pub warmup_seconds: f64,
     #[command(flatten)]
     pub calibration: CalibrationArgs,
@@ -309,45 +364,11 @@ impl SweepArgs {
             .collect()
     }
 
-    /// Checks what clap cannot: ranges and finite values. The message names the flag.
+    /// Checks what involves two flags (clap's parsers check each one's range). The message
+    /// names the flags.
     pub fn validate(&self) -> Result<(), String> {
-        let finite = [
-            ("--rate-min-deg-h", self.rate_min_deg_h),
-            ("--rate-max-deg-h", self.rate_max_deg_h),
-            ("--seconds-per-point", self.seconds_per_point),
-            ("--warmup-seconds", self.warmup_seconds),
-        ];
-        for (flag, v) in finite {
-            if !v.is_finite() {
-                return Err(format!("{flag} must be a finite number, got {v}"));
-            }
-        }
-        in_range("--rate-min-deg-h", self.rate_min_deg_h, -1e6, 1e6)?;
-        in_range("--rate-max-deg-h", self.rate_max_deg_h, -1e6, 1e6)?;
-        in_range(
-            "--seconds-per-point",
-            self.seconds_per_point,
-            1e-3,
-            36_000.0,
-        )?;
-        in_range("--warmup-seconds", self.warmup_seconds, 0.0, 60.0)?;
-        if self.points > 10_000 {
-            return Err(format!(
-                "--points must be in 1..=10000, got {}",
-                self.points
-            ));
-        }
         if self.rate_max_deg_h < self.rate_min_deg_h {
             return Err("--rate-max-deg-h must not be below --rate-min-deg-h".into());
-        }
-        if self.points == 0 {
-            return Err("--points must be at least 1".into());
-        }
-        if self.seconds_per_point <= 0.0 {
-            return Err("--seconds-per-point must be positive".into());
-        }
-        if self.warmup_seconds < 0.0 {
-            return Err("--warmup-seconds must not be negative".into());
         }
         self.calibration.validate()?;
         self.board.validate()
@@ -405,48 +426,30 @@ pub struct BoardArgs {
     /// (what a board does), or at the simulator's exact turnaround (the paper's idealised case).
     #[arg(long, value_enum, default_value_t = LatchArg::Scheduled)]
     pub latch: LatchArg,
-    /// Rate of the sync pulses that end the board's fixed-rate output periods, Hz
-    /// (100..=2000).
-    #[arg(long, default_value_t = 1000.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1000.0, allow_negative_numbers = true,
+        value_parser = SYNC_HZ.parser(),
+        help = SYNC_HZ.help("Rate of the sync pulses that end the board's fixed-rate output periods"))]
     pub sync_hz: f64,
-    /// Random-noise dither depth, percent (0..=50; needs --dither-drive closed-loop: the noise
-    /// dither is the firmware drive's).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true,
+        value_parser = dither_run::NOISE_PERCENT.parser(),
+        help = dither_run::NOISE_PERCENT.help_why("Random-noise dither depth",
+            "needs --dither-drive closed-loop: the noise dither is the firmware drive's"))]
     pub dither_noise_percent: f64,
-    /// The pick-off's gain error against its nominal 0.4 arcsec per code (-0.2..=0.2): the
-    /// stripping fits it.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true,
+        value_parser = PICKOFF_GAIN_ERROR.parser(),
+        help = PICKOFF_GAIN_ERROR.help_why("The pick-off's relative gain error against its \
+            nominal sensitivity", "the stripping fits it"))]
     pub pickoff_gain_error: f64,
-    /// The pick-off's lag behind the dither angle, us (0..=100): the stripping's second tap
-    /// fits it.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true,
+        value_parser = PICKOFF_LAG_US.parser(),
+        help = PICKOFF_LAG_US.help_why("The pick-off's lag behind the dither angle",
+            "the stripping's second tap fits it"))]
     pub pickoff_lag_us: f64,
 }
 
 impl BoardArgs {
-    /// Ranges, and the combinations that make sense.
+    /// The combinations that make sense (clap's parsers check each flag's range).
     pub fn validate(&self) -> Result<(), String> {
-        if !(0.0..=50.0).contains(&self.dither_noise_percent) {
-            return Err("--dither-noise-percent must be in 0..=50".into());
-        }
-        if !SYNC_HZ_RANGE.contains(&self.sync_hz) {
-            return Err(format!(
-                "--sync-hz must be in 100..=2000 Hz, got {}",
-                self.sync_hz
-            ));
-        }
-        if !(-0.2..=0.2).contains(&self.pickoff_gain_error) {
-            return Err(format!(
-                "--pickoff-gain-error must be in -0.2..=0.2, got {}",
-                self.pickoff_gain_error
-            ));
-        }
-        if !(0.0..=100.0).contains(&self.pickoff_lag_us) {
-            return Err(format!(
-                "--pickoff-lag-us must be in 0..=100 us, got {}",
-                self.pickoff_lag_us
-            ));
-        }
         if self.dither_noise_percent > 0.0 && self.dither_drive == DitherDrive::Ideal {
             return Err(
                 "--dither-noise-percent needs --dither-drive closed-loop (the noise dither is \
@@ -467,14 +470,16 @@ pub struct RecordArgs {
     pub board: BoardArgs,
     #[command(flatten)]
     pub calibration: CalibrationArgs,
-    /// Constant input rate, deg/h (-1e6..=1e6).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true,
+        value_parser = RATE_DEG_H.parser(), help = RATE_DEG_H.help("Constant input rate"))]
     pub rate_deg_h: f64,
-    /// Simulated seconds recorded after the warm-up (0 < s <= 360000: 100 h).
-    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true,
+        value_parser = RECORD_SECONDS.parser(),
+        help = RECORD_SECONDS.help_why("Simulated seconds recorded after the warm-up", "100 h"))]
     pub seconds: f64,
-    /// Simulated seconds discarded before recording (0..=60).
-    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true,
+        value_parser = WARMUP_SECONDS.parser(),
+        help = WARMUP_SECONDS.help("Simulated seconds discarded before recording"))]
     pub warmup_seconds: f64,
     /// Output CSV (t_s,delta_angle_arcsec,true_delta_angle_arcsec,valid, and temperature_c
     /// with --temperature-profile: the block's temperature the record carries), one row per
@@ -487,26 +492,8 @@ pub struct RecordArgs {
 }
 
 impl RecordArgs {
-    /// Ranges; the message names the flag.
+    /// The calibration's and the board's checks (clap's parsers check each flag's range).
     pub fn validate(&self) -> Result<(), String> {
-        if !(self.rate_deg_h.is_finite() && self.rate_deg_h.abs() <= 1e6) {
-            return Err(format!(
-                "--rate-deg-h must be in -1e6..=1e6, got {}",
-                self.rate_deg_h
-            ));
-        }
-        if !(self.seconds.is_finite() && self.seconds > 0.0 && self.seconds <= 360_000.0) {
-            return Err(format!(
-                "--seconds must be in (0, 360000], got {}",
-                self.seconds
-            ));
-        }
-        if !(self.warmup_seconds.is_finite() && (0.0..=60.0).contains(&self.warmup_seconds)) {
-            return Err(format!(
-                "--warmup-seconds must be in 0..=60, got {}",
-                self.warmup_seconds
-            ));
-        }
         self.calibration.validate()?;
         self.board.validate()
     }
@@ -516,11 +503,11 @@ impl RecordArgs {
 pub struct SpeedArgs {
     #[command(flatten)]
     pub gyro: GyroArgs,
-    /// Input rate, deg/h.
-    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true,
+        value_parser = RATE_DEG_H.parser(), help = RATE_DEG_H.help("Input rate"))]
     pub rate_deg_h: f64,
-    /// Simulated seconds to time.
-    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true,
+        value_parser = SPEED_SECONDS.parser(), help = SPEED_SECONDS.help("Simulated seconds to time"))]
     pub seconds: f64,
     /// Time the simulated board (firmware in the loop, closed-loop drive, 1 kHz output, as
     /// `record` runs it) instead of the bare gyro; timed once the drive has locked.
@@ -536,13 +523,16 @@ pub struct AllanArgs {
     /// write it.
     #[arg(long)]
     pub input: PathBuf,
-    /// Two-sided confidence of the intervals (0.5..=0.999).
-    #[arg(long, default_value_t = 0.95, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.95, allow_negative_numbers = true,
+        value_parser = rlg_sim::allan::CONFIDENCE.parser(),
+        help = rlg_sim::allan::CONFIDENCE.help("Two-sided confidence of the intervals"))]
     pub confidence: f64,
-    /// Fit the noise terms to the taus from this one on, s (0..=1e6; 0: every tau). A dithered
-    /// gyro's output holds what is left of the dither at taus of a few dither periods, which is
-    /// none of the IEEE 952 noises: the default, 0.03 s, is ten periods of a 330 Hz dither.
-    #[arg(long, default_value_t = 0.03, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.03, allow_negative_numbers = true,
+        value_parser = MIN_FIT_TAU_S.parser(),
+        help = MIN_FIT_TAU_S.help_why("Fit the noise terms to the taus from this one on. A \
+            dithered gyro's output holds what is left of the dither at taus of a few dither \
+            periods, which is none of the IEEE 952 noises: the default is ten periods of a \
+            330 Hz dither", "0: every tau"))]
     pub min_fit_tau_s: f64,
     /// Write the deviation as CSV (tau_s,adev_deg_h,ci_low_deg_h,ci_high_deg_h).
     #[arg(long)]
@@ -550,20 +540,6 @@ pub struct AllanArgs {
     /// Write the log-log plot (deviation, intervals, fitted terms and their slopes) as SVG.
     #[arg(long)]
     pub svg: Option<PathBuf>,
-}
-
-impl AllanArgs {
-    /// Ranges; the message names the flag.
-    pub fn validate(&self) -> Result<(), String> {
-        let range = rlg_sim::allan::CONFIDENCE_RANGE;
-        in_range(
-            "--confidence",
-            self.confidence,
-            *range.start(),
-            *range.end(),
-        )?;
-        in_range("--min-fit-tau-s", self.min_fit_tau_s, 0.0, 1e6)
-    }
 }
 
 /// Compensation on or off.
@@ -603,31 +579,43 @@ pub struct CharacterizeArgs {
     /// flags do).
     #[arg(long)]
     pub thermal: bool,
-    /// With --compare: the random-noise dither's depth, percent of the drive amplitude
-    /// (1..=50; at 10 % the resonator smooths it too much to fill the dead band in 5 s).
-    #[arg(long, default_value_t = 25.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 25.0, allow_negative_numbers = true,
+        value_parser = COMPARE_NOISE_PERCENT.parser(),
+        help = COMPARE_NOISE_PERCENT.help_why("With --compare: the random-noise dither's depth, \
+            percent of the drive amplitude", "at 10 % the resonator smooths it too much to fill \
+            the dead band in 5 s"))]
     pub compare_noise_percent: f64,
-    /// Largest input rate magnitude, deg/s (0.1..=300; the default set's dither peaks at
-    /// 305 deg/s; a rate at which the board closes no dither cycle is an error).
-    #[arg(long, default_value_t = rlg_sim::characterize::Plan::DEFAULT.max_rate_deg_s, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = Plan::DEFAULT.max_rate_deg_s, allow_negative_numbers = true,
+        value_parser = characterize::MAX_RATE_DEG_S.parser(),
+        help = characterize::MAX_RATE_DEG_S.help_why("Largest input rate magnitude",
+            "the default set's dither peaks at 305 deg/s; a rate at which the board closes no \
+            dither cycle is an error"))]
     pub max_rate_deg_s: f64,
-    /// Log-spaced linear-range rates per sign (2..=50).
-    #[arg(long, default_value_t = rlg_sim::characterize::Plan::DEFAULT.range_points)]
+    #[arg(long, default_value_t = Plan::DEFAULT.range_points, allow_negative_numbers = true,
+        value_parser = characterize::RANGE_POINTS.parser(),
+        help = characterize::RANGE_POINTS.help("Log-spaced linear-range rates per sign"))]
     pub range_points: usize,
-    /// Rates near zero per sign, inside and outside the dead band (2..=50).
-    #[arg(long, default_value_t = rlg_sim::characterize::Plan::DEFAULT.dense_points)]
+    #[arg(long, default_value_t = Plan::DEFAULT.dense_points, allow_negative_numbers = true,
+        value_parser = characterize::DENSE_POINTS.parser(),
+        help = characterize::DENSE_POINTS.help("Rates near zero per sign, inside and outside the \
+            dead band"))]
     pub dense_points: usize,
-    /// Simulated seconds recorded per input rate (0.5..=3600).
-    #[arg(long, default_value_t = rlg_sim::characterize::Plan::DEFAULT.seconds_per_point, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = Plan::DEFAULT.seconds_per_point, allow_negative_numbers = true,
+        value_parser = characterize::SECONDS_PER_POINT.parser(),
+        help = characterize::SECONDS_PER_POINT.help("Simulated seconds recorded per input rate"))]
     pub seconds_per_point: f64,
-    /// Simulated seconds discarded before each recording (0..=60).
-    #[arg(long, default_value_t = rlg_sim::characterize::Plan::DEFAULT.warmup_s, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = Plan::DEFAULT.warmup_s, allow_negative_numbers = true,
+        value_parser = WARMUP_SECONDS.parser(),
+        help = WARMUP_SECONDS.help("Simulated seconds discarded before each recording"))]
     pub warmup_seconds: f64,
-    /// Simulated seconds of the static (zero-input) record (10..=360000).
-    #[arg(long, default_value_t = rlg_sim::characterize::Plan::DEFAULT.static_s, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = Plan::DEFAULT.static_s, allow_negative_numbers = true,
+        value_parser = characterize::STATIC_SECONDS.parser(),
+        help = characterize::STATIC_SECONDS.help("Simulated seconds of the static (zero-input) \
+            record"))]
     pub static_seconds: f64,
-    /// Two-sided confidence of the noise terms' intervals (0.5..=0.999).
-    #[arg(long, default_value_t = rlg_sim::characterize::Plan::DEFAULT.confidence, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = Plan::DEFAULT.confidence, allow_negative_numbers = true,
+        value_parser = rlg_sim::allan::CONFIDENCE.parser(),
+        help = rlg_sim::allan::CONFIDENCE.help("Two-sided confidence of the noise terms' intervals"))]
     pub confidence: f64,
     /// Worker threads (default: all cores).
     #[arg(long)]
@@ -639,8 +627,8 @@ pub struct CharacterizeArgs {
 
 impl CharacterizeArgs {
     /// The plan these flags describe.
-    pub fn plan(&self) -> rlg_sim::characterize::Plan {
-        rlg_sim::characterize::Plan {
+    pub fn plan(&self) -> Plan {
+        Plan {
             max_rate_deg_s: self.max_rate_deg_s,
             range_points: self.range_points,
             dense_points: self.dense_points,
@@ -651,15 +639,8 @@ impl CharacterizeArgs {
         }
     }
 
-    /// Ranges and combinations; the message names the flag.
+    /// The combinations (clap's parsers check each flag's range); the message names the flag.
     pub fn validate(&self) -> Result<(), String> {
-        self.plan().validate()?;
-        in_range(
-            "--compare-noise-percent",
-            self.compare_noise_percent,
-            1.0,
-            50.0,
-        )?;
         if self.jobs == Some(0) {
             return Err("--jobs must be at least 1".into());
         }

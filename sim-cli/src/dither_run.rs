@@ -10,7 +10,8 @@
 //! free oscillation the drive sustains), the resonance f0 at that instant, and the frequency the
 //! firmware drives and its state.
 
-use firmware::dither::{DitherState, FaultKind};
+use crate::range::Range;
+use firmware::dither::{DitherConfig, DitherState, FaultKind};
 use firmware::profile::BoardProfile;
 use hal_sim::board::{BoardConfig, SimBoard};
 use hal_sim::dither::resonator::{ResonatorParams, TemperatureDrift, TemperatureProfile};
@@ -22,76 +23,84 @@ use hal_sim::params::{DitherModel, GyroParams};
 /// One dither run.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DitherRunOptions {
-    /// Resonance f0 at the start, Hz (300..=600: the firmware's search range is 280..=620).
+    /// Resonance f0 at the start, Hz ([`RESONANCE_HZ`]).
     pub resonance_hz: f64,
-    /// Quality factor (100..=1e5).
+    /// Quality factor ([`Q_FACTOR`]).
     pub q_factor: f64,
-    /// Amplitude setpoint, arcsec (the firmware's range, 50..=650).
+    /// Amplitude setpoint, arcsec ([`setpoint_arcsec_range`]).
     pub setpoint_arcsec: f64,
-    /// Linear drift of f0 over the run, Hz (-10..=10).
+    /// Linear drift of f0 over the run, Hz ([`RESONANCE_DRIFT_HZ`]).
     pub resonance_drift_hz: f64,
-    /// The pick-off signal disappears at this time, s.
+    /// The pick-off signal disappears at this time, s (within the run).
     pub pickoff_lost_at_s: Option<f64>,
-    /// Random-noise dither depth, percent (0..=50).
+    /// Random-noise dither depth, percent ([`NOISE_PERCENT`]).
     pub noise_percent: f64,
-    /// Simulated seconds (0 < s <= 3600).
+    /// Simulated seconds ([`SECONDS`]).
     pub seconds: f64,
     /// Seed of the pick-off noise and the noise dither.
     pub seed: u64,
 }
 
+/// Valid starting resonance: inside the firmware's start-up search
+/// (`BoardProfile::dither_search_hz`) with a margin, so the search finds it.
+pub const RESONANCE_HZ: Range<f64> = Range::closed("--dither-hz", 300.0, 600.0, "Hz");
+/// Valid quality factors of the resonator.
+pub const Q_FACTOR: Range<f64> = Range::closed("--q-factor", 100.0, 1e5, "");
+/// Valid drift of the resonance over a run.
+pub const RESONANCE_DRIFT_HZ: Range<f64> = Range::closed("--resonance-drift-hz", -10.0, 10.0, "Hz");
+/// Valid random-noise dither depths (`dither` and the board's `--dither-noise-percent`).
+pub const NOISE_PERCENT: Range<f64> = Range::closed("--dither-noise-percent", 0.0, 50.0, "%");
+/// Valid run lengths.
+pub const SECONDS: Range<f64> = Range::closed("--seconds", 1e-3, 3600.0, "s");
+
+/// Valid amplitude setpoints: the firmware drive's own range (`DitherConfig`).
+pub fn setpoint_arcsec_range() -> Range<f64> {
+    let (min, max) = DitherConfig::for_profile(&BoardProfile::F405).setpoint_range_arcsec;
+    Range::closed(
+        "--dither-amplitude-arcsec",
+        min.into(),
+        max.into(),
+        "arcsec",
+    )
+}
+
+impl DitherRunOptions {
+    /// The default gyro's dither (`GyroParams::DEFAULT`: the board profile's nominal frequency
+    /// and amplitude), Q = 1000, no drift, no fault, no noise dither, 5 s, seed 1.
+    pub const DEFAULT: Self = Self {
+        resonance_hz: GyroParams::DEFAULT.dither_hz,
+        q_factor: 1000.0,
+        setpoint_arcsec: GyroParams::DEFAULT.dither_amplitude_arcsec,
+        resonance_drift_hz: 0.0,
+        pickoff_lost_at_s: None,
+        noise_percent: 0.0,
+        seconds: 5.0,
+        seed: 1,
+    };
+}
+
 impl Default for DitherRunOptions {
-    /// 389 Hz, Q = 1000, 450 arcsec, no drift, no fault, no noise dither, 5 s, seed 1.
+    /// [`DitherRunOptions::DEFAULT`].
     fn default() -> Self {
-        Self {
-            resonance_hz: 389.0,
-            q_factor: 1000.0,
-            setpoint_arcsec: 450.0,
-            resonance_drift_hz: 0.0,
-            pickoff_lost_at_s: None,
-            noise_percent: 0.0,
-            seconds: 5.0,
-            seed: 1,
-        }
+        Self::DEFAULT
     }
 }
 
 impl DitherRunOptions {
     /// Every field against its stated range; the message names the flag.
     pub fn validate(&self) -> Result<(), String> {
-        let check = |ok: bool, msg: &str| if ok { Ok(()) } else { Err(msg.to_owned()) };
-        let within = |x: f64, lo: f64, hi: f64| x.is_finite() && (lo..=hi).contains(&x);
-        check(
-            within(self.resonance_hz, 300.0, 600.0),
-            "--dither-hz must be in 300..=600 Hz (the drive searches 280-620 Hz)",
-        )?;
-        check(
-            within(self.q_factor, 100.0, 1e5),
-            "--q-factor must be in 100..=100000",
-        )?;
-        check(
-            within(self.setpoint_arcsec, 50.0, 650.0),
-            "--dither-amplitude-arcsec must be in 50..=650 (the drive's setpoint range)",
-        )?;
-        check(
-            within(self.resonance_drift_hz, -10.0, 10.0),
-            "--resonance-drift-hz must be in -10..=10",
-        )?;
-        check(
-            within(self.noise_percent, 0.0, 50.0),
-            "--dither-noise-percent must be in 0..=50",
-        )?;
-        check(
-            within(self.seconds, 1e-3, 3600.0),
-            "--seconds must be in (0, 3600]",
-        )?;
-        if let Some(t) = self.pickoff_lost_at_s {
-            check(
-                within(t, 0.0, self.seconds),
-                "--pickoff-lost-at-s must be within the run (0..=--seconds)",
-            )?;
+        RESONANCE_HZ.check(self.resonance_hz)?;
+        Q_FACTOR.check(self.q_factor)?;
+        setpoint_arcsec_range().check(self.setpoint_arcsec)?;
+        RESONANCE_DRIFT_HZ.check(self.resonance_drift_hz)?;
+        NOISE_PERCENT.check(self.noise_percent)?;
+        SECONDS.check(self.seconds)?;
+        match self.pickoff_lost_at_s {
+            Some(t) if !(t.is_finite() && (0.0..=self.seconds).contains(&t)) => {
+                Err("--pickoff-lost-at-s must be within the run (0..=--seconds)".into())
+            }
+            _ => Ok(()),
         }
-        Ok(())
     }
 
     /// The driven resonator: at rest, f0 drifting linearly by `resonance_drift_hz` over the
@@ -383,5 +392,27 @@ pub fn figure(rows: &[DitherRow], options: &DitherRunOptions) -> crate::plot::Fi
                 }],
             },
         ],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The starting resonances `dither` accepts lie inside the firmware's start-up search, so
+    /// the drive can find every one of them; the default run is valid.
+    #[test]
+    fn accepted_resonances_are_inside_the_start_up_search() {
+        let (lo, hi) = BoardProfile::F405.dither_search_hz;
+        assert!(lo < RESONANCE_HZ.min && RESONANCE_HZ.max < hi);
+        assert_eq!(DitherRunOptions::DEFAULT.validate(), Ok(()));
+        let low = DitherRunOptions {
+            resonance_hz: 250.0,
+            ..DitherRunOptions::DEFAULT
+        };
+        assert_eq!(
+            low.validate().unwrap_err(),
+            "--dither-hz must be in 300..=600 Hz, got 250"
+        );
     }
 }

@@ -15,6 +15,7 @@
 //! - [`measure_rate`]: one input rate with the compensation on, giving the uncompensated and the
 //!   compensated output of the same cycles, each averaged over whole output periods.
 
+use crate::range::Range;
 use firmware::calibration::fit::FitResult;
 use firmware::calibration::session::{CalibrationSession, SessionState};
 use firmware::calibration::validation::{AcceptanceLimits, Refusal};
@@ -33,6 +34,9 @@ use hal_sim::params::GyroParams;
 
 /// Earth rate projected on the paper's horizontal axis: 15 deg/h x cos(22.2 deg).
 pub const PAPER_RANGE_DEG_H: f64 = 13.888;
+
+/// Valid warm-up before a recording (`--warmup-seconds` of `sweep`, `record`, `characterize`).
+pub const WARMUP_SECONDS: Range<f64> = Range::closed("--warmup-seconds", 0.0, 60.0, "s");
 
 /// A run's timing: warm-up (discarded) and recording, simulated seconds.
 #[derive(Clone, Copy, Debug)]

@@ -11,6 +11,7 @@ pub mod dither_run;
 pub mod experiment;
 pub mod interrupt;
 pub mod plot;
+pub mod range;
 pub mod record_run;
 pub mod report;
 pub mod thermal;

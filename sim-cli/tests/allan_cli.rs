@@ -111,11 +111,11 @@ fn allan_refuses_bad_records_and_flags() {
         ),
         (
             vec!["--input", path, "--confidence", "1.5"],
-            "--confidence must be in 0.5..=0.999, got 1.5",
+            "'--confidence <CONFIDENCE>': 1.5 is outside 0.5..=0.999",
         ),
         (
             vec!["--input", path, "--confidence", "-0.5"],
-            "--confidence must be in 0.5..=0.999, got -0.5",
+            "'--confidence <CONFIDENCE>': -0.5 is outside 0.5..=0.999",
         ),
         (
             vec!["--input", path, "--csv", "/nonexistent/dir/a.csv"],

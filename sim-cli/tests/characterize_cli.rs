@@ -41,28 +41,31 @@ fn bad_flags_exit_2_naming_the_flag_before_anything_runs() {
     let cases: [(&[&str], &str); 9] = [
         (
             &["--max-rate-deg-s", "500"],
-            "--max-rate-deg-s must be in 0.1..=300",
+            "'--max-rate-deg-s <MAX_RATE_DEG_S>': 500 is outside 0.1..=300 deg/s",
         ),
-        (&["--dense-points", "1"], "--dense-points must be in 2..=50"),
+        (
+            &["--dense-points", "1"],
+            "'--dense-points <DENSE_POINTS>': 1 is outside 2..=50",
+        ),
         (
             &["--range-points", "51"],
-            "--range-points must be in 2..=50",
+            "'--range-points <RANGE_POINTS>': 51 is outside 2..=50",
         ),
         (
             &["--static-seconds", "5"],
-            "--static-seconds must be in 10..=360000",
+            "'--static-seconds <STATIC_SECONDS>': 5 is outside 10..=360000 s",
         ),
         (
             &["--seconds-per-point", "-1"],
-            "--seconds-per-point must be in 0.5..=3600",
+            "'--seconds-per-point <SECONDS_PER_POINT>': -1 is outside 0.5..=3600 s",
         ),
         (
             &["--confidence", "2"],
-            "--confidence must be in 0.5..=0.999",
+            "'--confidence <CONFIDENCE>': 2 is outside 0.5..=0.999",
         ),
         (
             &["--compare", "--compare-noise-percent", "60"],
-            "--compare-noise-percent must be in 1..=50",
+            "'--compare-noise-percent <COMPARE_NOISE_PERCENT>': 60 is outside 1..=50 %",
         ),
         (
             &["--compare", "--dither-noise-percent", "5"],

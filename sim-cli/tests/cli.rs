@@ -177,30 +177,30 @@ fn record_sigint_keeps_every_row() {
 #[test]
 fn record_refuses_out_of_range_flags() {
     for (flag, value, says) in [
-        ("--sync-hz", "50", "--sync-hz must be in 100..=2000"),
-        (
-            "--pickoff-lag-us",
-            "-1",
-            "--pickoff-lag-us must be in 0..=100",
-        ),
-        (
-            "--pickoff-gain-error",
-            "-0.5",
-            "--pickoff-gain-error must be in -0.2..=0.2",
-        ),
-        ("--seconds", "0", "--seconds must be in (0, 360000]"),
+        ("--sync-hz", "50", "50 is outside 100..=2000 Hz"),
+        ("--pickoff-lag-us", "-1", "-1 is outside 0..=100 us"),
+        ("--pickoff-gain-error", "-0.5", "-0.5 is outside -0.2..=0.2"),
+        ("--seconds", "0", "0 is outside 0 < x <= 360000 s"),
     ] {
         let (out, took) = rlg_sim(&["record", "--csv", "/tmp/never.csv", flag, value]);
         assert_eq!(out.status.code(), Some(2), "{flag} {value}");
-        assert!(text(&out.stderr).contains(says), "{}", text(&out.stderr));
+        let says = format!("for '{flag} <{}>': {says}", clap_name(flag));
+        assert!(text(&out.stderr).contains(&says), "{}", text(&out.stderr));
         assert!(took < Duration::from_secs(1), "{took:?}");
     }
 }
 
+/// How clap names a flag's value in its messages: `--sync-hz` -> `SYNC_HZ`.
+fn clap_name(flag: &str) -> String {
+    flag.trim_start_matches("--")
+        .replace('-', "_")
+        .to_uppercase()
+}
+
 /// Every numeric flag takes a leading minus where the value is legal (the error that follows
-/// is about another flag, so the negative one was accepted), and refuses an out-of-range value
-/// with its flag and range, exit 2, within a second (issue 15 items 14 and 15: `--dither-hz 0`
-/// and an amplitude of 1e9 arcsec used to hang, `--eps-rad 1e300` to print garbage).
+/// is about a later flag, and clap parses in order, so the negative one was accepted), and refuses
+/// an out-of-range value with its flag and range, exit 2, within a second (`--dither-hz 0` and
+/// an amplitude of 1e9 arcsec would hang a run, `--eps-rad 1e300` would print garbage).
 #[test]
 fn numeric_flags_take_negatives_where_legal_and_state_their_ranges() {
     for legal in [
@@ -209,55 +209,52 @@ fn numeric_flags_take_negatives_where_legal_and_state_their_ranges() {
         ["--pickoff-gain-error", "-0.05"],
         ["--calibration-rate-deg-h", "-13.888"],
     ] {
-        let mut args = vec!["sweep", "--sync-hz", "50"];
+        let mut args = vec!["sweep"];
         args.extend_from_slice(&legal);
+        args.extend_from_slice(&["--sync-hz", "50"]);
         let (out, took) = rlg_sim(&args);
         let stderr = text(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{legal:?}");
         assert!(
-            stderr.contains("--sync-hz must be in"),
+            stderr.contains("for '--sync-hz <SYNC_HZ>': 50 is outside"),
             "{legal:?}: {stderr}"
         );
         assert!(took < Duration::from_secs(1), "{took:?}");
     }
     for (flag, value, says) in [
-        (
-            "--dither-hz",
-            "0",
-            "--dither-hz must be in 200..=1500, got 0.0",
-        ),
+        ("--dither-hz", "0", "0 is outside 200..=1500 Hz"),
         (
             "--dither-amplitude-arcsec",
             "1e9",
-            "must be in 50..=800, got 1000000000.0",
+            "1e9 is outside 50..=800 arcsec",
         ),
-        ("--eps-rad", "1e300", "--eps-rad must be in -3.14159"),
-        (
-            "--arw-deg-rt-h",
-            "-1",
-            "--arw-deg-rt-h must be in 0..=1, got -1.0",
-        ),
-        (
-            "--lock-in-deg-h",
-            "-5",
-            "--lock-in-deg-h must be in 0..=5000, got -5.0",
-        ),
+        ("--eps-rad", "1e300", "1e300 is outside -pi..=pi rad"),
+        ("--arw-deg-rt-h", "-1", "-1 is outside 0..=1 deg/sqrt(h)"),
+        ("--lock-in-deg-h", "-5", "-5 is outside 0..=5000 deg/h"),
         (
             "--scale-factor-arcsec",
             "-1.8655",
-            "--scale-factor-arcsec must be in",
+            "-1.8655 is outside 0.1..=20 arcsec",
         ),
         (
             "--seconds-per-point",
             "-10",
-            "--seconds-per-point must be in",
+            "-10 is outside 0.001..=36000 s",
         ),
-        ("--amplitude-jitter", "nan", "--amplitude-jitter must be in"),
+        ("--amplitude-jitter", "nan", "nan is outside 0..=0.1"),
+        ("--points", "0", "0 is outside 1..=10000"),
+        (
+            "--rate-max-deg-h",
+            "-2e6",
+            "-2e6 is outside -1e6..=1e6 deg/h",
+        ),
+        ("--warmup-seconds", "inf", "inf is outside 0..=60 s"),
     ] {
         let (out, took) = rlg_sim(&["sweep", flag, value]);
         let stderr = text(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{flag} {value}: {stderr}");
-        assert!(stderr.contains(says), "{flag} {value}: {stderr}");
+        let says = format!("for '{flag} <{}>': {says}", clap_name(flag));
+        assert!(stderr.contains(&says), "{flag} {value}: {stderr}");
         assert!(took < Duration::from_secs(1), "{flag}: {took:?}");
     }
 }
@@ -293,7 +290,7 @@ fn speed_times_the_gyro_and_the_board() {
     }
     let (out, took) = rlg_sim(&["speed", "--board", "--seconds", "0"]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(text(&out.stderr).contains("--seconds must be in"));
+    assert!(text(&out.stderr).contains("'--seconds <SECONDS>': 0 is outside 0 < x <= 3600 s"));
     assert!(took < Duration::from_secs(1), "{took:?}");
 }
 
@@ -315,17 +312,17 @@ fn thermal_flags_are_range_checked() {
         (
             "--thermal-sf-ppm-per-c",
             "200",
-            "--thermal-sf-ppm-per-c must be in -100..=100",
+            "'--thermal-sf-ppm-per-c <THERMAL_SF_PPM_PER_C>': 200 is outside -100..=100 ppm per C",
         ),
         (
             "--thermal-bias-deg-h-per-c-per-min",
             "-2",
-            "--thermal-bias-deg-h-per-c-per-min must be in -1..=1",
+            "<THERMAL_BIAS_DEG_H_PER_C_PER_MIN>': -2 is outside -1..=1 deg/h per C/min",
         ),
         (
             "--thermal-eps-rad-per-c",
             "0.1",
-            "--thermal-eps-rad-per-c must be in -0.05..=0.05",
+            "'--thermal-eps-rad-per-c <THERMAL_EPS_RAD_PER_C>': 0.1 is outside -0.05..=0.05 rad per C",
         ),
     ] {
         let (out, took) = rlg_sim(&["record", "--csv", "/tmp/never.csv", flag, value]);

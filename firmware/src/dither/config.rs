@@ -55,8 +55,8 @@ pub struct DitherConfig {
 }
 
 impl DitherConfig {
-    /// The controller on `profile`'s board: its tick, pick-off, DAC and search range; a
-    /// 450 arcsec default setpoint (docs/physics.md's gyro) settable in 50-650 arcsec; the drive
+    /// The controller on `profile`'s board: its tick, pick-off, DAC and search range; the
+    /// nominal gyro's amplitude as the default setpoint, settable in 50-650 arcsec; the drive
     /// limited to the DAC's linear range ([`drive_limit_codes`]); loop crossovers 4 Hz
     /// (amplitude) and 2 Hz (frequency), integral corners a quarter of those.
     pub fn for_profile(profile: &BoardProfile) -> Self {
@@ -78,7 +78,7 @@ impl DitherConfig {
                 as u32,
             drive_lowpass_hz: profile.drive_lowpass_hz as f32,
             setpoint_range_arcsec: (50.0, 650.0),
-            default_setpoint_arcsec: 450.0,
+            default_setpoint_arcsec: profile.nominal_dither_amplitude_arcsec as f32,
             startup,
             amplitude: AmplitudeLoopConfig::new(4.0, 4.0, dither_hz, drive_limit),
             amplitude_locked: AmplitudeLoopConfig::new(

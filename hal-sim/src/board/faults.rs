@@ -21,6 +21,7 @@ use firmware::board_timing::selftest::{
     check_clock, check_timer_clock, check_timers, check_triggers, Check, ClockFlags,
     SelfTestReport, TimerAdvance, TriggerFlags,
 };
+use firmware::profile::BoardProfile;
 
 /// A periodic trigger of the board's timing chain.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -96,7 +97,7 @@ impl BoardFaults {
         report.set(Check::Timers, check_timers(advance));
         report.set(
             Check::TimerClock,
-            check_timer_clock(advance, 84_000_000, 168_000_000),
+            check_timer_clock(advance, BoardProfile::F405.timer_hz, 168_000_000),
         );
         let latch = !self.stopped(Trigger::LatchCompare);
         let tick = !self.stopped(Trigger::DriveTick);

@@ -216,10 +216,11 @@ pub struct ResonatorParams {
 }
 
 impl Default for ResonatorParams {
-    /// 389 Hz, Q = 1000, 0.06 arcsec/V, the default amplifier and DAC, no drift, at rest.
+    /// The board profile's nominal dither frequency, Q = 1000, 0.06 arcsec/V, the default
+    /// amplifier and DAC, no drift, at rest.
     fn default() -> Self {
         Self {
-            f0_hz: 389.0,
+            f0_hz: firmware::profile::BoardProfile::F405.nominal_dither_hz,
             q: 1000.0,
             piezo_gain_arcsec_per_v: 0.06,
             amplifier: AmplifierParams::default(),

@@ -21,12 +21,13 @@ pub mod input;
 pub mod output;
 pub mod synthetic;
 
+use crate::range::Range;
 use estimator::{AllanVariance, NoiseType};
 use fit::NoiseFit;
 use input::RateRecord;
 
-/// Valid confidence levels of the intervals.
-pub const CONFIDENCE_RANGE: std::ops::RangeInclusive<f64> = 0.5..=0.999;
+/// Valid two-sided confidence levels of the intervals (`--confidence`).
+pub const CONFIDENCE: Range<f64> = Range::closed("--confidence", 0.5, 0.999, "");
 
 /// One tau of the result.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -34,7 +34,8 @@ pub mod report;
 pub mod summary;
 pub mod thermal;
 
-use crate::experiment::BoardSetup;
+use crate::experiment::{BoardSetup, WARMUP_SECONDS};
+use crate::range::Range;
 use firmware::calibration::validation::chow_dead_band_rad_per_s;
 use firmware::signal::compensation::CompensationSettings;
 use hal_sim::params::GyroParams;
@@ -55,19 +56,19 @@ pub struct Configuration {
 /// What is run for each configuration.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Plan {
-    /// Largest input rate magnitude, deg/s ([`MAX_RATE_DEG_S_RANGE`]).
+    /// Largest input rate magnitude, deg/s ([`MAX_RATE_DEG_S`]).
     pub max_rate_deg_s: f64,
-    /// Log-spaced linear-range magnitudes per sign ([`POINTS_RANGE`]).
+    /// Log-spaced linear-range magnitudes per sign ([`RANGE_POINTS`]).
     pub range_points: usize,
-    /// Magnitudes near zero per sign ([`POINTS_RANGE`]).
+    /// Magnitudes near zero per sign ([`DENSE_POINTS`]).
     pub dense_points: usize,
-    /// Simulated seconds recorded per input rate ([`SECONDS_PER_POINT_RANGE`]).
+    /// Simulated seconds recorded per input rate ([`SECONDS_PER_POINT`]).
     pub seconds_per_point: f64,
-    /// Simulated seconds discarded before each recording (0..=60).
+    /// Simulated seconds discarded before each recording ([`WARMUP_SECONDS`]).
     pub warmup_s: f64,
-    /// Simulated seconds of the static (zero-input) record ([`STATIC_SECONDS_RANGE`]).
+    /// Simulated seconds of the static (zero-input) record ([`STATIC_SECONDS`]).
     pub static_s: f64,
-    /// Two-sided confidence of the noise terms' intervals (0.5..=0.999).
+    /// Two-sided confidence of the noise terms' intervals ([`crate::allan::CONFIDENCE`]).
     pub confidence: f64,
 }
 
@@ -77,13 +78,15 @@ pub struct Plan {
 /// firmware's cycle assembly holds the period (+-20 %) and lets the halves split (up to
 /// 0.1..1.9 of nominal, `CycleConfig::HALF_SPLIT`). (Its earlier half-period window of
 /// +-20 % refused every cycle from about 94 deg/s, which this command found.)
-pub const MAX_RATE_DEG_S_RANGE: std::ops::RangeInclusive<f64> = 0.1..=300.0;
-/// Valid point counts per sign.
-pub const POINTS_RANGE: std::ops::RangeInclusive<usize> = 2..=50;
+pub const MAX_RATE_DEG_S: Range<f64> = Range::closed("--max-rate-deg-s", 0.1, 300.0, "deg/s");
+/// Valid log-spaced linear-range points per sign.
+pub const RANGE_POINTS: Range<usize> = Range::closed("--range-points", 2, 50, "");
+/// Valid near-zero points per sign: as many as [`RANGE_POINTS`].
+pub const DENSE_POINTS: Range<usize> = RANGE_POINTS.for_flag("--dense-points");
 /// Valid seconds per point.
-pub const SECONDS_PER_POINT_RANGE: std::ops::RangeInclusive<f64> = 0.5..=3600.0;
-/// Valid static record lengths, s (up to 100 h).
-pub const STATIC_SECONDS_RANGE: std::ops::RangeInclusive<f64> = 10.0..=360_000.0;
+pub const SECONDS_PER_POINT: Range<f64> = Range::closed("--seconds-per-point", 0.5, 3600.0, "s");
+/// Valid static record lengths (up to 100 h).
+pub const STATIC_SECONDS: Range<f64> = Range::closed("--static-seconds", 10.0, 360_000.0, "s");
 
 impl Plan {
     /// The defaults of `rlg-sim characterize`: 100 deg/s, 8 + 16 points per sign of 5 s, a
@@ -103,46 +106,13 @@ impl Plan {
 
     /// Every field against its range; the message names the flag.
     pub fn validate(&self) -> Result<(), String> {
-        let check = |flag: &str, v: f64, r: std::ops::RangeInclusive<f64>| {
-            if v.is_finite() && r.contains(&v) {
-                Ok(())
-            } else {
-                Err(format!(
-                    "{flag} must be in {}..={}, got {v:?}",
-                    r.start(),
-                    r.end()
-                ))
-            }
-        };
-        check(
-            "--max-rate-deg-s",
-            self.max_rate_deg_s,
-            MAX_RATE_DEG_S_RANGE,
-        )?;
-        check(
-            "--seconds-per-point",
-            self.seconds_per_point,
-            SECONDS_PER_POINT_RANGE,
-        )?;
-        check("--warmup-seconds", self.warmup_s, 0.0..=60.0)?;
-        check("--static-seconds", self.static_s, STATIC_SECONDS_RANGE)?;
-        check(
-            "--confidence",
-            self.confidence,
-            crate::allan::CONFIDENCE_RANGE,
-        )?;
-        for (flag, n) in [
-            ("--range-points", self.range_points),
-            ("--dense-points", self.dense_points),
-        ] {
-            if !POINTS_RANGE.contains(&n) {
-                return Err(format!(
-                    "{flag} must be in {}..={}, got {n}",
-                    POINTS_RANGE.start(),
-                    POINTS_RANGE.end()
-                ));
-            }
-        }
+        MAX_RATE_DEG_S.check(self.max_rate_deg_s)?;
+        SECONDS_PER_POINT.check(self.seconds_per_point)?;
+        WARMUP_SECONDS.check(self.warmup_s)?;
+        STATIC_SECONDS.check(self.static_s)?;
+        crate::allan::CONFIDENCE.check(self.confidence)?;
+        RANGE_POINTS.check(self.range_points)?;
+        DENSE_POINTS.check(self.dense_points)?;
         Ok(())
     }
 }
