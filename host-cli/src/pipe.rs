@@ -8,8 +8,10 @@
 //! as ripgrep does. Restoring SIGPIPE's default action would end the process as quietly, but
 //! with status 141, which `set -o pipefail` reports as a failure.
 //!
-//! A run whose output is a pipe stops at the first failed write (the callbacks of the long
-//! runs return `ControlFlow::Break`), rather than computing what nobody reads.
+//! The runs that write rows as they come stop at the first failed write rather than compute
+//! what nobody reads (`rlg-sim record`, `rlg-cal record` and `stream`: their row callbacks
+//! return `ControlFlow::Break`); the others (`rlg-sim dither`, `sweep`) finish their run and
+//! then end quietly the same way.
 
 use crate::Failure;
 use std::fmt;
