@@ -3,61 +3,37 @@
 //!
 //! The long runs check their preconditions first ([`prepare`]: output files created, the key
 //! present for a protected step), then ask the board `id`, and stop cleanly on Ctrl-C or
-//! SIGTERM (`rlg_sim::interrupt`): `calibrate` sends `cal abort`, `stream` keeps every frame
+//! SIGTERM (`host_cli::interrupt`): `calibrate` sends `cal abort`, `stream` keeps every frame
 //! received (its CSV is written row by row), draws its SVG and prints its summary; exit 130.
 
 use crate::cli::{CalibrateArgs, Command, OnOff, RecordArgs, StreamArgs, ThermalArgs};
-use crate::Failure;
-use indicatif::{ProgressBar, ProgressStyle};
+use host_cli::output_file::{create as create_output, create_optional, Output};
+use host_cli::progress::{self, set_fraction};
+use host_cli::{interrupt, Failure};
 use rlg_cal::capture::CsvRows;
 use rlg_cal::client::{Client, ClientError};
 use rlg_cal::link::Link;
 use rlg_cal::ops::{self, CalibrateOptions};
 use rlg_cal::output::Format;
 use rlg_cal::output_capture::OutputRows;
-use rlg_sim::interrupt;
-use std::fs::File;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::ops::ControlFlow;
+use std::path::Path;
 use std::time::Duration;
 
-/// A file of a long run could not be written.
+/// A file of a long run could not be written (quietly when it is a pipe whose reader went).
 fn write_failed(path: &Path, e: std::io::Error) -> Failure {
-    Failure::Run(format!("cannot write {}: {e}", path.display()))
-}
-
-/// The progress bar of a long run (positions in thousandths of its duration).
-fn run_bar(what: &str) -> ProgressBar {
-    ProgressBar::new(1000).with_style(
-        ProgressStyle::with_template(&format!("{{bar:40}} {what} {{elapsed}}"))
-            .expect("valid template"),
-    )
+    Failure::io(format_args!("cannot write {}", path.display()), e)
 }
 
 /// Longest wait for the board's `id` before a long run.
 const PROBE_TIMEOUT: Duration = Duration::from_secs(1);
-
-/// An output file, created before the run.
-pub struct Output {
-    pub path: PathBuf,
-    pub file: File,
-}
 
 /// The output files of a long run, created before it starts.
 #[derive(Default)]
 pub struct Outputs {
     pub csv: Option<Output>,
     pub svg: Option<Output>,
-}
-
-/// Creates `path` (truncating it): a bad path is a usage error before any work.
-pub fn create_output(path: &Path) -> Result<Output, Failure> {
-    File::create(path)
-        .map(|file| Output {
-            path: path.to_owned(),
-            file,
-        })
-        .map_err(|e| Failure::Usage(format!("cannot create {}: {e}", path.display())))
 }
 
 /// The preconditions that need no board: arguments, output files, the key for a protected
@@ -70,7 +46,7 @@ pub fn prepare(command: &Command, have_key: bool) -> Result<Outputs, Failure> {
             }
             Ok(Outputs {
                 csv: Some(create_output(&args.csv)?),
-                svg: args.svg.as_deref().map(create_output).transpose()?,
+                svg: create_optional(args.svg.as_deref())?,
             })
         }
         Command::Record(args) => {
@@ -91,7 +67,7 @@ pub fn prepare(command: &Command, have_key: bool) -> Result<Outputs, Failure> {
                 .into(),
         )),
         Command::Thermal(args) => Ok(Outputs {
-            csv: args.csv.as_deref().map(create_output).transpose()?,
+            csv: create_optional(args.csv.as_deref())?,
             svg: None,
         }),
         Command::Calibrate(_) if !have_key => Err(Failure::Usage(
@@ -223,7 +199,9 @@ impl<'a, L: Link> Device<'a, L> {
                 }
                 rlg_cal::console::run(self.client).map_err(Failure::from)
             }
-            Command::Sweep(_) | Command::ServeSim(_) => unreachable!("handled before connecting"),
+            Command::Sweep(_) | Command::ServeSim(_) | Command::Completions(_) => {
+                unreachable!("handled before connecting")
+            }
         }
     }
 
@@ -234,8 +212,9 @@ impl<'a, L: Link> Device<'a, L> {
         let key = firmware::protocol::key::Key::parse_hex(&text).ok_or_else(|| {
             Failure::Usage("the key is 32 hex digits (128 bits), not all f".into())
         })?;
-        let hex = rlg_cal::sim::key_hex(&key);
-        let answer = self.client.command(&format!("key provision {hex}"))?;
+        let answer = self
+            .client
+            .command(&format!("key provision {}", key.hex()))?;
         self.print(&answer.fields(), &[]);
         Ok(())
     }
@@ -250,10 +229,7 @@ impl<'a, L: Link> Device<'a, L> {
             poll: Duration::from_millis(args.poll_ms.max(10)),
             ..CalibrateOptions::new(args.cycles, args.warmup)
         };
-        let bar = ProgressBar::new(args.cycles as u64 + args.warmup as u64).with_style(
-            ProgressStyle::with_template("{bar:40} {pos}/{len} cycles, {elapsed} (eta {eta})")
-                .expect("valid template"),
-        );
+        let bar = progress::steps(args.cycles as u64 + args.warmup as u64, false, "cycles");
         let mut announced = false;
         let result = ops::calibrate_until(
             self.client,
@@ -301,11 +277,11 @@ impl<'a, L: Link> Device<'a, L> {
              chamber's ramps or steps now; Ctrl-C stops and fits what was recorded).",
             args.seconds
         );
-        let bar = run_bar("thermal log");
+        let bar = progress::fraction(false, "thermal log");
         let (log, bad) = record_log(
             self.client,
             Duration::from_secs_f64(args.seconds),
-            &mut |fraction| bar.set_position((fraction * 1000.0) as u64),
+            &mut |fraction| set_fraction(&bar, fraction),
             stop,
         )?;
         bar.finish_and_clear();
@@ -384,14 +360,16 @@ impl<'a, L: Link> Device<'a, L> {
             args.seconds,
             csv.path.display()
         );
-        let bar = run_bar("recording");
+        let bar = progress::fraction(false, "recording");
         let result = ops::record_until(
             self.client,
             Duration::from_secs_f64(args.seconds),
-            &mut |fraction| bar.set_position((fraction * 1000.0) as u64),
-            &mut |chunk, received| {
-                if let Err(e) = rows.push_chunk(chunk, received) {
-                    row_error.get_or_insert(e);
+            &mut |fraction| set_fraction(&bar, fraction),
+            &mut |chunk, received| match rows.push_chunk(chunk, received) {
+                Ok(_) => ControlFlow::Continue(()),
+                Err(e) => {
+                    row_error = Some(e);
+                    ControlFlow::Break(())
                 }
             },
             stop,
@@ -433,7 +411,7 @@ impl<'a, L: Link> Device<'a, L> {
             );
         }
         if interrupted {
-            return Err(Failure::Client(ClientError::Interrupted {
+            return Err(Failure::from(ClientError::Interrupted {
                 what: format!(
                     "the recording after {} records (all of them in {})",
                     gaps.received,
@@ -460,15 +438,17 @@ impl<'a, L: Link> Device<'a, L> {
             args.seconds,
             csv.path.display()
         );
-        let bar = run_bar("streaming");
+        let bar = progress::fraction(false, "streaming");
         let capture = ops::stream_until(
             self.client,
             args.divider,
             Duration::from_secs_f64(args.seconds),
-            &mut |fraction| bar.set_position((fraction * 1000.0) as u64),
-            &mut |record| {
-                if let Err(e) = rows.push(record) {
-                    row_error.get_or_insert(e);
+            &mut |fraction| set_fraction(&bar, fraction),
+            &mut |record| match rows.push(record) {
+                Ok(()) => ControlFlow::Continue(()),
+                Err(e) => {
+                    row_error = Some(e);
+                    ControlFlow::Break(())
                 }
             },
             stop,
@@ -508,7 +488,7 @@ impl<'a, L: Link> Device<'a, L> {
             );
         }
         if interrupted {
-            return Err(Failure::Client(ClientError::Interrupted {
+            return Err(Failure::from(ClientError::Interrupted {
                 what: format!(
                     "the stream after {} frames (all of them in {})",
                     capture.records.len(),

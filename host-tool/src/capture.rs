@@ -14,7 +14,7 @@
 use firmware::profile::BoardProfile;
 use firmware::protocol::stream::{decode_frame, sequence_step, GapCounter, StreamRecord};
 use firmware::units::Q32_PER_FRINGE;
-use rlg_sim::plot::{Figure, Panel, Series, Style};
+use host_cli::plot::{Figure, Panel, Series, Style};
 use std::io::{self, Write};
 use std::time::{Duration, Instant};
 
@@ -163,7 +163,7 @@ impl Capture {
             }],
             width_px: 900.0,
             height_px: 500.0,
-            axes: rlg_sim::plot::Axes::Linear,
+            axes: host_cli::plot::Axes::Linear,
         }
         .to_svg()
     }

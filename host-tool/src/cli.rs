@@ -64,7 +64,7 @@ Exit status:
 /// to stdout (`key=value` lines, or one JSON object per command with `--json`), progress and
 /// errors to stderr.
 #[derive(Debug, Parser)]
-#[command(name = "rlg-cal", version, after_help = AFTER_HELP)]
+#[command(name = "rlg-cal", version, propagate_version = true, after_help = AFTER_HELP)]
 pub struct Cli {
     #[command(flatten)]
     pub connection: ConnectionArgs,
@@ -112,6 +112,7 @@ pub struct ConnectionArgs {
     pub tcp: Option<String>,
     /// A simulated board in this process. Without --sim-state it lasts for this call only.
     #[arg(long, global = true)]
+    #[cfg_attr(not(feature = "sim"), arg(hide = true))]
     pub sim: bool,
     /// Input rate of the --sim board, deg/h.
     #[arg(
@@ -122,12 +123,14 @@ pub struct ConnectionArgs {
         allow_negative_numbers = true,
         global = true
     )]
+    #[cfg_attr(not(feature = "sim"), arg(hide = true))]
     pub sim_rate: f64,
     /// The --sim board's state file (or RLG_SIM_STATE): read at start, written at exit. What
     /// lasts: the flash (stored calibrations, boot count) and the settings in force (a, b,
     /// compensation on/off, dither amplitude and noise). What does not: the unlock, a
     /// calibration run, tracking and the stream (each call is a reset of the board).
     #[arg(long, value_name = "PATH", global = true)]
+    #[cfg_attr(not(feature = "sim"), arg(hide = true))]
     pub sim_state: Option<PathBuf>,
 }
 
@@ -328,9 +331,13 @@ pub enum Command {
         words: Vec<String>,
     },
     /// Rotary-table sweep on a simulated board in this process (no connection needed).
+    #[cfg_attr(not(feature = "sim"), command(hide = true))]
     Sweep(SweepArgs),
     /// Serves a simulated board on TCP or a pty, in (scaled) real time.
+    #[cfg_attr(not(feature = "sim"), command(hide = true))]
     ServeSim(ServeArgs),
+    /// The shell completion script for bash, elvish, fish, powershell or zsh, on stdout.
+    Completions(host_cli::completions::CompletionsArgs),
 }
 
 #[derive(Debug, Args)]

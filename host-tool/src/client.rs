@@ -27,6 +27,7 @@ use crate::link::Link;
 use firmware::protocol::line::MAX_LINE;
 use firmware::protocol::parse::crc16;
 use firmware::protocol::ErrorCode;
+use host_cli::exit;
 use std::fmt;
 use std::io;
 use std::str::FromStr;
@@ -142,10 +143,10 @@ impl ClientError {
     pub fn exit_code(&self) -> u8 {
         match self {
             // The board received a garbled command: line noise.
-            Self::Device(e) if (6..=8).contains(&e.code) => 3,
-            Self::Device(_) | Self::Unexpected { .. } | Self::BadCommand(_) => 1,
-            Self::Timeout { .. } | Self::Corrupt { .. } | Self::Link(_) => 3,
-            Self::Interrupted { .. } => rlg_sim::interrupt::EXIT_STATUS,
+            Self::Device(e) if (6..=8).contains(&e.code) => exit::CONNECTION,
+            Self::Device(_) | Self::Unexpected { .. } | Self::BadCommand(_) => exit::FAILED,
+            Self::Timeout { .. } | Self::Corrupt { .. } | Self::Link(_) => exit::CONNECTION,
+            Self::Interrupted { .. } => exit::INTERRUPTED,
         }
     }
 
@@ -187,6 +188,17 @@ impl fmt::Display for ClientError {
 }
 
 impl std::error::Error for ClientError {}
+
+/// A client error ends the command with its own exit status ([`ClientError::exit_code`]) and
+/// its text; the error stays whole for the CLI (`--json` prints a board's refusal on stdout).
+impl From<ClientError> for host_cli::Failure {
+    fn from(error: ClientError) -> Self {
+        Self::Error {
+            status: error.exit_code(),
+            error: Box::new(error),
+        }
+    }
+}
 
 impl From<io::Error> for ClientError {
     fn from(e: io::Error) -> Self {
@@ -363,7 +375,7 @@ impl<L: Link> Client<L> {
         &self.link
     }
 
-    /// The link underneath, e.g. to reach the simulated board behind a [`crate::link::SimLink`].
+    /// The link underneath, e.g. to reach the simulated board behind a `SimLink`.
     pub fn link_mut(&mut self) -> &mut L {
         &mut self.link
     }

@@ -2,10 +2,12 @@
 //!
 //! [`Link`] is all the client needs: send bytes, receive what arrived within a timeout, and a
 //! clock. The real links ([`IoLink`]: a serial port or pty through the `serialport` crate, or a
-//! TCP connection) run on the wall clock. The in-process [`SimLink`] runs a [`SimDevice`] on
+//! TCP connection) run on the wall clock. The in-process `SimLink` runs a hal-sim `SimDevice` on
 //! simulated time, advanced only while the host waits or pauses, so a calibration run or a
-//! minute of streaming costs only the simulation's time, and tests are deterministic.
+//! minute of streaming costs only the simulation's time, and tests are deterministic (with the
+//! cargo feature `sim`).
 
+#[cfg(feature = "sim")]
 use hal_sim::device::SimDevice;
 use std::io::{self, Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
@@ -18,7 +20,7 @@ pub trait Link {
     /// Waits up to `timeout` for bytes and appends what arrived to `out`; returns how many
     /// (0: none within the timeout). A link closed by the other side is an error.
     fn receive(&mut self, out: &mut Vec<u8>, timeout: Duration) -> io::Result<usize>;
-    /// Time on the link's clock since it was opened (simulated time for [`SimLink`]).
+    /// Time on the link's clock since it was opened (simulated time for `SimLink`).
     fn elapsed(&self) -> Duration;
     /// Lets `duration` pass on the link's clock without reading (between polls); what arrives
     /// meanwhile is kept for the next [`receive`](Self::receive).
@@ -146,14 +148,17 @@ pub fn serial(path: &str, baud: u32) -> io::Result<IoLink<Box<dyn serialport::Se
 }
 
 /// The simulated board in this process, on simulated time.
+#[cfg(feature = "sim")]
 pub struct SimLink {
     device: SimDevice,
     start_s: f64,
 }
 
 /// Simulated time run per step while waiting for output.
+#[cfg(feature = "sim")]
 const SIM_WAIT_STEP_S: f64 = 0.005;
 
+#[cfg(feature = "sim")]
 impl SimLink {
     /// A link to `device`; its clock starts at the device's current simulated time.
     pub fn new(device: SimDevice) -> Self {
@@ -177,6 +182,7 @@ impl SimLink {
     }
 }
 
+#[cfg(feature = "sim")]
 impl Link for SimLink {
     fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
         self.device.receive(bytes);

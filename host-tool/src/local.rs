@@ -2,16 +2,15 @@
 //! time) and `serve-sim` (in real time, for other programs). Neither takes a connection from
 //! the environment; `serve-sim` takes `--tcp` as the address to listen on.
 
-use crate::board_commands::create_output;
 use crate::cli::{ConnectionArgs, RateFrom, ServeArgs, SweepArgs};
-use crate::Failure;
 use hal_sim::flash::CalibrationFlash;
+use host_cli::output_file::create_optional;
+use host_cli::{interrupt, Failure};
 use rlg_cal::client::ClientError;
 use rlg_cal::ops::CalibrateOptions;
 use rlg_cal::serve::{self, PtyEndpoint, ServeOptions, TcpEndpoint};
 use rlg_cal::sim::{self, SimInput};
 use rlg_cal::sweep::{self, RateSource, SweepOptions};
-use rlg_sim::interrupt;
 use std::io::Write;
 use std::net::TcpListener;
 use std::time::Duration;
@@ -47,18 +46,18 @@ pub fn sweep(args: &SweepArgs, connection: &ConnectionArgs) -> Result<(), Failur
         }),
         seed: args.seed,
     };
-    let csv = args.csv.as_deref().map(create_output).transpose()?;
-    let svg = args.svg.as_deref().map(create_output).transpose()?;
+    let csv = create_optional(args.csv.as_deref())?;
+    let svg = create_optional(args.svg.as_deref())?;
     let stop = interrupt::install();
     let report = sweep::sweep(&options, &mut |line| eprintln!("{line}"), stop)?;
     if let Some(fit) = &report.calibration {
-        println!("# calibration: {}", fit.text);
+        host_cli::outln!("# calibration: {}", fit.text)?;
     }
     report
         .write_csv(std::io::stdout().lock())
-        .map_err(|e| Failure::Run(format!("stdout: {e}")))?;
+        .map_err(|e| Failure::io("stdout", e))?;
     let write_failed = |path: &std::path::Path, e: std::io::Error| {
-        Failure::Run(format!("cannot write {}: {e}", path.display()))
+        Failure::io(format_args!("cannot write {}", path.display()), e)
     };
     if let Some(out) = csv {
         report
@@ -71,7 +70,7 @@ pub fn sweep(args: &SweepArgs, connection: &ConnectionArgs) -> Result<(), Failur
             .map_err(|e| write_failed(&out.path, e))?;
     }
     if report.interrupted {
-        return Err(Failure::Client(ClientError::Interrupted {
+        return Err(Failure::from(ClientError::Interrupted {
             what: format!(
                 "the sweep after {} of {} azimuths (those are written)",
                 report.points.len(),
@@ -141,7 +140,8 @@ pub fn serve(args: &ServeArgs, connection: &ConnectionArgs) -> Result<(), Failur
     };
     let stop = interrupt::install();
     let announce = |where_: &str| {
-        println!("{where_}");
+        // The address for a program that reads it; nobody reading is no reason to stop.
+        let _ = host_cli::outln!("{where_}");
         let _ = std::io::stdout().flush();
         eprintln!(
             "rlg-cal: a simulated board is served on {where_}: {}, running at {} times real time; \
@@ -173,7 +173,7 @@ pub fn serve(args: &ServeArgs, connection: &ConnectionArgs) -> Result<(), Failur
     };
     served.map_err(|e| Failure::Connect(format!("serving: {e}")))?;
     if interrupt::requested() {
-        return Err(Failure::Client(ClientError::Interrupted {
+        return Err(Failure::from(ClientError::Interrupted {
             what: "serve-sim stopped; the simulated board is gone".into(),
         }));
     }

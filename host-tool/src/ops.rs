@@ -4,6 +4,7 @@ use crate::capture::{Capture, RateScale};
 use crate::client::{Answer, Client, ClientError};
 use crate::link::Link;
 use firmware::protocol::stream::StreamRecord;
+use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
@@ -192,25 +193,26 @@ pub fn stream<L: Link>(
     duration: Duration,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Capture, ClientError> {
-    stream_until(client, divider, duration, progress, &mut |_| {}, &NEVER)
+    let mut each = |_: &StreamRecord| ControlFlow::Continue(());
+    stream_until(client, divider, duration, progress, &mut each, &NEVER)
 }
 
 /// [`stream`], handing each valid record to `on_record` as it arrives, and ending early (as if
 /// the time were up: the stream stopped, the frames in flight kept) when `stop` is set; the
-/// caller tells an interrupted capture by the flag.
+/// caller tells an interrupted capture by the flag. `on_record` returning `Break` (its output
+/// cannot be written) ends the stream too, and no record is handed to it after.
 pub fn stream_until<L: Link>(
     client: &mut Client<L>,
     divider: u16,
     duration: Duration,
     progress: &mut dyn FnMut(f64),
-    on_record: &mut dyn FnMut(&StreamRecord),
+    on_record: &mut dyn FnMut(&StreamRecord) -> ControlFlow<()>,
     stop: &AtomicBool,
 ) -> Result<Capture, ClientError> {
     let mut capture = Capture::new(divider);
-    let on_chunk = &mut |chunk: &[u8], _received: Duration| {
-        if let Some(record) = capture.push_chunk(chunk) {
-            on_record(record);
-        }
+    let on_chunk = &mut |chunk: &[u8], _received: Duration| match capture.push_chunk(chunk) {
+        Some(record) => on_record(record),
+        None => ControlFlow::Continue(()),
     };
     let command = format!("stream on {divider}");
     chunks_until(client, &command, duration, progress, on_chunk, stop)?;
@@ -218,30 +220,41 @@ pub fn stream_until<L: Link>(
 }
 
 /// The board's fixed-rate output for `duration` (`stream output`): every chunk to `on_chunk`
-/// as it arrives, with the link's clock then, ending early when `stop` is set.
+/// as it arrives, with the link's clock then, ending early when `stop` is set or `on_chunk`
+/// returns `Break`.
 pub fn record_until<L: Link>(
     client: &mut Client<L>,
     duration: Duration,
     progress: &mut dyn FnMut(f64),
-    on_chunk: &mut dyn FnMut(&[u8], Duration),
+    on_chunk: &mut dyn FnMut(&[u8], Duration) -> ControlFlow<()>,
     stop: &AtomicBool,
 ) -> Result<(), ClientError> {
     chunks_until(client, "stream output", duration, progress, on_chunk, stop)
 }
 
-/// One binary stream (`command` switches it on) for `duration` or until `stop`: every
-/// 0x00-delimited chunk to `on_chunk` as it arrives, with the link's clock then; the stream is
-/// switched off and the frames in flight handed over before it returns.
+/// One binary stream (`command` switches it on) for `duration`, until `stop`, or until
+/// `on_chunk` returns `Break`: every 0x00-delimited chunk to `on_chunk` as it arrives, with the
+/// link's clock then; the stream is switched off and the frames in flight handed over (unless
+/// `on_chunk` wants no more) before it returns.
 fn chunks_until<L: Link>(
     client: &mut Client<L>,
     command: &str,
     duration: Duration,
     progress: &mut dyn FnMut(f64),
-    on_chunk: &mut dyn FnMut(&[u8], Duration),
+    on_chunk: &mut dyn FnMut(&[u8], Duration) -> ControlFlow<()>,
     stop: &AtomicBool,
 ) -> Result<(), ClientError> {
     client.command(command)?;
     let start = client.elapsed();
+    let mut wanted = true;
+    // Hands the frames received to `on_chunk` while it wants them; false once it does not.
+    let mut hand_over = |client: &mut Client<L>| {
+        let received = client.elapsed();
+        for chunk in client.take_frames() {
+            wanted = wanted && on_chunk(&chunk, received).is_continue();
+        }
+        wanted
+    };
     let result = (|| -> Result<(), ClientError> {
         loop {
             let elapsed = client.elapsed().saturating_sub(start);
@@ -250,17 +263,13 @@ fn chunks_until<L: Link>(
             }
             progress(elapsed.as_secs_f64() / duration.as_secs_f64());
             client.poll((duration - elapsed).min(Duration::from_millis(100)))?;
-            let received = client.elapsed();
-            for chunk in client.take_frames() {
-                on_chunk(&chunk, received);
+            if !hand_over(client) {
+                return Ok(());
             }
         }
     })();
     let stopped = client.command("stream off");
-    let received = client.elapsed();
-    for chunk in client.take_frames() {
-        on_chunk(&chunk, received);
-    }
+    hand_over(client);
     result?;
     stopped?;
     Ok(())

@@ -60,7 +60,7 @@ pub fn test_key() -> Key {
 
 /// A key as typed: 32 lower-case hex digits.
 pub fn key_hex(key: &Key) -> String {
-    key.to_bytes().iter().map(|b| format!("{b:02x}")).collect()
+    key.hex().to_string()
 }
 
 /// What the simulated gyro measures.

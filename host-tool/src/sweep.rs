@@ -21,7 +21,7 @@ use crate::sim::{self, SimInput};
 use hal_sim::flash::CalibrationFlash;
 use hal_sim::input::earth_rate_on_horizontal_axis_deg_per_h;
 use hal_sim::units::EARTH_RATE_SOLAR_DEG_PER_H;
-use rlg_sim::plot::{Figure, Panel, Series, Style};
+use host_cli::plot::{Figure, Panel, Series, Style};
 use std::io::{self, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
@@ -277,7 +277,7 @@ impl SweepReport {
             ],
             width_px: 900.0,
             height_px: 650.0,
-            axes: rlg_sim::plot::Axes::Linear,
+            axes: host_cli::plot::Axes::Linear,
         }
         .to_svg()
     }

@@ -403,12 +403,15 @@ pub fn record_log<L: Link>(
         client,
         duration,
         progress,
-        &mut |chunk, _| match decoder.decode(chunk) {
-            Ok(OutputStreamFrame::Record(r)) => {
-                log.push(&r, scale.timer_hz, scale.scale_factor_arcsec)
+        &mut |chunk, _| {
+            match decoder.decode(chunk) {
+                Ok(OutputStreamFrame::Record(r)) => {
+                    log.push(&r, scale.timer_hz, scale.scale_factor_arcsec)
+                }
+                Ok(OutputStreamFrame::Thermal(_)) => {}
+                Err(_) => bad += 1,
             }
-            Ok(OutputStreamFrame::Thermal(_)) => {}
-            Err(_) => bad += 1,
+            std::ops::ControlFlow::Continue(())
         },
         stop,
     )?;

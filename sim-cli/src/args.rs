@@ -22,6 +22,7 @@ pub use rlg_sim::experiment::PAPER_RANGE_DEG_H;
 #[command(
     name = "rlg-sim",
     version,
+    propagate_version = true,
     about = "Simulated ring laser gyro with the readout firmware's own signal chain in the loop",
     long_about = "Simulates a mechanically dithered ring laser gyro (the phase equation with lock-in, \
 sine dither, photodiodes, counter) and runs the board firmware's signal chain on it: fringe \
@@ -54,6 +55,8 @@ pub enum Command {
     /// asymmetry, bias, threshold / dead band, ARW, bias instability) and their report in
     /// --out; --compare runs compensation off, on and random-noise dither side by side.
     Characterize(CharacterizeArgs),
+    /// The shell completion script for bash, elvish, fish, powershell or zsh, on stdout.
+    Completions(host_cli::completions::CompletionsArgs),
 }
 
 /// How the dither is made.

@@ -9,8 +9,10 @@
 //! without a report (its figures would be of an incomplete test).
 
 use crate::args::{self, CharacterizeArgs, OnOff};
-use crate::{calibrate_board, progress, use_jobs, Failure};
+use crate::{calibrate_board, use_jobs};
 use firmware::signal::compensation::CompensationSettings;
+use host_cli::progress;
+use host_cli::{out, outln, Failure};
 use rlg_sim::characterize::report::{self, Context};
 use rlg_sim::characterize::summary::{self, SLUG_NOISE, SLUG_OFF, SLUG_ON};
 use rlg_sim::characterize::{dead_band_theory, procedure, Configuration};
@@ -111,11 +113,10 @@ pub fn characterize(args: &CharacterizeArgs) -> Result<(), Failure> {
     let mut static_out: Vec<Box<dyn Write + Send>> = Vec::new();
     for slug in &slugs {
         let path = out.join(format!("static_{slug}.csv"));
-        let file = std::fs::File::create(&path)
-            .map_err(|e| Failure::Usage(format!("--out: cannot create {}: {e}", path.display())))?;
+        let file = host_cli::output_file::create(&path)?.file;
         static_out.push(Box::new(std::io::BufWriter::new(file)));
     }
-    let stop = rlg_sim::interrupt::install();
+    let stop = host_cli::interrupt::install();
     use_jobs(args.jobs)?;
     let compensates = args.compare || args.compensation == OnOff::On;
     let (settings, calibration) = if compensates {
@@ -142,7 +143,7 @@ pub fn characterize(args: &CharacterizeArgs) -> Result<(), Failure> {
     }
     let configurations = configurations(args, setup, settings);
     let total_s = procedure::gyro_seconds(&plan) * configurations.len() as f64;
-    let bar = progress((total_s * 10.0).ceil() as u64, args.quiet, "gyro 0.1 s");
+    let bar = progress::steps((total_s * 10.0).ceil() as u64, args.quiet, "gyro 0.1 s");
     let started = std::time::Instant::now();
     let outcome = procedure::run(
         &params,
@@ -154,7 +155,7 @@ pub fn characterize(args: &CharacterizeArgs) -> Result<(), Failure> {
     )
     .map_err(Failure::Run)?;
     bar.finish_and_clear();
-    let io = |e: std::io::Error| Failure::Run(format!("--out {}: {e}", out.display()));
+    let io = |e: std::io::Error| Failure::io(format_args!("--out {}", out.display()), e);
     if outcome.interrupted {
         report::write_points(out, &outcome).map_err(io)?;
         let points: usize = outcome.results.iter().map(|r| r.points.len()).sum();
@@ -197,9 +198,9 @@ pub fn characterize(args: &CharacterizeArgs) -> Result<(), Failure> {
     };
     let ctx = Context { thermal, ..ctx };
     let written = report::write(out, &outcome, &ctx).map_err(io)?;
-    print!("{}", summary::table(&outcome.results));
+    out!("{}", summary::table(&outcome.results))?;
     for c in summary::conclusions(&outcome.results) {
-        println!("\n{c}");
+        outln!("\n{c}")?;
     }
     if let Some((thermal, _)) = &ctx.thermal {
         let r = &thermal.ramp;
@@ -211,7 +212,7 @@ pub fn characterize(args: &CharacterizeArgs) -> Result<(), Failure> {
                 .map(f64::abs)
                 .fold(0.0, f64::max)
         };
-        println!(
+        outln!(
             "\nover temperature: ramp bias rms {:.5} -> {:.5} deg/h with the model; soaks: bias \
              worst {:.5} -> {:.5} deg/h, scale factor worst {:.3} -> {:.3} ppm",
             r.raw_rms_all_deg_h,
@@ -220,7 +221,7 @@ pub fn characterize(args: &CharacterizeArgs) -> Result<(), Failure> {
             worst(|p| p.bias_compensated_deg_h),
             worst(|p| p.scale_factor_raw_ppm),
             worst(|p| p.scale_factor_compensated_ppm)
-        );
+        )?;
     }
     eprintln!(
         "{:.0} gyro-seconds in {:.1} s; wrote {} files to {}",

@@ -318,8 +318,8 @@ fn state_level(state: DitherState) -> f64 {
 
 /// The figure: amplitude against its setpoint, drive frequency against the resonance, and the
 /// firmware's state, against time.
-pub fn figure(rows: &[DitherRow], options: &DitherRunOptions) -> crate::plot::Figure {
-    use crate::plot::{Figure, Panel, Series, Style};
+pub fn figure(rows: &[DitherRow], options: &DitherRunOptions) -> host_cli::plot::Figure {
+    use host_cli::plot::{Figure, Panel, Series, Style};
     let pts = |f: &dyn Fn(&DitherRow) -> f64| rows.iter().map(|r| (r.t_s, f(r))).collect();
     let end = rows.last().map_or(0.0, |r| r.t_s);
     Figure {
@@ -333,7 +333,7 @@ pub fn figure(rows: &[DitherRow], options: &DitherRunOptions) -> crate::plot::Fi
         x_label: "time (s)".into(),
         width_px: 900.0,
         height_px: 900.0,
-        axes: crate::plot::Axes::Linear,
+        axes: host_cli::plot::Axes::Linear,
         panels: vec![
             Panel {
                 title: "amplitude (simulator's truth)".into(),

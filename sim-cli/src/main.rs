@@ -4,8 +4,10 @@
 //! Figs. 3 and 4); `rlg-sim speed` measures the simulator; `rlg-sim allan` computes the Allan
 //! deviation and the noise terms of a recorded rate (`rlg_sim::allan`); `rlg-sim
 //! characterize` runs the IEEE Std 647 procedures and writes their report
-//! (`rlg_sim::characterize`). Results go to stdout, diagnostics and errors to stderr; exit
-//! status 0 on success, 1 on a failed run, 2 on bad arguments, 130 on Ctrl-C.
+//! (`rlg_sim::characterize`); `rlg-sim completions <shell>` prints a shell completion script.
+//! Results go to stdout, diagnostics and errors to stderr; exit status 0 on success (and when
+//! the reader of stdout goes away, as `head` does), 1 on a failed run, 2 on bad arguments, 130
+//! on Ctrl-C (`host_cli::exit`).
 
 mod args;
 mod characterize_cmd;
@@ -19,7 +21,9 @@ use firmware::signal::compensation::CompensationSettings;
 use hal_sim::gyro::measure_speed;
 use hal_sim::input::InputProfile;
 use hal_sim::params::{AmplitudeModulation, GyroParams};
-use indicatif::{ProgressBar, ProgressStyle};
+use host_cli::output_file::{self, check_folder};
+use host_cli::progress::steps as progress;
+use host_cli::{out, outln, Failure};
 use rayon::prelude::*;
 use rlg_sim::dither_run::{self, DitherRunOptions};
 use rlg_sim::experiment::{
@@ -42,29 +46,9 @@ fn main() -> ExitCode {
         Command::Record(args) => record(&args),
         Command::Allan(args) => allan(&args),
         Command::Characterize(args) => characterize_cmd::characterize(&args),
+        Command::Completions(args) => host_cli::completions::print::<Cli>(&args),
     };
-    match outcome {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(Failure::Usage(msg)) => {
-            eprintln!("rlg-sim: error: {msg}");
-            ExitCode::from(2)
-        }
-        Err(Failure::Run(msg)) => {
-            eprintln!("rlg-sim: {msg}");
-            ExitCode::from(1)
-        }
-        Err(Failure::Interrupted(msg)) => {
-            eprintln!("rlg-sim: interrupted: {msg}");
-            ExitCode::from(rlg_sim::interrupt::EXIT_STATUS)
-        }
-    }
-}
-
-enum Failure {
-    Usage(String),
-    Run(String),
-    /// Ctrl-C or SIGTERM (exit 130), after what was done is written.
-    Interrupted(String),
+    host_cli::exit::exit("rlg-sim", outcome)
 }
 
 impl GyroArgs {
@@ -88,33 +72,6 @@ impl GyroArgs {
     }
 }
 
-fn progress(len: u64, quiet: bool, what: &str) -> ProgressBar {
-    if quiet {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::new(len);
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{msg:>12} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar())
-        .progress_chars("=> "),
-    );
-    bar.set_message(what.to_string());
-    bar
-}
-
-/// A precondition of a long run: the output file can be created (it is, empty, and written at
-/// the end), so a bad path is a usage error at once, not after the run.
-fn check_output(path: Option<&std::path::PathBuf>) -> Result<(), Failure> {
-    match path {
-        Some(path) => std::fs::File::create(path)
-            .map(drop)
-            .map_err(|e| Failure::Usage(format!("cannot create {}: {e}", path.display()))),
-        None => Ok(()),
-    }
-}
-
 /// Runs the parallel points on `jobs` threads (`--jobs`; at least one), or one per core.
 fn use_jobs(jobs: Option<usize>) -> Result<(), Failure> {
     if let Some(jobs) = jobs {
@@ -129,10 +86,11 @@ fn use_jobs(jobs: Option<usize>) -> Result<(), Failure> {
 fn sweep(args: &SweepArgs) -> Result<(), Failure> {
     args.validate().map_err(Failure::Usage)?;
     let params = args.gyro.params()?;
-    check_output(args.csv.as_ref())?;
-    check_output(args.svg.as_ref())?;
+    // Preconditions: the outputs can be created (they are, empty, and written at the end).
+    output_file::create_optional(args.csv.as_deref())?;
+    output_file::create_optional(args.svg.as_deref())?;
     // Ctrl-C: the points under way finish, the rest are skipped, and what was done is written.
-    let stop = rlg_sim::interrupt::install();
+    let stop = host_cli::interrupt::install();
     use_jobs(args.jobs)?;
     // Step 2 of the paper: calibrate outside the dead band.
     let setup = args.board.setup();
@@ -176,20 +134,19 @@ fn sweep(args: &SweepArgs) -> Result<(), Failure> {
         .collect();
     bar.finish_and_clear();
     let rows: Vec<SweepRow> = rows.map_err(Failure::Run)?.into_iter().flatten().collect();
-    print!("{}", report::table(&rows, sf));
+    out!("{}", report::table(&rows, sf))?;
     let worst = |f: fn(&SweepRow) -> f64| {
         rows.iter()
             .map(|r| (f(r) - r.ideal_hz).abs() * sf)
             .fold(0.0, f64::max)
     };
-    println!(
+    outln!(
         "max |output - ideal|: uncompensated {:.4} deg/h, compensated {:.5} deg/h",
         worst(|r| r.uncompensated_hz),
         worst(|r| r.compensated_hz)
-    );
+    )?;
     if let Some(path) = &args.csv {
-        report::write_csv(path, &rows)
-            .map_err(|e| Failure::Run(format!("{}: {e}", path.display())))?;
+        report::write_csv(path, &rows).map_err(|e| Failure::io(path.display(), e))?;
         eprintln!("wrote {}", path.display());
     }
     if let Some(path) = &args.svg {
@@ -198,7 +155,7 @@ fn sweep(args: &SweepArgs) -> Result<(), Failure> {
             args.gyro.lock_in_deg_h, args.gyro.dither_amplitude_arcsec, args.gyro.dither_hz
         );
         std::fs::write(path, report::figure(&rows, sf, &title).to_svg())
-            .map_err(|e| Failure::Run(format!("{}: {e}", path.display())))?;
+            .map_err(|e| Failure::io(path.display(), e))?;
         eprintln!("wrote {}", path.display());
     }
     if rows.len() < rates.len() {
@@ -253,14 +210,13 @@ fn calibrate_board(
 
 /// `rlg-sim record`: calibrate, then write the board's fixed-rate output as it comes. The CSV
 /// is created before the long work starts; rows are flushed at least once a second of wall
-/// time; Ctrl-C (SIGINT) stops the run cleanly with every row so far on disk (exit 130).
+/// time; Ctrl-C (SIGINT) stops the run cleanly with every row so far on disk (exit 130). A CSV
+/// whose reader has gone (`--csv /dev/stdout | head`) stops the run at once, exit 0.
 fn record(args: &RecordArgs) -> Result<(), Failure> {
     args.validate().map_err(Failure::Usage)?;
     let params = args.gyro.params()?;
-    let file = std::fs::File::create(&args.csv)
-        .map_err(|e| Failure::Usage(format!("{}: {e}", args.csv.display())))?;
-    let mut out = std::io::BufWriter::new(file);
-    let io = |e: std::io::Error| Failure::Run(format!("{}: {e}", args.csv.display()));
+    let mut out = std::io::BufWriter::new(output_file::create(&args.csv)?.file);
+    let io = |e: std::io::Error| Failure::io(args.csv.display(), e);
     // With a temperature profile, the temperature each record carries (the board's sensor;
     // empty while it has none).
     let with_temperature = args.gyro.thermal.temperature_profile.is_some();
@@ -270,7 +226,7 @@ fn record(args: &RecordArgs) -> Result<(), Failure> {
     } else {
         writeln!(out, "{header}").map_err(io)?;
     }
-    let stop = rlg_sim::interrupt::install();
+    let stop = host_cli::interrupt::install();
     let setup = args.board.setup();
     let settings = calibrate_board(
         &params,
@@ -333,11 +289,14 @@ fn record(args: &RecordArgs) -> Result<(), Failure> {
         return Err(io(e));
     }
     let sf = params.scale_factor_arcsec;
-    println!(
+    outln!(
         "recorded {:.1} s: {} rows ({} invalid), rms(board - true) {:.4} arcsec per row",
-        summary.recorded_s, summary.rows, summary.invalid_rows, summary.rms_error_arcsec
-    );
-    println!(
+        summary.recorded_s,
+        summary.rows,
+        summary.invalid_rows,
+        summary.rms_error_arcsec
+    )?;
+    outln!(
         "K = {:.6} fringes/code ({:.5} arcsec/code at {sf} arcsec/fringe), std {:.1e} relative, {}",
         summary.strip.k,
         f64::from(summary.strip.k) * sf,
@@ -347,7 +306,7 @@ fn record(args: &RecordArgs) -> Result<(), Failure> {
         } else {
             "not converged"
         }
-    );
+    )?;
     eprintln!("wrote {}", args.csv.display());
     if summary.interrupted && stop.load(Ordering::Relaxed) {
         return Err(Failure::Interrupted(format!(
@@ -402,10 +361,11 @@ fn speed(args: &SpeedArgs) -> Result<(), Failure> {
     let cpu = speed
         .gyro_s_per_cpu_s
         .map_or(String::new(), |c| format!(", {c:.1} per CPU-second"));
-    println!(
+    outln!(
         "simulated {:.1} gyro-s of {what}: {:.1} gyro-seconds per wall-second{cpu} (one core)",
-        args.seconds, speed.gyro_s_per_wall_s
-    );
+        args.seconds,
+        speed.gyro_s_per_wall_s
+    )?;
     Ok(())
 }
 
@@ -422,19 +382,12 @@ fn dither(args: &DitherArgs) -> Result<(), Failure> {
     };
     options.validate().map_err(Failure::Usage)?;
     // Preconditions before the run: the output files can be created.
-    let mut csv = match &args.csv {
-        Some(path) => Some(std::io::BufWriter::new(
-            std::fs::File::create(path)
-                .map_err(|e| Failure::Usage(format!("{}: {e}", path.display())))?,
-        )),
-        None => None,
-    };
-    if let Some(path) = &args.svg {
-        std::fs::File::create(path)
-            .map_err(|e| Failure::Usage(format!("{}: {e}", path.display())))?;
-    }
+    let mut csv =
+        output_file::create_optional(args.csv.as_deref())?.map(|o| std::io::BufWriter::new(o.file));
+    output_file::create_optional(args.svg.as_deref())?;
+    let csv_failed = |e| Failure::io("writing the CSV", e);
     if let Some(w) = csv.as_mut() {
-        writeln!(w, "{}", dither_run::CSV_HEADER).map_err(|e| Failure::Run(e.to_string()))?;
+        writeln!(w, "{}", dither_run::CSV_HEADER).map_err(csv_failed)?;
     }
     let bar = progress((args.seconds * args.dither_hz) as u64, args.quiet, "dither");
     let mut rows = Vec::new();
@@ -458,26 +411,26 @@ fn dither(args: &DitherArgs) -> Result<(), Failure> {
     })
     .map_err(Failure::Run)?;
     bar.finish_and_clear();
-    if let Some(mut w) = csv {
-        w.flush().map_err(|e| Failure::Run(e.to_string()))?;
-    }
     if let Some(e) = write_error {
-        return Err(Failure::Run(format!("writing the CSV: {e}")));
+        return Err(csv_failed(e));
+    }
+    if let Some(mut w) = csv {
+        w.flush().map_err(csv_failed)?;
     }
     let opt = |v: Option<f64>| v.map_or("never".to_string(), |t| format!("{t:.3} s"));
-    println!(
+    outln!(
         "settled within 1 % of {} arcsec at {} (overshoot {:.2} %), locked at {}",
         options.setpoint_arcsec,
         opt(summary.settle_s),
         summary.overshoot_percent,
         opt(summary.locked_s)
-    );
-    println!(
+    )?;
+    outln!(
         "amplitude error after settling: {:.4} % rms; largest |drive - resonance| while locked: {:.5} Hz",
         summary.amplitude_rms_error_percent, summary.max_frequency_error_hz
-    );
+    )?;
     if summary.fault_s.is_some() || options.pickoff_lost_at_s.is_some() {
-        println!(
+        outln!(
             "fault {} at {}; at the end: drive level {:.4} of full scale, amplitude {:.1} arcsec",
             summary
                 .fault
@@ -485,14 +438,14 @@ fn dither(args: &DitherArgs) -> Result<(), Failure> {
             opt(summary.fault_s),
             summary.final_drive_level,
             summary.final_amplitude_arcsec
-        );
+        )?;
     }
     if let Some(path) = &args.csv {
         eprintln!("wrote {}", path.display());
     }
     if let Some(path) = &args.svg {
         std::fs::write(path, dither_run::figure(&rows, &options).to_svg())
-            .map_err(|e| Failure::Run(format!("{}: {e}", path.display())))?;
+            .map_err(|e| Failure::io(path.display(), e))?;
         eprintln!("wrote {}", path.display());
     }
     Ok(())
@@ -504,17 +457,7 @@ fn allan(args: &AllanArgs) -> Result<(), Failure> {
     // The output paths' folders must exist; nothing is created or truncated before the input
     // has been read and analysed (a bad record changes nothing).
     for path in [&args.csv, &args.svg].into_iter().flatten() {
-        let folder = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => std::path::Path::new("."),
-        };
-        if !folder.is_dir() {
-            return Err(Failure::Usage(format!(
-                "cannot write {}: no folder {}",
-                path.display(),
-                folder.display()
-            )));
-        }
+        check_folder(path)?;
     }
     let name = args.input.display();
     let file = std::fs::File::open(&args.input)
@@ -523,10 +466,10 @@ fn allan(args: &AllanArgs) -> Result<(), Failure> {
         .map_err(|e| Failure::Run(format!("{name}: {e}")))?;
     let analysis = analyse(&record, args.confidence, args.min_fit_tau_s)
         .map_err(|e| Failure::Run(format!("{name}: {e}")))?;
-    println!("# {name}: {}", output::record_summary(&record));
-    print!("{}", output::table(&analysis));
+    outln!("# {name}: {}", output::record_summary(&record))?;
+    out!("{}", output::table(&analysis))?;
     let write = |path: &std::path::PathBuf, text: String| {
-        std::fs::write(path, text).map_err(|e| Failure::Run(format!("{}: {e}", path.display())))
+        std::fs::write(path, text).map_err(|e| Failure::io(path.display(), e))
     };
     if let Some(path) = &args.csv {
         write(path, output::csv(&analysis))?;

@@ -1,7 +1,7 @@
 //! Sweep results: the table on stdout, the CSV, and the figure (the paper's Fig. 3 and Fig. 4
 //! in one plot, with a residual panel).
 
-use crate::plot::{Figure, Panel, Series, Style};
+use host_cli::plot::{Figure, Panel, Series, Style};
 use std::io::Write;
 use std::path::Path;
 
@@ -69,7 +69,7 @@ pub fn figure(rows: &[SweepRow], scale_factor_arcsec: f64, title: &str) -> Figur
         x_label: "input rate (deg/h)".into(),
         width_px: 900.0,
         height_px: 960.0,
-        axes: crate::plot::Axes::Linear,
+        axes: host_cli::plot::Axes::Linear,
         panels: vec![
             Panel {
                 title: "gyro output (Fig. 3 uncompensated, Fig. 4 compensated)".into(),

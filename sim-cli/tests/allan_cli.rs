@@ -2,12 +2,15 @@
 //! the table, the CSV and the SVG; bad files and flags refused with the line or the flag.
 
 mod support;
+/// Records with known noise terms: the library's test-only generator, the same file.
+#[path = "../src/allan/synthetic.rs"]
+mod synthetic;
 
-use rlg_sim::allan::synthetic::{NoiseTerms, Synthetic};
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
 use support::{rlg_sim, text};
+use synthetic::{NoiseTerms, Synthetic};
 
 fn scratch(name: &str) -> PathBuf {
     std::env::temp_dir().join(format!("rlg-sim-allan-{}-{name}", std::process::id()))

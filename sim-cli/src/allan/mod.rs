@@ -9,7 +9,8 @@
 //!   to it, with intervals;
 //! - [`chi2`]: the chi-squared quantiles of the intervals;
 //! - [`output`]: the table, the CSV and the log-log figure;
-//! - [`synthetic`]: records with known terms, for the tests.
+//! - `synthetic`: records with known terms, for the tests (compiled for them only; the CLI's
+//!   tests include the same file).
 //!
 //! [`analyse`] ties them: each tau's interval is the chi-squared interval of its EDF under the
 //! fitted model (each term's share with its noise type's EDF).
@@ -19,6 +20,7 @@ pub mod estimator;
 pub mod fit;
 pub mod input;
 pub mod output;
+#[cfg(test)]
 pub mod synthetic;
 
 use crate::range::Range;

@@ -9,7 +9,7 @@ use super::estimator::NoiseType;
 use super::fit::{Term, FLOOR_FACTOR};
 use super::input::RateRecord;
 use super::Analysis;
-use crate::plot::{Axes, Figure, Panel, Series, Style};
+use host_cli::plot::{Axes, Figure, Panel, Series, Style};
 use std::fmt::Write;
 
 /// The CSV header.

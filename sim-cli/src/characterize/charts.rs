@@ -1,11 +1,11 @@
-//! The report's SVG figures (drawn by [`crate::plot`]): the scale-factor residuals against
+//! The report's SVG figures (drawn by [`host_cli::plot`]): the scale-factor residuals against
 //! the input rate, and the output near zero with the dead band. The Allan deviation plots are
 //! the `allan` module's own ([`crate::allan::output::figure`]).
 
 use super::figures::{resolved, RatePoint};
 use super::procedure::ConfigurationResult;
 use crate::allan::output::adev_figure;
-use crate::plot::{Axes, Figure, Panel, Series, Style};
+use host_cli::plot::{Axes, Figure, Panel, Series, Style};
 
 /// One colour per configuration, in order.
 const COLORS: [&str; 4] = ["#d62728", "#1f77b4", "#2ca02c", "#9467bd"];

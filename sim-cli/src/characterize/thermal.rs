@@ -2,8 +2,8 @@
 //! ([`crate::thermal::procedure`]: the thermal calibration, then its check with the model off
 //! and on), written as `thermal.csv`, `thermal.svg` and the report's section.
 
-use crate::plot::{Axes, Figure, Panel, Series, Style};
 use crate::thermal::procedure::{ThermalOutcome, ThermalPlan};
+use host_cli::plot::{Axes, Figure, Panel, Series, Style};
 use std::fmt::Write as _;
 
 /// `thermal.csv`'s header (one row per check soak).

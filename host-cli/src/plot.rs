@@ -1,14 +1,12 @@
 //! Line charts as SVG, drawn with `plotters` (SVG backend only): stacked panels sharing one x
 //! axis, for the paper's figures (output vs input with residual panels, `rlg-sim sweep`) and
-//! streamed rates (`rlg-cal stream`, `rlg-cal sweep`). The one plotting module of the project:
-//! the host tool uses it through `rlg_sim::plot`.
+//! streamed rates (`rlg-cal stream`, `rlg-cal sweep`). The one plotting module of the project.
 //!
 //! The description ([`Figure`], [`Panel`], [`Series`]) is plain data; [`Figure::to_svg`] lays
 //! it out: panel heights by weight, one x range over all panels, each panel its own y range
 //! (padded 5 %), tick labels on the bottom panel only, a legend per panel. plotters chooses
-//! the ticks and writes the SVG; non-finite points are skipped. Earlier this was ~250 lines of
-//! hand-written SVG; plotters (4 small crates, no font or rendering library with these
-//! features) does the axes, ticks, legends and escaping.
+//! the ticks and writes the SVG; non-finite points are skipped. plotters (4 small crates, no
+//! font or rendering library with these features) does the axes, ticks, legends and escaping.
 
 use plotters::prelude::*;
 

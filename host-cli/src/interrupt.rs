@@ -3,7 +3,8 @@
 //! A long command (a stream, a calibration, a sweep, a served board) installs the handler once
 //! ([`install`]) and polls [`requested`] between its steps; on a request it stops what it is
 //! doing the way a finished run would (the board told, files completed, the summary printed)
-//! and exits with [`EXIT_STATUS`] (128 + SIGINT, what a shell reports for a killed process).
+//! and exits with [`crate::exit::INTERRUPTED`] (130, what a shell reports for a process killed
+//! by Ctrl-C), through [`crate::Failure::Interrupted`] or the CLI's own error carrying it.
 //!
 //! The handler only stores to an atomic, the one thing a signal handler may do safely. It is
 //! installed with `SA_RESETHAND`: a second Ctrl-C gets the default action and ends the process
@@ -11,9 +12,6 @@
 //! returns `EINTR` at once, which the links treat as "nothing yet".
 
 use std::sync::atomic::{AtomicBool, Ordering};
-
-/// Exit status of a run ended by SIGINT or SIGTERM.
-pub const EXIT_STATUS: u8 = 130;
 
 static REQUESTED: AtomicBool = AtomicBool::new(false);
 
