@@ -28,7 +28,7 @@
 //! at the next cycle boundary. Everything here is plain data in, data out: the host simulator
 //! calls exactly these functions.
 
-use crate::sample::{OutputSample, TurnaroundSample};
+use crate::sample::{AdcCode, OutputSample, TurnaroundSample};
 use crate::signal::compensation::{CompensationSettings, Compensator};
 use crate::signal::count::{CountUpdate, CounterWidth, FringeCountConfig, FringeCounter};
 use crate::signal::fringe::{
@@ -155,7 +155,12 @@ impl Readout {
     }
 
     /// One photodiode conversion pair taken at an arbitrary instant.
-    pub fn on_lissajous_sample(&mut self, config: &ReadoutConfig, a_code: u16, b_code: u16) {
+    pub fn on_lissajous_sample(
+        &mut self,
+        config: &ReadoutConfig,
+        a_code: AdcCode,
+        b_code: AdcCode,
+    ) {
         match self.lissajous.add(&config.lissajous, a_code, b_code) {
             Some(Ok(_)) => {
                 self.counters.lissajous_fits = self.counters.lissajous_fits.saturating_add(1)
@@ -226,8 +231,8 @@ impl Readout {
         &mut self,
         config: &ReadoutConfig,
         encoder_count: u32,
-        adc_a_code: u16,
-        adc_b_code: u16,
+        adc_a_code: AdcCode,
+        adc_b_code: AdcCode,
     ) -> (crate::signal::fringe::FringeReading, CycleFlags) {
         let mut flags = CycleFlags::empty();
         match self.counter.update(&config.counter, encoder_count) {

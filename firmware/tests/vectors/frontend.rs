@@ -2,6 +2,7 @@
 //! Lissajous (Heydemann) normalisation and the fringe phase resolver.
 use super::{Outputs, Rng};
 use firmware::math;
+use firmware::sample::AdcCode;
 use firmware::signal::fringe::NormalisedLevels;
 use firmware::signal::{count, fringe, turnaround};
 use micromath::F32Ext as M; // through the trait: the same code on host and target
@@ -70,11 +71,12 @@ pub struct Figure {
 
 impl Figure {
     /// The codes at beat phase `psi` (rad), with a little noise.
-    pub fn codes_at(&self, rng: &mut Rng, psi: f32) -> (u16, u16) {
+    pub fn codes_at(&self, rng: &mut Rng, psi: f32) -> (AdcCode, AdcCode) {
         let noise = 2.0 * rng.f32_unit();
         let a = self.offsets.0 + self.radii.0 * M::cos(psi) + noise;
         let b = self.offsets.1 + self.radii.1 * M::sin(psi + self.alpha) + noise;
-        (a.clamp(0.0, 4095.0) as u16, b.clamp(0.0, 4095.0) as u16)
+        let code = |x: f32| AdcCode::new(x.clamp(0.0, 4095.0) as u16).expect("clamped");
+        (code(a), code(b))
     }
 }
 

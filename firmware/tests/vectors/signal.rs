@@ -1,8 +1,13 @@
 //! Cases for `firmware::signal`: one function per module, named after it.
 use super::{frontend::Figure, Outputs, Rng};
-use firmware::sample::TurnaroundKind;
+use firmware::sample::{AdcCode, TurnaroundKind};
 use firmware::signal::{compensation, lockin, output};
 use firmware::units::TotalPhase;
+
+/// The code of a conversion of `x` codes (truncated), which the generators keep in range.
+fn adc_code(x: f32) -> AdcCode {
+    AdcCode::new(x as u16).expect("a 12-bit code")
+}
 
 /// Edge inputs every float case should see besides the random ones.
 const SPECIAL_F32: [f32; 6] = [0.0, -0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e-40];
@@ -312,7 +317,7 @@ pub fn output_stage(out: &mut Outputs) {
         };
         // The pick-off stream up to the latch.
         while tick_s(tick) <= t {
-            let code = (pickoff_at(tick_s(tick)) + rng.f32_in(-1.0, 1.0)) as u16;
+            let code = adc_code(pickoff_at(tick_s(tick)) + rng.f32_in(-1.0, 1.0));
             let timestamp_ticks = tick * 2100;
             readout.on_pickoff_sample(
                 &config,
@@ -333,7 +338,7 @@ pub fn output_stage(out: &mut Outputs) {
                 encoder_count,
                 adc_a_code,
                 adc_b_code,
-                pickoff_code: (pickoff_at(t) + rng.f32_in(-1.0, 1.0)) as u16,
+                pickoff_code: adc_code(pickoff_at(t) + rng.f32_in(-1.0, 1.0)),
                 timestamp_ticks,
                 drive_locked: true,
             };
@@ -407,7 +412,7 @@ pub fn dither_model(out: &mut Outputs) {
             }
             let t = k as f32 / 40_000.0;
             let x = amp * libm::cosf(core::f32::consts::TAU * hz * t + phase);
-            let code = (2048.0 + offset + x + rng.f32_in(-1.5, 1.5)) as u16;
+            let code = adc_code(2048.0 + offset + x + rng.f32_in(-1.5, 1.5));
             model.push(
                 &config,
                 PickoffSample {

@@ -311,6 +311,7 @@ mod tests {
     use super::super::levels::LissajousCoefficients;
     use super::*;
     use crate::math::atan2_q32;
+    use crate::sample::AdcCode;
     use std::f64::consts::TAU;
 
     use crate::test_rng::XorShift;
@@ -566,7 +567,7 @@ mod tests {
     #[test]
     fn chain_from_samples() {
         let mut rng = XorShift(5);
-        let code = |x: f64| (2048.0 + 2047.0 * x).round() as u16;
+        let code = |x: f64| AdcCode::new((2048.0 + 2047.0 * x).round() as u16).unwrap();
         let mut psi: f64 = 1.0;
         let coeffs = LissajousCoefficients::NOMINAL;
         let cfg = FringePhaseConfig {

@@ -47,6 +47,7 @@
 //! supervisor has even noticed; the record is then invalid (`record.rs`).
 
 use super::dither_model::DitherEstimate;
+use crate::sample::AdcCode;
 use crate::units::Q32_PER_FRINGE;
 
 /// Settings of the stripper (immutable).
@@ -88,8 +89,10 @@ impl StripConfig {
     }
 
     /// True when `code` is at a rail of the 12-bit converter.
-    pub fn at_rail(&self, code: u16) -> bool {
-        code < self.rail_margin_codes || code > 4095 - self.rail_margin_codes
+    pub fn at_rail(&self, code: AdcCode) -> bool {
+        let code = code.to_bits();
+        code < self.rail_margin_codes
+            || code > AdcCode::FULL_SCALE.to_bits() - self.rail_margin_codes
     }
 }
 
@@ -431,7 +434,8 @@ mod tests {
     #[test]
     fn rails_are_detected() {
         let cfg = config(0.2);
-        assert!(cfg.at_rail(0) && cfg.at_rail(1) && cfg.at_rail(4095) && cfg.at_rail(4094));
-        assert!(!cfg.at_rail(2) && !cfg.at_rail(4093) && !cfg.at_rail(2048));
+        let at_rail = |c| cfg.at_rail(AdcCode::new(c).unwrap());
+        assert!(at_rail(0) && at_rail(1) && at_rail(4095) && at_rail(4094));
+        assert!(!at_rail(2) && !at_rail(4093) && !at_rail(2048));
     }
 }
