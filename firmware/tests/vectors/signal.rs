@@ -2,7 +2,7 @@
 use super::{frontend::Figure, Outputs, Rng};
 use firmware::sample::{AdcCode, TurnaroundKind};
 use firmware::signal::{compensation, lockin, output};
-use firmware::units::TotalPhase;
+use firmware::units::{PhaseDelta, TotalPhase};
 
 /// The code of a conversion of `x` codes (truncated), which the generators keep in range.
 fn adc_code(x: f32) -> AdcCode {
@@ -54,7 +54,7 @@ pub fn lockin_terms(out: &mut Outputs) {
 /// compensator with staged coefficient sets accumulating its integer total.
 pub fn compensation(out: &mut Outputs) {
     use compensation::{
-        rad_per_s_to_q16, rad_to_q32_fringes, Coefficients, CompensationSettings, Compensator,
+        rad_per_s_to_q16, rad_to_phase_delta, Coefficients, CompensationSettings, Compensator,
     };
     use lockin::LockinTerms;
     let q16 = |out: &mut Outputs, v: f32| match rad_per_s_to_q16(v) {
@@ -76,7 +76,7 @@ pub fn compensation(out: &mut Outputs) {
     let mut comp = Compensator::new(settings(&mut rng));
     for _ in 0..500 {
         q16(out, rng.f32_in(-4e4, 4e4));
-        out.i64(rad_to_q32_fringes(rng.f32_in(-4.0, 4.0)));
+        out.i64(rad_to_phase_delta(rng.f32_in(-4.0, 4.0)).to_q32());
         if rng.one_in(8) {
             comp.stage(settings(&mut rng));
         }
@@ -89,8 +89,8 @@ pub fn compensation(out: &mut Outputs) {
         out.i32(next.coefficients.b_q16);
         out.bool(next.enabled);
         out.f32(comp.active().coefficients.lockin_error_rad(terms));
-        out.i64(comp.cycle_correction(terms));
-        out.i64(comp.total_correction_q32());
+        out.i64(comp.cycle_correction(terms).to_q32());
+        out.i64(comp.total_correction().to_q32());
     }
 }
 
@@ -123,8 +123,8 @@ pub fn rate_output(out: &mut Outputs) {
         let drift_q32 = rng.i32() as i64 * 3; // up to ~1.5 fringe per cycle
         for _ in 0..1500 {
             let cycle = CycleOutput {
-                increment_q32: drift_q32 + rng.i32_in(-1 << 28, 1 << 28) as i64,
-                correction_q32: rng.i32() as i64,
+                increment: PhaseDelta::from_q32(drift_q32 + rng.i32_in(-1 << 28, 1 << 28) as i64),
+                correction: PhaseDelta::from_q32(rng.i32() as i64),
                 duration_ticks: (215_938 + rng.i32_in(-500, 500)) as u32,
                 flags: CycleFlags(if rng.one_in(50) {
                     1 << (rng.u32() % 4)
@@ -183,14 +183,14 @@ pub fn cycle_assembly(out: &mut Outputs) {
         else {
             continue;
         };
-        out.i64(r.output.increment_q32);
-        out.i64(r.output.correction_q32);
+        out.i64(r.output.increment.to_q32());
+        out.i64(r.output.correction.to_q32());
         out.u32(r.output.duration_ticks);
         out.u32(r.output.flags.0 as u32);
-        out.i64(r.raw_increment_q32);
+        out.i64(r.raw_increment.to_q32());
         out.f32(r.terms.p1_s);
         out.f32(r.terms.p2_s);
-        out.i64(r.end_phase_q32);
+        out.i64(r.end_phase.to_q32());
         out.f32(r.dither_amplitude_rad);
         out.f32(r.dither_hz);
         out.f64(r.raw_increment_rad());
@@ -257,8 +257,8 @@ pub fn readout_chain(out: &mut Outputs) {
             drive_locked: true,
         };
         if let Some(r) = readout.on_turnaround(&config, sample) {
-            out.i64(r.output.increment_q32);
-            out.i64(r.output.correction_q32);
+            out.i64(r.output.increment.to_q32());
+            out.i64(r.output.correction.to_q32());
             out.u32(r.output.duration_ticks);
             out.u32(r.output.flags.0 as u32);
             out.f32(r.terms.p1_s);
@@ -369,7 +369,7 @@ pub fn output_stage(out: &mut Outputs) {
                 drive_locked: true,
             };
             if let Some(c) = readout.on_turnaround(&config, sample) {
-                out.i64(c.output.correction_q32);
+                out.i64(c.output.correction.to_q32());
             }
             plus = !plus;
             next_turn += half_period;
