@@ -77,8 +77,8 @@ fn turnaround_samples_follow_the_firmware_conventions() {
         // ADC: A ~ cos psi_H, B ~ sin psi_H around the channels' mid levels.
         let psi_h = turn.psi_rad - eps_rad;
         let lsb_v = pd.adc.lsb_v();
-        let cos = (sample.adc_a_code as f64 * lsb_v - pd.a.mid_level_v) / pd.a.amplitude_v;
-        let sin = (sample.adc_b_code as f64 * lsb_v - pd.b.mid_level_v) / pd.b.amplitude_v;
+        let cos = (sample.adc_a_code.to_f64() * lsb_v - pd.a.mid_level_v) / pd.a.amplitude_v;
+        let sin = (sample.adc_b_code.to_f64() * lsb_v - pd.b.mid_level_v) / pd.b.amplitude_v;
         let phase_error = (sin.atan2(cos) - psi_h + TAU / 2.0).rem_euclid(TAU) - TAU / 2.0;
         assert!(
             phase_error.abs() < PHASE_TOLERANCE_RAD,

@@ -47,6 +47,7 @@ use common::{paper_gyro, TAU};
 use firmware::readout::{ReadoutConfig, ReadoutCounters};
 use firmware::signal::compensation::{Coefficients, CompensationSettings};
 use firmware::signal::lockin::{CycleFlags, CycleRecord};
+use firmware::units::PhaseDelta;
 use hal_sim::board::SimBoard;
 use hal_sim::harness::{Feed, HarnessOptions};
 use hal_sim::input::InputProfile;
@@ -89,7 +90,7 @@ struct Run {
 
 impl Run {
     fn rate_deg_h(&self, record: &CycleRecord) -> f64 {
-        let fringes = record.output.increment_q32 as f64 / firmware::units::Q32_PER_FRINGE;
+        let fringes = record.output.increment.fringes_f64();
         fringes / record.duration_s(&self.config.cycle) * paper_gyro(0).scale_factor_arcsec
     }
 
@@ -163,7 +164,11 @@ fn check(name: &str, clean: &Run, run: &Run, faulty_s: &[f64], flag: CycleFlags,
                 "{name}: cycle ending at {end_s:.4} s holds a faulty latch, flags {flags:?}"
             );
             if flag == CycleFlags::SIGNAL_LOST {
-                assert_eq!(record.output.correction_q32, 0, "{name}: compensated");
+                assert_eq!(
+                    record.output.correction,
+                    PhaseDelta::ZERO,
+                    "{name}: compensated"
+                );
             }
         } else if flag != CycleFlags::TURNAROUND_MISSED {
             assert!(
@@ -180,7 +185,7 @@ fn check(name: &str, clean: &Run, run: &Run, faulty_s: &[f64], flag: CycleFlags,
     let last: Vec<_> = run.cycles[run.cycles.len() - 100..].iter().collect();
     let fringes: f64 = last
         .iter()
-        .map(|(_, c)| c.output.increment_q32 as f64 / firmware::units::Q32_PER_FRINGE)
+        .map(|(_, c)| c.output.increment.fringes_f64())
         .sum();
     let seconds: f64 = last
         .iter()

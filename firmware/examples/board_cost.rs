@@ -38,7 +38,7 @@ mod app {
     use firmware::icount::{InstructionCounter, Timer};
     use firmware::protocol::stream::{encode_frame, StreamRecord, MAX_FRAME};
     use firmware::readout::{Readout, ReadoutConfig};
-    use firmware::sample::{TurnaroundKind, TurnaroundSample};
+    use firmware::sample::{AdcCode, TurnaroundKind, TurnaroundSample};
     use firmware::signal::compensation::{Coefficients, CompensationSettings};
     use firmware::signal::lockin::CycleRecord;
     use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
@@ -76,8 +76,8 @@ mod app {
                     TurnaroundKind::Minus
                 },
                 encoder_count: count,
-                adc_a_code: (2048.0 + 1300.0 * c) as u16,
-                adc_b_code: (2048.0 + 1300.0 * s) as u16,
+                adc_a_code: AdcCode::saturating((2048.0 + 1300.0 * c) as u16),
+                adc_b_code: AdcCode::saturating((2048.0 + 1300.0 * s) as u16),
                 timestamp_ticks: i * half_ticks,
                 drive_locked: true,
             };

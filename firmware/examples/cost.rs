@@ -26,7 +26,7 @@ mod app {
     use firmware::icount::{InstructionCounter, Timer};
     use firmware::protocol::output_frame::{encode_output_frame, MAX_OUTPUT_FRAME};
     use firmware::readout::Readout;
-    use firmware::sample::{OutputSample, TurnaroundKind, TurnaroundSample};
+    use firmware::sample::{AdcCode, OutputSample, TurnaroundKind, TurnaroundSample};
     use firmware::signal::compensation::{Coefficients, CompensationSettings};
     use firmware::signal::output::dither_model::PickoffSample;
     use micromath::F32Ext;
@@ -37,9 +37,10 @@ mod app {
     const EXCURSION_COUNTS: u32 = 1930;
 
     /// ADC codes of a point on the Lissajous circle (centre 2048, radius 1300 codes).
-    fn codes(phase: f32) -> (u16, u16) {
+    fn codes(phase: f32) -> (AdcCode, AdcCode) {
         let (s, c) = phase.sin_cos();
-        ((2048.0 + 1300.0 * c) as u16, (2048.0 + 1300.0 * s) as u16)
+        let code = |x: f32| AdcCode::saturating(x as u16);
+        (code(2048.0 + 1300.0 * c), code(2048.0 + 1300.0 * s))
     }
 
     #[cortex_m_rt::entry]
@@ -111,7 +112,8 @@ mod app {
         let mut frame = [0u8; MAX_OUTPUT_FRAME];
         let pickoff = |k: u32| {
             let t = k as f32 / 40_000.0;
-            (2048.0 + 1125.0 * (core::f32::consts::TAU * DITHER_HZ as f32 * t).sin()) as u16
+            let x = 2048.0 + 1125.0 * (core::f32::consts::TAU * DITHER_HZ as f32 * t).sin();
+            AdcCode::saturating(x as u16)
         };
         for i in 0..300u32 {
             for k in 40 * i..40 * i + 40 {
@@ -136,7 +138,7 @@ mod app {
                 encoder_count: count,
                 adc_a_code: a,
                 adc_b_code: b,
-                pickoff_code: (2048.0 + 1125.0 * dither) as u16,
+                pickoff_code: AdcCode::saturating((2048.0 + 1125.0 * dither) as u16),
                 timestamp_ticks: i * 84_000 + 1_050,
                 drive_locked: true,
             };

@@ -29,6 +29,7 @@ mod app {
     use firmware::dither::{DitherConfig, DitherController, DitherState};
     use firmware::icount::{InstructionCounter, Timer};
     use firmware::profile::BoardProfile;
+    use firmware::sample::AdcCode;
     use firmware::signal::output::dither_model::PickoffSample;
 
     firmware::bind_board_interrupts!();
@@ -43,11 +44,11 @@ mod app {
     impl Envelope {
         /// The pick-off code for a drive whose DAC sample has phase `turns` and amplitude
         /// `drive` codes: `mid - A cos(2 pi turns)` (90 degrees behind `sin`).
-        fn pickoff(&mut self, turns: u32, drive: f32) -> u16 {
+        fn pickoff(&mut self, turns: u32, drive: f32) -> AdcCode {
             self.amplitude = self.amplitude * self.decay + self.gain_per_tick * drive;
             let (c, _) = firmware::dither::cos_sin_q31(firmware::units::Phase::from_bits(turns));
             let v = 2048.0 - self.amplitude * (c as f32 / 2_147_483_648.0);
-            (v + 0.5) as u16
+            AdcCode::saturating((v + 0.5) as u16)
         }
     }
 
@@ -99,7 +100,7 @@ mod app {
                 cortex_m::interrupt::free(|_| (tim2.cnt().read().bits(), tim4.cnt().read().bits()));
             let sample = PickoffSample {
                 timestamp_ticks: t2.wrapping_sub(t4),
-                code: 2048,
+                code: AdcCode::MID,
             };
             core::hint::black_box(producer.enqueue(sample).is_ok());
         });

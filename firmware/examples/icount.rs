@@ -98,7 +98,7 @@ mod app {
         let mut averager = RateAverager::new();
         let n = counter.per_call(&mut rng, |r| {
             let cycle = CycleOutput {
-                increment_q32: (r.next() as i32 as i64) << 2,
+                increment: firmware::units::PhaseDelta::from_q32((r.next() as i32 as i64) << 2),
                 duration_ticks: 215_938,
                 ..CycleOutput::default()
             };

@@ -25,7 +25,7 @@ mod app {
     use firmware::signal::lockin::{CycleOutput, CycleRecord};
     use firmware::signal::output::rate_shift_ticks;
     use firmware::signal::turnaround::{opposite, Edge, Scheduler, SchedulerConfig};
-    use firmware::units::Q32_PER_FRINGE;
+    use firmware::units::{PhaseDelta, Q32_PER_FRINGE};
 
     const TIMER_HZ: u32 = 84_000_000;
     const CONFIG: SchedulerConfig = BoardProfile::F405.scheduler_config();
@@ -105,13 +105,13 @@ mod app {
     fn record(fringes: f32, amplitude_rad: f32) -> CycleRecord {
         CycleRecord {
             output: CycleOutput {
-                increment_q32: (fringes as f64 * Q32_PER_FRINGE) as i64,
+                increment: PhaseDelta::from_q32((fringes as f64 * Q32_PER_FRINGE) as i64),
                 duration_ticks: TIMER_HZ / 389,
                 ..Default::default()
             },
-            raw_increment_q32: 0,
+            raw_increment: PhaseDelta::ZERO,
             terms: Default::default(),
-            end_phase_q32: 0,
+            end_phase: Default::default(),
             dither_amplitude_rad: amplitude_rad,
             dither_hz: 389.0,
         }

@@ -11,7 +11,7 @@
 //! calibrated on a real board with the PA15 test point and then changed here.
 
 use crate::readout::ReadoutConfig;
-use crate::sample::TurnaroundKind;
+use crate::sample::{AdcCode, TurnaroundKind};
 use crate::signal::count::CounterWidth;
 use crate::signal::output::dither_model::DitherModelConfig;
 use crate::signal::output::record::OutputConfig;
@@ -53,7 +53,7 @@ pub struct BoardProfile {
     pub pickoff_arcsec_per_code: f64,
     /// The pick-off ADC code of a zero dither angle (nominal; the half-cycle fit estimates the
     /// real offset).
-    pub pickoff_mid_code: u16,
+    pub pickoff_mid_code: AdcCode,
     /// Full scale of the drive DAC, codes (12 bit: 4095); its mid-code is the zero drive.
     pub dac_full_scale: u16,
     /// The codes the drive DAC's output follows linearly (inclusive): its output buffer, on for
@@ -90,7 +90,7 @@ impl BoardProfile {
         nominal_dither_amplitude_arcsec: 450.0,
         drive_tick_hz: 40_000,
         pickoff_arcsec_per_code: 0.4,
-        pickoff_mid_code: 2048,
+        pickoff_mid_code: AdcCode::MID,
         dac_full_scale: 4095,
         dac_linear_codes: (249, 3846),
         dither_search_hz: (280.0, 620.0),

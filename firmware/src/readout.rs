@@ -28,7 +28,7 @@
 //! at the next cycle boundary. Everything here is plain data in, data out: the host simulator
 //! calls exactly these functions.
 
-use crate::sample::{OutputSample, TurnaroundSample};
+use crate::sample::{AdcCode, OutputSample, TurnaroundSample};
 use crate::signal::compensation::{CompensationSettings, Compensator};
 use crate::signal::count::{CountUpdate, CounterWidth, FringeCountConfig, FringeCounter};
 use crate::signal::fringe::{
@@ -40,6 +40,7 @@ use crate::signal::lockin::{
 use crate::signal::output::dither_model::{DitherModel, DitherModelStatus, PickoffSample};
 use crate::signal::output::record::{OutputConfig, OutputRecord, OutputRecorder, OutputStatus};
 use crate::signal::output::strip::{DitherStripper, StripStatus};
+use crate::units::PhaseDelta;
 
 /// Highest x4 edge rate the count extension accepts between reads, edges/s: above the
 /// 2.4 M edges/s of the docs/physics.md parameter set with margin.
@@ -126,9 +127,9 @@ pub struct Readout {
     model: DitherModel,
     stripper: DitherStripper,
     recorder: OutputRecorder,
-    /// Sum of the lock-in corrections of the cycles closed so far, Q32 fringes (wrapping): the
-    /// output latch subtracts it from the counted phase.
-    correction_total_q32: i64,
+    /// Sum of the lock-in corrections of the cycles closed so far (wrapping): the output latch
+    /// subtracts it from the counted phase.
+    correction_total: PhaseDelta,
     /// Faults seen since the last output latch (at turnarounds or latches).
     output_faults: OutputStatus,
     /// Faults an output latch saw, for the cycle the next turnaround closes.
@@ -148,14 +149,19 @@ impl Readout {
             model: DitherModel::new(),
             stripper: DitherStripper::new(&config.output.strip),
             recorder: OutputRecorder::new(),
-            correction_total_q32: 0,
+            correction_total: PhaseDelta::ZERO,
             output_faults: OutputStatus::empty(),
             cycle_faults: CycleFlags::empty(),
         }
     }
 
     /// One photodiode conversion pair taken at an arbitrary instant.
-    pub fn on_lissajous_sample(&mut self, config: &ReadoutConfig, a_code: u16, b_code: u16) {
+    pub fn on_lissajous_sample(
+        &mut self,
+        config: &ReadoutConfig,
+        a_code: AdcCode,
+        b_code: AdcCode,
+    ) {
         match self.lissajous.add(&config.lissajous, a_code, b_code) {
             Some(Ok(_)) => {
                 self.counters.lissajous_fits = self.counters.lissajous_fits.saturating_add(1)
@@ -214,9 +220,7 @@ impl Readout {
         let record = record?;
         let record = self.compensator.compensate(record);
         self.counters.cycles = self.counters.cycles.wrapping_add(1);
-        self.correction_total_q32 = self
-            .correction_total_q32
-            .wrapping_add(record.output.correction_q32);
+        self.correction_total += record.output.correction;
         Some(record)
     }
 
@@ -226,8 +230,8 @@ impl Readout {
         &mut self,
         config: &ReadoutConfig,
         encoder_count: u32,
-        adc_a_code: u16,
-        adc_b_code: u16,
+        adc_a_code: AdcCode,
+        adc_b_code: AdcCode,
     ) -> (crate::signal::fringe::FringeReading, CycleFlags) {
         let mut flags = CycleFlags::empty();
         match self.counter.update(&config.counter, encoder_count) {
@@ -298,14 +302,10 @@ impl Readout {
             }
         }
         let usable = sample.drive_locked && !status.intersects(OutputStatus::FAULTS);
-        let phase_q32 = reading
-            .phase
-            .total()
-            .to_q32()
-            .wrapping_sub(self.correction_total_q32);
-        let stripped =
-            self.stripper
-                .strip(&config.output.strip, phase_q32, dither.as_ref(), usable);
+        let phase = reading.phase.total() - self.correction_total;
+        let stripped = self
+            .stripper
+            .strip(&config.output.strip, phase, dither.as_ref(), usable);
         if stripped.implausible {
             status = status.union(OutputStatus::PICKOFF_FAULT);
         }
@@ -315,7 +315,7 @@ impl Readout {
         self.recorder.record(
             &config.output,
             sample.timestamp_ticks,
-            stripped.phase_q32,
+            stripped.phase,
             status,
         )
     }

@@ -2,10 +2,11 @@
 //!
 //! Phase is counted in fringes: one fringe is one period of the beat signal, 2 pi rad of beat
 //! phase psi_H, four x4 counts of the encoder, SF arcsec of rotation. Inside the chain phases
-//! are fixed point in **Q32 fringes** (2^32 per fringe): a `u32` for a phase within one fringe
-//! (so wrapping arithmetic is fringe arithmetic), an `i64` for totals and increments (2^31
-//! fringes of range). Radians appear only where the physics needs them (P1/P2, the
-//! compensation); deg/h only at the rate output.
+//! are fixed point in **Q32 fringes** (2^32 per fringe): [`Phase`] (`u32`) for a phase within
+//! one fringe (so wrapping arithmetic is fringe arithmetic), [`TotalPhase`] and [`PhaseDelta`]
+//! (`i64`, 2^31 fringes of range) for totals and for increments, their differences. Radians
+//! appear only where the physics needs them (P1/P2, the compensation); deg/h only at the rate
+//! output. Wire formats keep the raw Q32 integers and convert where they are built.
 
 /// One turn of a [`Phase`] in Q32 (a fractional fringe, a dither or oscillator cycle, any full
 /// turn): 2^32, as `f64` for conversions. Defined once; [`Q32_PER_FRINGE`] is the same turn.
@@ -117,11 +118,107 @@ impl TotalPhase {
 }
 
 impl core::ops::Sub for TotalPhase {
-    type Output = i64;
-    /// The increment `self - earlier` in Q32 fringes (wrapping).
+    type Output = PhaseDelta;
+    /// The increment `self - earlier` (wrapping).
     #[inline]
-    fn sub(self, earlier: Self) -> i64 {
-        self.0.wrapping_sub(earlier.0)
+    fn sub(self, earlier: Self) -> PhaseDelta {
+        PhaseDelta(self.0.wrapping_sub(earlier.0))
+    }
+}
+
+impl core::ops::Add<PhaseDelta> for TotalPhase {
+    type Output = Self;
+    /// The total phase `delta` later (wrapping).
+    #[inline]
+    fn add(self, delta: PhaseDelta) -> Self {
+        Self(self.0.wrapping_add(delta.0))
+    }
+}
+
+impl core::ops::Sub<PhaseDelta> for TotalPhase {
+    type Output = Self;
+    /// The total phase `delta` earlier (wrapping).
+    #[inline]
+    fn sub(self, delta: PhaseDelta) -> Self {
+        Self(self.0.wrapping_sub(delta.0))
+    }
+}
+
+/// A phase increment in Q32 fringes: an `i64` of 2^32 per fringe, the difference of two
+/// [`TotalPhase`]s (a cycle's increment, its lock-in correction, the dither taken out of a
+/// latch). Wrapping like the totals it comes from; exact while below 2^31 fringes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PhaseDelta(i64);
+
+impl PhaseDelta {
+    /// No change of phase.
+    pub const ZERO: Self = Self(0);
+
+    /// The increment whose Q32 value (fringes * 2^32) is `q32`.
+    #[inline]
+    pub const fn from_q32(q32: i64) -> Self {
+        Self(q32)
+    }
+
+    /// The Q32 value (fringes * 2^32).
+    #[inline]
+    pub const fn to_q32(self) -> i64 {
+        self.0
+    }
+
+    /// The increment in fringes (`q32 / 2^32`, rounded to `f64`).
+    #[inline]
+    pub fn fringes_f64(self) -> f64 {
+        self.0 as f64 / Q32_PER_FRINGE
+    }
+
+    /// The increment in rad of beat phase (`q32 * 2 pi / 2^32`, rounded to `f64`).
+    #[inline]
+    pub fn rad_f64(self) -> f64 {
+        self.0 as f64 * core::f64::consts::TAU / Q32_PER_FRINGE
+    }
+}
+
+impl core::ops::Add for PhaseDelta {
+    type Output = Self;
+    /// Wrapping.
+    #[inline]
+    fn add(self, other: Self) -> Self {
+        Self(self.0.wrapping_add(other.0))
+    }
+}
+
+impl core::ops::AddAssign for PhaseDelta {
+    /// Wrapping.
+    #[inline]
+    fn add_assign(&mut self, other: Self) {
+        *self = *self + other;
+    }
+}
+
+impl core::ops::Sub for PhaseDelta {
+    type Output = Self;
+    /// Wrapping.
+    #[inline]
+    fn sub(self, other: Self) -> Self {
+        Self(self.0.wrapping_sub(other.0))
+    }
+}
+
+impl core::ops::Neg for PhaseDelta {
+    type Output = Self;
+    /// Wrapping.
+    #[inline]
+    fn neg(self) -> Self {
+        Self(self.0.wrapping_neg())
+    }
+}
+
+impl core::iter::Sum for PhaseDelta {
+    /// Wrapping: the increments of a chain sum to its end minus its start.
+    fn sum<I: Iterator<Item = Self>>(iter: I) -> Self {
+        iter.fold(Self::ZERO, |a, b| a + b)
     }
 }
 
@@ -145,11 +242,31 @@ mod tests {
     fn total_phase_differences_wrap() {
         let a = TotalPhase::from_q32(i64::MAX);
         let b = TotalPhase::from_q32(i64::MIN);
-        assert_eq!(b - a, 1);
-        assert_eq!(a - b, -1);
+        let one = PhaseDelta::from_q32(1);
+        assert_eq!(b - a, one);
+        assert_eq!(a - b, -one);
+        assert_eq!(a + one, b);
+        assert_eq!(b - one, a);
+        let two_fringes = TotalPhase::from_q32(5 << 32) - TotalPhase::from_q32(3 << 32);
+        assert_eq!(two_fringes.to_q32(), 2 << 32);
+        assert_eq!(two_fringes.fringes_f64(), 2.0);
+        assert_eq!(two_fringes.rad_f64(), 2.0 * core::f64::consts::TAU);
+    }
+
+    #[test]
+    fn phase_deltas_sum_and_wrap() {
+        let max = PhaseDelta::from_q32(i64::MAX);
+        let one = PhaseDelta::from_q32(1);
+        assert_eq!((max + one).to_q32(), i64::MIN);
+        assert_eq!((PhaseDelta::from_q32(i64::MIN) - one), max);
+        let mut acc = PhaseDelta::ZERO;
+        acc += one;
+        assert_eq!(acc, one);
+        let steps = [3, -7, 11].map(PhaseDelta::from_q32);
+        assert_eq!(steps.into_iter().sum::<PhaseDelta>().to_q32(), 7);
         assert_eq!(
-            TotalPhase::from_q32(5 << 32) - TotalPhase::from_q32(3 << 32),
-            2 << 32
+            [max, one].into_iter().sum::<PhaseDelta>().to_q32(),
+            i64::MIN
         );
     }
 

@@ -47,6 +47,7 @@ use firmware::storage::{
 };
 use firmware::thermal::model::ThermalModel;
 use firmware::thermal::state::ThermalState;
+use firmware::units::{PhaseDelta, TotalPhase};
 
 pub use super::events::{BLANK_OTP, CYCLES, FAIL_STORE, NEW_SESSION, TICK, TICK_SHORT};
 
@@ -275,11 +276,12 @@ impl Harness {
                 p1_s: 2.0e-5 * (k * 0.37).sin(),
                 p2_s: 1.5e-5 * (k * 0.11 + 1.0).sin(),
             };
-            let increment = 0x3_0000_0000i64 + (self.cycle as i64 % 97) * 0x100_0000;
+            let increment_q32 = 0x3_0000_0000i64 + (self.cycle as i64 % 97) * 0x100_0000;
+            let increment = PhaseDelta::from_q32(increment_q32);
             let record = CycleRecord {
                 output: CycleOutput {
-                    increment_q32: increment,
-                    correction_q32: 0,
+                    increment,
+                    correction: PhaseDelta::ZERO,
                     duration_ticks: 215_938,
                     flags: if self.cycle.is_multiple_of(211) {
                         CycleFlags::COUNTER_GLITCH
@@ -287,9 +289,9 @@ impl Harness {
                         CycleFlags::empty()
                     },
                 },
-                raw_increment_q32: increment,
+                raw_increment: increment,
                 terms,
-                end_phase_q32: increment.wrapping_mul(self.cycle as i64),
+                end_phase: TotalPhase::from_q32(increment_q32.wrapping_mul(self.cycle as i64)),
                 dither_amplitude_rad: 9.5,
                 dither_hz: 389.0,
             };

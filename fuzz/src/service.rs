@@ -35,6 +35,7 @@ use firmware::signal::lockin::{CycleFlags, CycleOutput, CycleRecord, LockinTerms
 use firmware::signal::output::record::{OutputRecord, OutputStatus};
 use firmware::storage::ram_flash::{RamFlash, RamFlashError};
 use firmware::storage::Geometry;
+use firmware::units::{PhaseDelta, TotalPhase};
 
 use super::answers::{check_answer, split_output, LineCounter};
 use super::events::{BLANK_OTP, CYCLES, FAIL_STORE, NEW_SESSION, OUTPUTS, RESET, TICK, TICK_SHORT};
@@ -187,11 +188,12 @@ impl Harness {
     fn cycle_record(&mut self) -> CycleRecord {
         self.cycle = self.cycle.wrapping_add(1);
         let k = self.cycle as f32;
-        let increment = 0x3_0000_0000i64 + (self.cycle as i64 % 97) * 0x100_0000;
+        let increment_q32 = 0x3_0000_0000i64 + (self.cycle as i64 % 97) * 0x100_0000;
+        let increment = PhaseDelta::from_q32(increment_q32);
         CycleRecord {
             output: CycleOutput {
-                increment_q32: increment,
-                correction_q32: 0,
+                increment,
+                correction: PhaseDelta::ZERO,
                 duration_ticks: 215_938,
                 flags: if self.cycle.is_multiple_of(211) {
                     CycleFlags::COUNTER_GLITCH
@@ -199,12 +201,12 @@ impl Harness {
                     CycleFlags::empty()
                 },
             },
-            raw_increment_q32: increment,
+            raw_increment: increment,
             terms: LockinTerms {
                 p1_s: 2.0e-5 * (k * 0.37).sin(),
                 p2_s: 1.5e-5 * (k * 0.11 + 1.0).sin(),
             },
-            end_phase_q32: increment.wrapping_mul(self.cycle as i64),
+            end_phase: TotalPhase::from_q32(increment_q32.wrapping_mul(self.cycle as i64)),
             dither_amplitude_rad: 9.5,
             dither_hz: 389.0,
         }

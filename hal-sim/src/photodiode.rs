@@ -17,7 +17,7 @@
 //!
 //! The ADC is an ideal 12-bit converter: `code = round(v / lsb)` (or `floor`, see
 //! [`AdcRounding`]) with `lsb = reference_v / 4096`, clamped to `0..=4095`
-//! ([`firmware::sample::ADC_FULL_SCALE_CODE`]). The default board centres both signals at
+//! ([`firmware::sample::AdcCode::FULL_SCALE`]). The default board centres both signals at
 //! mid-scale (1.65 V of 3.3 V) with 80 % swing (amplitude 1.32 V, codes 410..3686).
 //!
 //! Each comparator squares its channel against a threshold at the channel's mid-level plus an
@@ -48,7 +48,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use firmware::sample::ADC_FULL_SCALE_CODE;
+use firmware::sample::AdcCode;
 
 /// How the ADC maps a voltage to a code.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -80,18 +80,18 @@ impl Default for AdcConfig {
 impl AdcConfig {
     /// One LSB (V).
     pub fn lsb_v(&self) -> f64 {
-        self.reference_v / f64::from(ADC_FULL_SCALE_CODE as u32 + 1)
+        self.reference_v / (AdcCode::FULL_SCALE.to_f64() + 1.0)
     }
 
-    /// The code for voltage `v`, clamped to `0..=ADC_FULL_SCALE_CODE`.
-    pub fn code(&self, v: f64) -> u16 {
+    /// The code for voltage `v`, clipped to `0..=`[`AdcCode::FULL_SCALE`].
+    pub fn code(&self, v: f64) -> AdcCode {
         let x = v / self.lsb_v();
         let x = match self.rounding {
             AdcRounding::Nearest => x.round(),
             AdcRounding::Floor => x.floor(),
         };
-        // `as` saturates (NaN -> 0); clamp to the 12-bit range explicitly.
-        (x.max(0.0) as u32).min(u32::from(ADC_FULL_SCALE_CODE)) as u16
+        // `as` saturates (NaN -> 0); the 12-bit range clips the rest.
+        AdcCode::saturating(x.max(0.0) as u16)
     }
 
     /// The mid-scale voltage `reference_v / 2` (V).
@@ -235,9 +235,9 @@ impl PhotodiodeConfig {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct AdcCodes {
     /// Channel A (~cos psi_H).
-    pub a_code: u16,
+    pub a_code: AdcCode,
     /// Channel B (~sin psi_H).
-    pub b_code: u16,
+    pub b_code: AdcCode,
 }
 
 /// A fault of the analog front end, injected by tests ([`Photodiodes::set_fault`]).

@@ -31,6 +31,7 @@
 use crate::gyro::Gyro;
 use crate::param_error::ParamError;
 use crate::photodiode::AdcConfig;
+use firmware::sample::AdcCode;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -216,13 +217,13 @@ impl Pickoff {
     }
 
     /// One ADC conversion at `t_s` (one noise draw): the 12-bit code, clipped at 0..=4095.
-    pub fn sample_code(&mut self, gyro: &Gyro, t_s: f64) -> u16 {
+    pub fn sample_code(&mut self, gyro: &Gyro, t_s: f64) -> AdcCode {
         let v = self.sample_v(gyro, t_s);
         self.config.adc.code(v)
     }
 
     /// One conversion at an output latch at `t_s` (its own noise stream), the 12-bit code.
-    pub fn sample_latch_code(&mut self, gyro: &Gyro, t_s: f64) -> u16 {
+    pub fn sample_latch_code(&mut self, gyro: &Gyro, t_s: f64) -> AdcCode {
         let mut v = self.clean_v(gyro, t_s);
         if self.config.noise_rms_v > 0.0 {
             let z: f64 = StandardNormal.sample(&mut self.latch_rng);

@@ -360,8 +360,8 @@ fn latched_samples_reconstruct_the_beat_phase() {
             &mut photodiodes,
             &timer,
         );
-        let mid = f64::from(config.adc.code(config.a.mid_level_v));
-        let frac = (f64::from(s.adc_b_code) - mid).atan2(f64::from(s.adc_a_code) - mid);
+        let mid = config.adc.code(config.a.mid_level_v).to_f64();
+        let frac = (s.adc_b_code.to_f64() - mid).atan2(s.adc_a_code.to_f64() - mid);
         let quadrant_centre = f64::from(s.encoder_count as i32) * FRAC_PI_2 + PI / 4.0;
         let psi_est = frac + TAU * ((quadrant_centre - frac) / TAU).round();
         worst = worst.max((psi_est - psi(t_turn)).abs());

@@ -3,7 +3,7 @@
 //! the comparator that follows it, and the driven dither through the whole firmware-in-the-loop
 //! harness with the scheduled latch.
 
-use firmware::sample::ADC_FULL_SCALE_CODE;
+use firmware::sample::AdcCode;
 use hal_sim::board::{BoardConfig, BoardError, LatchTiming, SimBoard};
 use hal_sim::dither::resonator::ResonatorParams;
 use hal_sim::gyro::Gyro;
@@ -110,7 +110,7 @@ fn the_adc_channel_is_noisy_seeded_and_clips() {
     let (t2, _) = d.pickoff_turnaround_after(t1).unwrap();
     let codes = [hot.pickoff_code(t1), hot.pickoff_code(t2)];
     assert!(
-        codes.contains(&0) && codes.contains(&ADC_FULL_SCALE_CODE),
+        codes.contains(&AdcCode::ZERO) && codes.contains(&AdcCode::FULL_SCALE),
         "{codes:?}"
     );
 }
@@ -130,7 +130,7 @@ fn a_lost_pickoff_reads_its_offset_and_has_no_edges() {
     h.board_mut().pickoff_mut().set_lost(true);
     let t = h.time_s() + 1e-3;
     let codes: Vec<u16> = (0..100)
-        .map(|i| h.board_mut().pickoff_code(t + i as f64 * 1e-5))
+        .map(|i| h.board_mut().pickoff_code(t + i as f64 * 1e-5).to_bits())
         .collect();
     // 1.65 V = code 2048; 1 mV of noise is 1.2 LSB: within +-8 codes (6.5 sigma).
     assert!(codes.iter().all(|c| c.abs_diff(2048) <= 8), "{codes:?}");
@@ -259,7 +259,7 @@ fn a_dither_starting_from_rest_builds_up_under_the_harness() {
     );
     // The pick-off's ADC sees it: the codes swing by 2 x the sensitivity x the amplitude.
     let codes: Vec<u16> = (0..52)
-        .map(|i| h.board_mut().pickoff_code(t + i as f64 * 5e-5))
+        .map(|i| h.board_mut().pickoff_code(t + i as f64 * 5e-5).to_bits())
         .collect();
     let swing = f64::from(codes.iter().max().unwrap() - codes.iter().min().unwrap());
     let k = hal_sim::pickoff::PickoffConfig::default().sensitivity_v_per_arcsec;

@@ -25,6 +25,7 @@ use firmware::signal::compensation::{CoefficientError, Coefficients, Compensatio
 use firmware::signal::lockin::{CycleOutput, CycleRecord};
 use firmware::signal::output::record::OutputRecord;
 use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
+use firmware::units::PhaseDelta;
 use hal_sim::board::{LatchTiming, OutputLatch};
 use hal_sim::dither::resonator::{ResonatorParams, TemperatureDrift};
 use hal_sim::gyro::Speed;
@@ -427,8 +428,8 @@ pub fn measure_rate(
             scale_factor_arcsec: params.scale_factor_arcsec,
         });
         let raw_cycle = CycleOutput {
-            increment_q32: c.raw_increment_q32,
-            correction_q32: 0,
+            increment: c.raw_increment,
+            correction: PhaseDelta::ZERO,
             ..c.output
         };
         raw.push(cfg, raw_cycle);

@@ -47,6 +47,7 @@ use core::cell::UnsafeCell;
 use core::sync::atomic::{compiler_fence, AtomicU32, AtomicU8, Ordering};
 
 use super::pac;
+use crate::sample::AdcCode;
 
 /// Conversion pairs per half buffer: 256 pairs = 20.7 ms at 12 347.5 pairs/s (48 blocks/s).
 pub const BLOCK_PAIRS: usize = 256;
@@ -258,7 +259,7 @@ pub fn on_dma_interrupt(dma: &pac::dma2::RegisterBlock) -> bool {
 }
 
 /// Feeds every completed half to `f` as (a, b) code pairs (readout task only).
-pub fn take_ready_blocks(mut f: impl FnMut(u16, u16)) {
+pub fn take_ready_blocks(mut f: impl FnMut(AdcCode, AdcCode)) {
     let ready = READY.swap(0, Ordering::Acquire);
     compiler_fence(Ordering::Acquire);
     for half in 0..2 {
@@ -272,7 +273,7 @@ pub fn take_ready_blocks(mut f: impl FnMut(u16, u16)) {
             core::slice::from_raw_parts(base, BLOCK_PAIRS)
         };
         for &w in words {
-            f((w & 0xFFFF) as u16, (w >> 16) as u16);
+            f(AdcCode::from_register(w), AdcCode::from_register(w >> 16));
         }
     }
 }

@@ -54,6 +54,7 @@ use super::turnaround::DRIVE_LOCKED;
 use super::{Owned, Shared};
 use crate::dither::{Coast, DitherState};
 use crate::profile::BoardProfile;
+use crate::sample::AdcCode;
 use crate::signal::output::dither_model::PickoffSample;
 
 /// TIM4 reload: 84 MHz / 2100 = 40 kHz, the profile's drive tick.
@@ -130,13 +131,13 @@ pub fn init(tim: &pac::TIM4, dac: &pac::DAC, adc3: &pac::ADC3, mid_code: u16) {
 /// The handler's register part: clears the compare flag and returns the pick-off code
 /// (counting a conversion that had not finished).
 #[inline(always)]
-pub fn take_pickoff(tim: &pac::tim3::RegisterBlock, adc3: &pac::adc1::RegisterBlock) -> u16 {
+pub fn take_pickoff(tim: &pac::tim3::RegisterBlock, adc3: &pac::adc1::RegisterBlock) -> AdcCode {
     tim.sr().write(|w| unsafe { w.bits(!TIM_CC1) });
     if adc3.sr().read().bits() & ADC_SR_JEOC == 0 {
         SAMPLES_MISSED.fetch_add(1, Ordering::Relaxed);
     }
     adc3.sr().write(|w| unsafe { w.bits(!ADC_SR_JEOC) });
-    adc3.jdr1().read().bits() as u16
+    AdcCode::from_register(adc3.jdr1().read().bits())
 }
 
 /// Drive off by software, without TIM4: the trigger deselected, so the DAC takes mid-scale at
@@ -189,7 +190,7 @@ pub fn on_tick(
 /// missed, then this one; its DAC code to the holding register, its drive to the coast state.
 #[inline(never)]
 pub fn controller_tick(
-    code: u16,
+    code: AdcCode,
     dac: &pac::dac::RegisterBlock,
     coast: &mut Coast,
     dither: &mut impl Shared<Value = DitherTask>,

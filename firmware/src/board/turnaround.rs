@@ -41,7 +41,7 @@ use cortex_m::interrupt::Mutex;
 use super::{pac, Shared};
 use crate::board_timing::phase::keep_out_now;
 use crate::profile::BoardProfile;
-use crate::sample::{OutputSample, TurnaroundKind, TurnaroundSample};
+use crate::sample::{AdcCode, OutputSample, TurnaroundKind, TurnaroundSample};
 use crate::signal::lockin::CycleRecord;
 use crate::signal::output::latch_plan::{Arm, LatchKind, LatchPlan, OUTPUT_LEAD_TICKS};
 use crate::signal::turnaround::{self as schedule, SchedulerConfig};
@@ -382,8 +382,8 @@ pub fn latch(
             fired
         })
         .flatten();
-    let adc_a_code = adc1.jdr1().read().bits() as u16;
-    let adc_b_code = adc2.jdr1().read().bits() as u16;
+    let adc_a_code = AdcCode::from_register(adc1.jdr1().read().bits());
+    let adc_b_code = AdcCode::from_register(adc2.jdr1().read().bits());
     let timestamp_ticks = fired_at.wrapping_add(APERTURE_DELAY_TICKS);
     let drive_locked = DRIVE_LOCKED.load(Ordering::Relaxed);
     match fired {
@@ -404,7 +404,7 @@ pub fn latch(
             // fault (the record invalid), never the previous latch's code.
             let pickoff_code = pickoff.unwrap_or_else(|| {
                 PICKOFF_NOT_CONVERTED.fetch_add(1, Ordering::Relaxed);
-                0
+                AdcCode::ZERO
             });
             Some(Latched::Output(OutputSample {
                 encoder_count,
@@ -427,10 +427,10 @@ pub fn latch(
 /// 13.3.9: the injected group interrupts the regular one, which restarts), so EOC is polled
 /// for that long; `None` if it has not ended by then. Reading DR clears EOC.
 #[inline(always)]
-fn take_pickoff_conversion(adc3: &pac::adc1::RegisterBlock) -> Option<u16> {
+fn take_pickoff_conversion(adc3: &pac::adc1::RegisterBlock) -> Option<AdcCode> {
     (0..EOC_POLLS)
         .any(|_| adc3.sr().read().bits() & ADC_SR_EOC != 0)
-        .then(|| adc3.dr().read().bits() as u16)
+        .then(|| AdcCode::from_register(adc3.dr().read().bits()))
 }
 
 /// Sync edges dropped because an output latch was still pending (the plan's overruns).

@@ -226,6 +226,7 @@ mod tests {
     use super::*;
     use crate::signal::lockin::LockinTerms;
     use crate::signal::lockin::{CycleFlags, CycleOutput};
+    use crate::units::{PhaseDelta, TotalPhase};
 
     const Q32: f64 = crate::units::Q32_PER_FRINGE;
     const TAU: f64 = core::f64::consts::TAU;
@@ -247,14 +248,14 @@ mod tests {
         let q = (y / TAU * Q32).round() as i64;
         CycleRecord {
             output: CycleOutput {
-                increment_q32: q,
-                correction_q32: 0,
+                increment: PhaseDelta::from_q32(q),
+                correction: PhaseDelta::ZERO,
                 duration_ticks: 215_938,
                 flags,
             },
-            raw_increment_q32: q,
+            raw_increment: PhaseDelta::from_q32(q),
             terms,
-            end_phase_q32: 0,
+            end_phase: TotalPhase::from_q32(0),
             dither_amplitude_rad: (TAU * 450.0 / 1.8655) as f32,
             dither_hz: 389.0,
         }

@@ -7,6 +7,7 @@ use super::frequency::FrequencyLoopConfig;
 use super::startup::StartupConfig;
 use super::supervisor::FaultLimits;
 use crate::profile::BoardProfile;
+use crate::sample::AdcCode;
 
 /// Crossover of the amplitude loop once locked, Hz. The loop's measurement noise (the
 /// half-cycle fit of a 1 mV rms pick-off: 0.4 code rms) reaches the amplitude within the loop's
@@ -25,7 +26,7 @@ pub struct DitherConfig {
     /// Pick-off sensitivity, arcsec per ADC code.
     pub pickoff_arcsec_per_code: f32,
     /// The pick-off code of zero angle (nominal; the fit measures the real offset).
-    pub pickoff_mid_code: u16,
+    pub pickoff_mid_code: AdcCode,
     /// The DAC's zero-drive code.
     pub dac_mid_code: u16,
     /// The DAC's full scale.
@@ -65,12 +66,14 @@ impl DitherConfig {
         let drive_limit = drive_limit_codes(profile);
         let startup = StartupConfig::new(profile.dither_search_hz, tick_hz, drive_limit);
         let sensitivity = profile.pickoff_arcsec_per_code as f32;
-        let pickoff_half_range =
-            (profile.pickoff_mid_code as f32).min(0xFFF as f32 - profile.pickoff_mid_code as f32);
+        let pickoff_mid_code = profile.pickoff_mid_code;
+        let pickoff_half_range = pickoff_mid_code
+            .to_f32()
+            .min((AdcCode::FULL_SCALE - pickoff_mid_code) as f32);
         Self {
             tick_hz: tick_hz as f32,
             pickoff_arcsec_per_code: sensitivity,
-            pickoff_mid_code: profile.pickoff_mid_code,
+            pickoff_mid_code,
             dac_mid_code: (profile.dac_full_scale / 2 + 1),
             dac_full_scale: profile.dac_full_scale,
             sample_delay_q16: ((profile.aperture_delay_ticks as u64) << 16)

@@ -25,6 +25,7 @@ use super::noise::{NoiseDither, MAX_DEPTH_PERCENT};
 use super::self_test::{PickoffCheck, PickoffFailure};
 use super::startup::{Ring, RingListener};
 use super::supervisor::{Backoff, DitherState, FaultCounters, FaultKind, Run};
+use crate::sample::AdcCode;
 use crate::storage::DitherSetpoints;
 use crate::units::Phase;
 
@@ -502,7 +503,7 @@ impl DitherController {
 
     /// One drive tick: `pickoff_code` is the pick-off ADC code sampled at this tick; returns the
     /// DAC code for the next tick, and whether the DDS parameters changed with it.
-    pub fn on_tick(&mut self, config: &DitherConfig, pickoff_code: u16) -> Tick {
+    pub fn on_tick(&mut self, config: &DitherConfig, pickoff_code: AdcCode) -> Tick {
         let k = self.tick;
         self.tick = k.wrapping_add(1);
         let mut changed = false;
@@ -530,9 +531,9 @@ impl DitherController {
         }
         let theta = self.next_phase;
         let (cos, sin) = cos_sin_q31(theta);
-        let x = pickoff_code as i32 - config.pickoff_mid_code as i32;
+        let x = pickoff_code - config.pickoff_mid_code;
         self.window.push(
-            pickoff_code,
+            pickoff_code.to_bits(),
             x,
             cos >> 16,
             sin >> 16,

@@ -8,7 +8,7 @@
 //! # The interface
 //! - [`DitherConfig`] (immutable, [`DitherConfig::for_profile`]) apart from the state,
 //!   [`DitherController`] (`new(&config)`);
-//! - `on_tick(&mut self, &DitherConfig, pickoff_code: u16) -> Tick`: the pick-off ADC code
+//! - `on_tick(&mut self, &DitherConfig, pickoff_code: AdcCode) -> Tick`: the pick-off ADC code
 //!   sampled at drive tick k in ([`DitherController::tick`] is k), the DAC code of tick k + 1
 //!   out, with `drive_changed` (the code is the first sample of a new [`Drive`]) and
 //!   `half_cycle` (a new [`DitherEstimate`]);

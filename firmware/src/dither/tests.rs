@@ -7,6 +7,7 @@
 
 use super::*;
 use crate::profile::BoardProfile;
+use crate::sample::AdcCode;
 use crate::storage::DitherSetpoints;
 use crate::test_rng::XorShift;
 use std::f64::consts::TAU;
@@ -169,7 +170,9 @@ impl Bench {
     fn tick_with(&mut self, code: impl FnOnce(&mut Resonator, u16) -> u16) -> Tick {
         let sample = code(&mut self.gyro, self.dac);
         let tick = self.ctrl.tick();
-        let t = self.ctrl.on_tick(&self.config, sample);
+        let t = self
+            .ctrl
+            .on_tick(&self.config, AdcCode::new(sample).unwrap());
         if t.drive_changed {
             self.drive = self.ctrl.drive();
             self.changes += 1;
@@ -800,7 +803,7 @@ fn a_refused_stored_record_keeps_its_enabled() {
     assert!(!ctrl.enabled());
     assert_eq!(ctrl.setpoints().amplitude_arcsec, c.default_setpoint_arcsec);
     for _ in 0..1000 {
-        assert_eq!(ctrl.on_tick(&c, 2048).dac_code, 2048);
+        assert_eq!(ctrl.on_tick(&c, AdcCode::MID).dac_code, 2048);
     }
     assert_eq!(ctrl.state(), DitherState::Off);
     let mut ctrl = DitherController::new(&c);

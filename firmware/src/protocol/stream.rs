@@ -34,7 +34,7 @@ pub const MAX_FRAME: usize = FRAME_PAYLOAD + 6;
 pub struct StreamRecord {
     /// Frame number, +1 per frame sent (wrapping): a gap means lost frames.
     pub sequence: u32,
-    /// Total beat phase at the cycle's end, Q32 fringes (wrapping; `CycleRecord::end_phase_q32`).
+    /// Total beat phase at the cycle's end, Q32 fringes (wrapping; `CycleRecord::end_phase`).
     pub end_phase_q32: i64,
     /// Beat-phase increment over the cycle before compensation, Q32 fringes.
     pub raw_increment_q32: i64,
@@ -55,9 +55,9 @@ impl StreamRecord {
     pub fn from_cycle(sequence: u32, c: &CycleRecord) -> Self {
         Self {
             sequence,
-            end_phase_q32: c.end_phase_q32,
-            raw_increment_q32: c.raw_increment_q32,
-            compensated_increment_q32: c.output.increment_q32,
+            end_phase_q32: c.end_phase.to_q32(),
+            raw_increment_q32: c.raw_increment.to_q32(),
+            compensated_increment_q32: c.output.increment.to_q32(),
             p1_s: c.terms.p1_s,
             p2_s: c.terms.p2_s,
             duration_ticks: c.output.duration_ticks,

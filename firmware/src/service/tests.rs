@@ -12,6 +12,7 @@ use crate::readout::Readout;
 use crate::signal::lockin::LockinTerms;
 use crate::signal::lockin::{CycleFlags, CycleOutput};
 use crate::storage::ram_flash::RamFlash;
+use crate::units::{PhaseDelta, TotalPhase};
 use std::string::String as StdString;
 use std::vec::Vec;
 
@@ -151,17 +152,17 @@ fn ask(service: &mut Service<Flash>, ports: &mut TestPorts, line: &str) -> StdSt
 fn record(flags: CycleFlags) -> CycleRecord {
     CycleRecord {
         output: CycleOutput {
-            increment_q32: 3 << 32,
-            correction_q32: 0,
+            increment: PhaseDelta::from_q32(3 << 32),
+            correction: PhaseDelta::ZERO,
             duration_ticks: 215_938,
             flags,
         },
-        raw_increment_q32: 3 << 32,
+        raw_increment: PhaseDelta::from_q32(3 << 32),
         terms: LockinTerms {
             p1_s: 1e-5,
             p2_s: -1e-5,
         },
-        end_phase_q32: 0,
+        end_phase: TotalPhase::from_q32(0),
         dither_amplitude_rad: 9.5,
         dither_hz: 389.0,
     }
@@ -577,7 +578,7 @@ fn cycles_dropped_on_a_full_queue_leave_their_gap_after_the_older_records() {
     let (producer, mut consumer) = queue.split();
     let mut producer = LossyProducer::new(producer);
     let cycle = |i: i64| CycleRecord {
-        end_phase_q32: i,
+        end_phase: TotalPhase::from_q32(i),
         ..record(CycleFlags::empty())
     };
     let queued = (0..40).filter(|&i| producer.push(cycle(i))).count();

@@ -31,7 +31,7 @@
 
 use super::lockin::{CycleOutput, CycleRecord, LockinTerms};
 use crate::math::{round_f32_to_i32, round_to_i64};
-use crate::units::Q32_PER_FRINGE;
+use crate::units::{PhaseDelta, Q32_PER_FRINGE};
 
 /// 2^16: the Q15.16 scale of a and b.
 pub const COEFFICIENT_SCALE: f32 = 65536.0;
@@ -94,11 +94,11 @@ impl Coefficients {
     }
 }
 
-/// Converts a phase in rad to Q32 fringes, rounded to nearest (saturating; |rad| of a cycle's
-/// correction is below 1, far inside the range).
-pub fn rad_to_q32_fringes(phase_rad: f32) -> i64 {
+/// Converts a phase in rad to a [`PhaseDelta`], rounded to the nearest Q32 step (saturating;
+/// |rad| of a cycle's correction is below 1, far inside the range).
+pub fn rad_to_phase_delta(phase_rad: f32) -> PhaseDelta {
     let fringes = phase_rad as f64 / core::f64::consts::TAU;
-    round_to_i64(fringes * Q32_PER_FRINGE)
+    PhaseDelta::from_q32(round_to_i64(fringes * Q32_PER_FRINGE))
 }
 
 /// The settings the turnaround interrupt applies, swapped as one.
@@ -117,7 +117,7 @@ pub struct CompensationSettings {
 pub struct Compensator {
     active: CompensationSettings,
     staged: Option<CompensationSettings>,
-    total_correction_q32: i64,
+    total_correction: PhaseDelta,
 }
 
 impl Compensator {
@@ -126,7 +126,7 @@ impl Compensator {
         Self {
             active: settings,
             staged: None,
-            total_correction_q32: 0,
+            total_correction: PhaseDelta::ZERO,
         }
     }
 
@@ -147,17 +147,17 @@ impl Compensator {
     }
 
     /// Closes a dither cycle: applies a staged set first (so the whole cycle uses one set), then
-    /// returns this cycle's correction in Q32 fringes (0 when compensation is off) and adds it to
-    /// the running total.
-    pub fn cycle_correction(&mut self, terms: LockinTerms) -> i64 {
+    /// returns this cycle's correction (zero when compensation is off) and adds it to the
+    /// running total.
+    pub fn cycle_correction(&mut self, terms: LockinTerms) -> PhaseDelta {
         if let Some(staged) = self.staged.take() {
             self.active = staged;
         }
         if !self.active.enabled {
-            return 0;
+            return PhaseDelta::ZERO;
         }
-        let correction = rad_to_q32_fringes(self.active.coefficients.lockin_error_rad(terms));
-        self.total_correction_q32 = self.total_correction_q32.wrapping_add(correction);
+        let correction = rad_to_phase_delta(self.active.coefficients.lockin_error_rad(terms));
+        self.total_correction += correction;
         correction
     }
 
@@ -172,20 +172,20 @@ impl Compensator {
         if !record.output.flags.compensable() {
             return record;
         }
-        let correction_q32 = self.cycle_correction(record.terms);
+        let correction = self.cycle_correction(record.terms);
         CycleRecord {
             output: CycleOutput {
-                increment_q32: record.raw_increment_q32.wrapping_sub(correction_q32),
-                correction_q32,
+                increment: record.raw_increment - correction,
+                correction,
                 ..record.output
             },
             ..record
         }
     }
 
-    /// Sum of all corrections applied since start, Q32 fringes.
-    pub fn total_correction_q32(&self) -> i64 {
-        self.total_correction_q32
+    /// Sum of all corrections applied since start (wrapping).
+    pub fn total_correction(&self) -> PhaseDelta {
+        self.total_correction
     }
 }
 
@@ -282,13 +282,13 @@ mod tests {
         assert_eq!(comp.active(), new);
         assert_eq!(
             first,
-            rad_to_q32_fringes(old.coefficients.lockin_error_rad(terms))
+            rad_to_phase_delta(old.coefficients.lockin_error_rad(terms))
         );
         assert_eq!(
             second,
-            rad_to_q32_fringes(new.coefficients.lockin_error_rad(terms))
+            rad_to_phase_delta(new.coefficients.lockin_error_rad(terms))
         );
-        assert_eq!(comp.total_correction_q32(), first + second);
+        assert_eq!(comp.total_correction(), first + second);
     }
 
     #[test]
@@ -301,17 +301,17 @@ mod tests {
             p1_s: 1e-5,
             p2_s: 2e-5,
         };
-        assert_eq!(comp.cycle_correction(terms), 0);
-        assert_eq!(comp.total_correction_q32(), 0);
+        assert_eq!(comp.cycle_correction(terms), PhaseDelta::ZERO);
+        assert_eq!(comp.total_correction(), PhaseDelta::ZERO);
     }
 
     /// 0.018 rad (one traversal of the docs/physics.md set) in Q32 fringes, to the rounding step.
     #[test]
-    fn radians_to_q32_fringes() {
-        let q = rad_to_q32_fringes(0.018);
+    fn radians_to_phase_delta() {
+        let q = rad_to_phase_delta(0.018);
         let want = 0.018_f32 as f64 / core::f64::consts::TAU * Q32_PER_FRINGE;
-        assert!((q as f64 - want).abs() <= 0.5);
-        assert_eq!(rad_to_q32_fringes(-0.018), -q);
+        assert!((q.to_q32() as f64 - want).abs() <= 0.5);
+        assert_eq!(rad_to_phase_delta(-0.018), -q);
     }
 
     /// With compensation on and the true coefficients, the correction removes the parabolic
@@ -352,15 +352,14 @@ mod tests {
             .map(|r| comp.compensate(r))
             .collect();
         for record in cycles.iter().skip(1) {
-            let compensated =
-                record.output.increment_q32 as f64 / Q32_PER_FRINGE * core::f64::consts::TAU;
+            let compensated = record.output.increment.fringes_f64() * core::f64::consts::TAU;
             let resid = compensated - rate / DITHER_HZ;
             // f32 levels and products, the measured k and Q32 phase: 1e-4 of the correction.
             assert!(resid.abs() < 1e-4 * omega_l * k, "resid {resid}");
-            assert!(record.output.correction_q32 != 0);
+            assert!(record.output.correction != PhaseDelta::ZERO);
             assert_eq!(
-                record.output.increment_q32,
-                record.raw_increment_q32 - record.output.correction_q32
+                record.output.increment,
+                record.raw_increment - record.output.correction
             );
         }
     }
@@ -391,8 +390,8 @@ mod tests {
                 assert_eq!(comp.active(), old, "the staged set waits");
             } else if record.output.flags.compensable() {
                 assert_eq!(
-                    out.output.increment_q32,
-                    out.raw_increment_q32 - out.output.correction_q32
+                    out.output.increment,
+                    out.raw_increment - out.output.correction
                 );
             }
         }

@@ -73,6 +73,7 @@ pub fn controller(out: &mut Outputs) {
         amplitude = amplitude * decay + gain * d.amplitude_codes() as f32;
         let (c, _) = cos_sin_q31(Phase::from_bits(phase.to_bits().wrapping_sub(lag)));
         let code = (2048.0 - amplitude * (c as f32 / 2_147_483_648.0) + 0.5) as u16;
+        let code = firmware::sample::AdcCode::new(code).expect("a 12-bit code");
         let t = ctrl.on_tick(&config, code);
         out.u32(t.dac_code as u32);
         if t.drive_changed {

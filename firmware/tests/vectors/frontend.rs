@@ -2,8 +2,10 @@
 //! Lissajous (Heydemann) normalisation and the fringe phase resolver.
 use super::{Outputs, Rng};
 use firmware::math;
+use firmware::sample::AdcCode;
 use firmware::signal::fringe::NormalisedLevels;
 use firmware::signal::{count, fringe, turnaround};
+use firmware::units::{PhaseDelta, TotalPhase};
 use micromath::F32Ext as M; // through the trait: the same code on host and target
 
 /// Count extension of 16- and 32-bit encoder registers: wraps, steps near the bound, glitches
@@ -70,11 +72,12 @@ pub struct Figure {
 
 impl Figure {
     /// The codes at beat phase `psi` (rad), with a little noise.
-    pub fn codes_at(&self, rng: &mut Rng, psi: f32) -> (u16, u16) {
+    pub fn codes_at(&self, rng: &mut Rng, psi: f32) -> (AdcCode, AdcCode) {
         let noise = 2.0 * rng.f32_unit();
         let a = self.offsets.0 + self.radii.0 * M::cos(psi) + noise;
         let b = self.offsets.1 + self.radii.1 * M::sin(psi + self.alpha) + noise;
-        (a.clamp(0.0, 4095.0) as u16, b.clamp(0.0, 4095.0) as u16)
+        let code = |x: f32| AdcCode::new(x.clamp(0.0, 4095.0) as u16).expect("clamped");
+        (code(a), code(b))
     }
 }
 
@@ -197,7 +200,7 @@ pub fn fringe_phase(out: &mut Outputs) {
             out.i32(r.disagreement_q32);
             out.bool(r.glitch);
             out.bool(r.signal_lost);
-            out.i64(r.phase.delta_q32(&previous));
+            out.i64(r.phase.delta(&previous).to_q32());
             out.f64(r.phase.delta_fringes_f64(&previous));
             out.i32(resolver.mean_disagreement_q32());
             previous = r.phase;
@@ -245,14 +248,14 @@ pub fn turnaround_schedule(out: &mut Outputs) {
     for _ in 0..200 {
         let record = CycleRecord {
             output: CycleOutput {
-                increment_q32: rng.i32() as i64 * 8,
-                correction_q32: 0,
+                increment: PhaseDelta::from_q32(rng.i32() as i64 * 8),
+                correction: PhaseDelta::ZERO,
                 duration_ticks: (215_938 + rng.i32_in(-300, 300)) as u32,
                 flags: CycleFlags::empty(),
             },
-            raw_increment_q32: 0,
+            raw_increment: PhaseDelta::ZERO,
             terms: LockinTerms::default(),
-            end_phase_q32: 0,
+            end_phase: TotalPhase::from_q32(0),
             dither_amplitude_rad: rng.f32_in(0.0, 2000.0),
             dither_hz: rng.f32_in(300.0, 500.0),
         };

@@ -53,8 +53,8 @@ impl Rng {
     }
 
     /// A 12-bit ADC code, `0..=4095`.
-    pub fn adc_code(&mut self) -> u16 {
-        (self.u32() >> 20) as u16
+    pub fn adc_code(&mut self) -> firmware::sample::AdcCode {
+        firmware::sample::AdcCode::new((self.u32() >> 20) as u16).expect("12 bits")
     }
 
     /// In `[-1, 1)`, a multiple of 2^-23: the conversion is exact, so identical everywhere.

@@ -1,8 +1,13 @@
 //! Cases for `firmware::signal`: one function per module, named after it.
 use super::{frontend::Figure, Outputs, Rng};
-use firmware::sample::TurnaroundKind;
+use firmware::sample::{AdcCode, TurnaroundKind};
 use firmware::signal::{compensation, lockin, output};
-use firmware::units::TotalPhase;
+use firmware::units::{PhaseDelta, TotalPhase};
+
+/// The code of a conversion of `x` codes (truncated), which the generators keep in range.
+fn adc_code(x: f32) -> AdcCode {
+    AdcCode::new(x as u16).expect("a 12-bit code")
+}
 
 /// Edge inputs every float case should see besides the random ones.
 const SPECIAL_F32: [f32; 6] = [0.0, -0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e-40];
@@ -49,7 +54,7 @@ pub fn lockin_terms(out: &mut Outputs) {
 /// compensator with staged coefficient sets accumulating its integer total.
 pub fn compensation(out: &mut Outputs) {
     use compensation::{
-        rad_per_s_to_q16, rad_to_q32_fringes, Coefficients, CompensationSettings, Compensator,
+        rad_per_s_to_q16, rad_to_phase_delta, Coefficients, CompensationSettings, Compensator,
     };
     use lockin::LockinTerms;
     let q16 = |out: &mut Outputs, v: f32| match rad_per_s_to_q16(v) {
@@ -71,7 +76,7 @@ pub fn compensation(out: &mut Outputs) {
     let mut comp = Compensator::new(settings(&mut rng));
     for _ in 0..500 {
         q16(out, rng.f32_in(-4e4, 4e4));
-        out.i64(rad_to_q32_fringes(rng.f32_in(-4.0, 4.0)));
+        out.i64(rad_to_phase_delta(rng.f32_in(-4.0, 4.0)).to_q32());
         if rng.one_in(8) {
             comp.stage(settings(&mut rng));
         }
@@ -84,8 +89,8 @@ pub fn compensation(out: &mut Outputs) {
         out.i32(next.coefficients.b_q16);
         out.bool(next.enabled);
         out.f32(comp.active().coefficients.lockin_error_rad(terms));
-        out.i64(comp.cycle_correction(terms));
-        out.i64(comp.total_correction_q32());
+        out.i64(comp.cycle_correction(terms).to_q32());
+        out.i64(comp.total_correction().to_q32());
     }
 }
 
@@ -118,8 +123,8 @@ pub fn rate_output(out: &mut Outputs) {
         let drift_q32 = rng.i32() as i64 * 3; // up to ~1.5 fringe per cycle
         for _ in 0..1500 {
             let cycle = CycleOutput {
-                increment_q32: drift_q32 + rng.i32_in(-1 << 28, 1 << 28) as i64,
-                correction_q32: rng.i32() as i64,
+                increment: PhaseDelta::from_q32(drift_q32 + rng.i32_in(-1 << 28, 1 << 28) as i64),
+                correction: PhaseDelta::from_q32(rng.i32() as i64),
                 duration_ticks: (215_938 + rng.i32_in(-500, 500)) as u32,
                 flags: CycleFlags(if rng.one_in(50) {
                     1 << (rng.u32() % 4)
@@ -178,14 +183,14 @@ pub fn cycle_assembly(out: &mut Outputs) {
         else {
             continue;
         };
-        out.i64(r.output.increment_q32);
-        out.i64(r.output.correction_q32);
+        out.i64(r.output.increment.to_q32());
+        out.i64(r.output.correction.to_q32());
         out.u32(r.output.duration_ticks);
         out.u32(r.output.flags.0 as u32);
-        out.i64(r.raw_increment_q32);
+        out.i64(r.raw_increment.to_q32());
         out.f32(r.terms.p1_s);
         out.f32(r.terms.p2_s);
-        out.i64(r.end_phase_q32);
+        out.i64(r.end_phase.to_q32());
         out.f32(r.dither_amplitude_rad);
         out.f32(r.dither_hz);
         out.f64(r.raw_increment_rad());
@@ -252,8 +257,8 @@ pub fn readout_chain(out: &mut Outputs) {
             drive_locked: true,
         };
         if let Some(r) = readout.on_turnaround(&config, sample) {
-            out.i64(r.output.increment_q32);
-            out.i64(r.output.correction_q32);
+            out.i64(r.output.increment.to_q32());
+            out.i64(r.output.correction.to_q32());
             out.u32(r.output.duration_ticks);
             out.u32(r.output.flags.0 as u32);
             out.f32(r.terms.p1_s);
@@ -312,7 +317,7 @@ pub fn output_stage(out: &mut Outputs) {
         };
         // The pick-off stream up to the latch.
         while tick_s(tick) <= t {
-            let code = (pickoff_at(tick_s(tick)) + rng.f32_in(-1.0, 1.0)) as u16;
+            let code = adc_code(pickoff_at(tick_s(tick)) + rng.f32_in(-1.0, 1.0));
             let timestamp_ticks = tick * 2100;
             readout.on_pickoff_sample(
                 &config,
@@ -333,7 +338,7 @@ pub fn output_stage(out: &mut Outputs) {
                 encoder_count,
                 adc_a_code,
                 adc_b_code,
-                pickoff_code: (pickoff_at(t) + rng.f32_in(-1.0, 1.0)) as u16,
+                pickoff_code: adc_code(pickoff_at(t) + rng.f32_in(-1.0, 1.0)),
                 timestamp_ticks,
                 drive_locked: true,
             };
@@ -364,7 +369,7 @@ pub fn output_stage(out: &mut Outputs) {
                 drive_locked: true,
             };
             if let Some(c) = readout.on_turnaround(&config, sample) {
-                out.i64(c.output.correction_q32);
+                out.i64(c.output.correction.to_q32());
             }
             plus = !plus;
             next_turn += half_period;
@@ -390,7 +395,7 @@ pub fn output_stage(out: &mut Outputs) {
 pub fn dither_model(out: &mut Outputs) {
     use firmware::signal::output::dither_model::{DitherModel, DitherModelConfig, PickoffSample};
     let mut rng = Rng::new(0x5eed_0022);
-    let config = DitherModelConfig::for_pickoff(40_000.0, 84_000_000, 2048);
+    let config = DitherModelConfig::for_pickoff(40_000.0, 84_000_000, AdcCode::MID);
     for _ in 0..3 {
         let hz = rng.f32_in(300.0, 600.0);
         let amp = rng.f32_in(400.0, 1500.0);
@@ -407,7 +412,7 @@ pub fn dither_model(out: &mut Outputs) {
             }
             let t = k as f32 / 40_000.0;
             let x = amp * libm::cosf(core::f32::consts::TAU * hz * t + phase);
-            let code = (2048.0 + offset + x + rng.f32_in(-1.5, 1.5)) as u16;
+            let code = adc_code(2048.0 + offset + x + rng.f32_in(-1.5, 1.5));
             model.push(
                 &config,
                 PickoffSample {

@@ -57,7 +57,7 @@ use crate::photodiode::Photodiodes;
 use crate::pickoff::Pickoff;
 pub use config::{BoardConfig, LatchTiming};
 pub use faults::{BoardFault, BoardFaults, Trigger};
-use firmware::sample::{OutputSample, TurnaroundKind, TurnaroundSample};
+use firmware::sample::{AdcCode, OutputSample, TurnaroundKind, TurnaroundSample};
 use firmware::signal::lockin::CycleRecord;
 use firmware::signal::output::dither_model::PickoffSample;
 use firmware::signal::output::rate_shift_ticks;
@@ -242,7 +242,7 @@ impl SimBoard {
 
     /// Runs to the next turnaround: fills `lissajous` with the conversions taken on the way and
     /// returns the turnaround latch.
-    pub fn next_half_cycle(&mut self, lissajous: &mut Vec<(u16, u16)>) -> TurnaroundSample {
+    pub fn next_half_cycle(&mut self, lissajous: &mut Vec<(AdcCode, AdcCode)>) -> TurnaroundSample {
         lissajous.clear();
         let (kind, latch_s, record) = match self.schedule {
             None => {
@@ -284,7 +284,7 @@ impl SimBoard {
 
     /// The free-running conversions, the pick-off stream and the output latches before
     /// `until_s`, in time order.
-    fn sample_lissajous_until(&mut self, until_s: f64, lissajous: &mut Vec<(u16, u16)>) {
+    fn sample_lissajous_until(&mut self, until_s: f64, lissajous: &mut Vec<(AdcCode, AdcCode)>) {
         loop {
             let tick_s = self.stream.next_instant_s();
             if tick_s < until_s && tick_s <= self.next_lissajous_s.min(self.next_sync_s) {
@@ -350,7 +350,7 @@ impl SimBoard {
 
     /// The pick-off's conversion at drive tick `n` (absolute, from t = 0): the firmware's drive
     /// reads it at each tick; the readout gets the same conversion from the stream.
-    pub fn drive_tick_code(&mut self, n: u64) -> u16 {
+    pub fn drive_tick_code(&mut self, n: u64) -> AdcCode {
         self.stream.code(&mut self.pickoff, &self.gyro, n)
     }
 
@@ -368,7 +368,7 @@ impl SimBoard {
     fn scheduled_latch(
         &mut self,
         mut schedule: EdgeSchedule,
-        lissajous: &mut Vec<(u16, u16)>,
+        lissajous: &mut Vec<(AdcCode, AdcCode)>,
     ) -> (TurnaroundKind, f64, LatchRecord) {
         let period_s = 1.0 / self.gyro.params().dither_hz;
         let mut planned = None;
@@ -527,7 +527,7 @@ impl SimBoard {
     /// One conversion of the pick-off's ADC channel at `t_s` (one noise draw), the 12-bit
     /// code: what the firmware's drive loop reads at a drive tick. Needs only the dither (not
     /// the beat phase), so it may run ahead of [`Self::time_s`], within the known drive.
-    pub fn pickoff_code(&mut self, t_s: f64) -> u16 {
+    pub fn pickoff_code(&mut self, t_s: f64) -> AdcCode {
         self.pickoff.sample_code(&self.gyro, t_s)
     }
 

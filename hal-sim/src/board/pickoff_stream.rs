@@ -11,6 +11,7 @@
 use crate::clock::CaptureTimer;
 use crate::gyro::Gyro;
 use crate::pickoff::Pickoff;
+use firmware::sample::AdcCode;
 use firmware::signal::output::dither_model::PickoffSample;
 use std::collections::VecDeque;
 
@@ -26,7 +27,7 @@ pub(super) struct PickoffStream {
     delay_s: f64,
     /// Codes of ticks `first..first + cache.len()`, converted ahead of the board's time (the
     /// drive asked) or not yet handed over.
-    cache: VecDeque<u16>,
+    cache: VecDeque<AdcCode>,
     first: u64,
     /// The next tick to hand to the readout.
     next: u64,
@@ -60,7 +61,7 @@ impl PickoffStream {
     /// The conversion of tick `n`: converted once, in tick order (asking for a later tick
     /// converts the ones before it first), so the noise draws do not depend on who asks. A
     /// tick already dropped (behind both the board and the cache) gets a conversion of its own.
-    pub(super) fn code(&mut self, pickoff: &mut Pickoff, gyro: &Gyro, n: u64) -> u16 {
+    pub(super) fn code(&mut self, pickoff: &mut Pickoff, gyro: &Gyro, n: u64) -> AdcCode {
         if n < self.first {
             return pickoff.sample_code(gyro, self.instant_s(n));
         }

@@ -75,7 +75,7 @@ use crate::params::GyroParams;
 use crate::tmp117::SimTmp117;
 use firmware::profile::BoardProfile;
 use firmware::readout::{Readout, ReadoutConfig};
-use firmware::sample::TurnaroundSample;
+use firmware::sample::{AdcCode, TurnaroundSample};
 use firmware::signal::compensation::CompensationSettings;
 use firmware::signal::lockin::CycleRecord;
 use firmware::signal::output::dither_model::PickoffSample;
@@ -241,7 +241,7 @@ pub struct Harness {
     config: ReadoutConfig,
     readout: Readout,
     /// The photodiode conversions of the last half cycle.
-    lissajous: Vec<(u16, u16)>,
+    lissajous: Vec<(AdcCode, AdcCode)>,
     /// The pick-off stream of the last half cycle.
     pickoff: Vec<PickoffSample>,
     /// The output latches of the last half cycle, and the records the readout made of them
@@ -588,7 +588,7 @@ impl Harness {
     }
 
     /// The photodiode conversions of the last half cycle.
-    pub fn lissajous(&self) -> &[(u16, u16)] {
+    pub fn lissajous(&self) -> &[(AdcCode, AdcCode)] {
         &self.lissajous
     }
 
@@ -631,7 +631,7 @@ impl Harness {
 
 /// What the board produced in one half cycle, and what the firmware sees of it.
 struct Fed<'a> {
-    lissajous: &'a [(u16, u16)],
+    lissajous: &'a [(AdcCode, AdcCode)],
     pickoff: &'a [PickoffSample],
     latches: &'a [OutputLatch],
     sample: TurnaroundSample,

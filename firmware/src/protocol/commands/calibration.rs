@@ -184,6 +184,7 @@ pub(crate) mod tests {
     use crate::signal::lockin::LockinTerms;
     use crate::signal::lockin::{CycleFlags, CycleOutput};
     use crate::storage::{DefaultsReason, LoadOutcome};
+    use crate::units::{PhaseDelta, TotalPhase};
 
     const TAU: f64 = core::f64::consts::TAU;
 
@@ -203,14 +204,14 @@ pub(crate) mod tests {
         let q = (y / TAU * crate::units::Q32_PER_FRINGE).round() as i64;
         CycleRecord {
             output: CycleOutput {
-                increment_q32: q,
-                correction_q32: 0,
+                increment: PhaseDelta::from_q32(q),
+                correction: PhaseDelta::ZERO,
                 duration_ticks: 215_938,
                 flags: CycleFlags::empty(),
             },
-            raw_increment_q32: q,
+            raw_increment: PhaseDelta::from_q32(q),
             terms,
-            end_phase_q32: 0,
+            end_phase: TotalPhase::from_q32(0),
             dither_amplitude_rad: (TAU * 450.0 / 1.8655) as f32,
             dither_hz: 389.0,
         }

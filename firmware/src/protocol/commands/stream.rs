@@ -121,9 +121,9 @@ mod tests {
     fn record() -> CycleRecord {
         CycleRecord {
             output: Default::default(),
-            raw_increment_q32: 5,
+            raw_increment: crate::units::PhaseDelta::from_q32(5),
             terms: Default::default(),
-            end_phase_q32: 0,
+            end_phase: Default::default(),
             dither_amplitude_rad: 1.0,
             dither_hz: 389.0,
         }

@@ -35,7 +35,7 @@
 use super::levels::{LissajousCoefficients, ORIGIN_CODE};
 use super::moments::{LissajousAccumulator, SCALE};
 use crate::math::{atan2_q32, positive, round_to_i64, saturate_i32, solve5, sqrt_f64};
-use crate::sample::ADC_FULL_SCALE_CODE;
+use crate::sample::AdcCode;
 use crate::units::Q32_PER_FRINGE;
 
 /// Smallest accepted radius (codes): keeps the Q34 matrix within `i32`.
@@ -232,7 +232,7 @@ impl EllipseShape {
     /// The fixed-point coefficients; `OutOfRange` if the centre is outside the ADC range or a
     /// matrix entry does not fit an `i32`.
     fn coefficients(&self) -> Result<LissajousCoefficients, FitRejection> {
-        let full = ADC_FULL_SCALE_CODE as f64;
+        let full = AdcCode::FULL_SCALE.to_f64();
         let in_range = |x: f64| (0.0..=full).contains(&x); // false for NaN
         if !in_range(self.offset_a) || !in_range(self.offset_b) {
             return Err(FitRejection::OutOfRange);
@@ -403,7 +403,7 @@ mod tests {
         // Constant codes: no contrast at all.
         let mut acc = LissajousAccumulator::new();
         for _ in 0..1000 {
-            acc.add(2048, 2048);
+            acc.add(AdcCode::MID, AdcCode::MID);
         }
         assert_eq!(
             fit_window(&acc, &cfg).map(|_| ()),
@@ -412,8 +412,8 @@ mod tests {
         // Channels in phase: a straight line, not an ellipse.
         let mut acc = LissajousAccumulator::new();
         for k in 0..4096 {
-            let x = 2048 + (1500.0 * (k as f64 * 0.01).cos()) as i32;
-            acc.add(x as u16, x as u16);
+            let x = AdcCode::new(2048 + (1500.0 * (k as f64 * 0.01).cos()) as u16).unwrap();
+            acc.add(x, x);
         }
         assert!(matches!(
             fit_window(&acc, &cfg),
@@ -463,7 +463,7 @@ mod tests {
                         )
                     }
                 };
-                acc.add(a, b);
+                acc.add(AdcCode::saturating(a), AdcCode::saturating(b));
             }
             let cfg = LissajousConfig {
                 min_samples: 5,

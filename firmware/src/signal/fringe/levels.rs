@@ -18,12 +18,12 @@
 //! until the first one.
 
 use crate::math::{atan2_q32, radius_sq_q30, saturate_i32};
-use crate::sample::ADC_FULL_SCALE_CODE;
+use crate::sample::AdcCode;
 use crate::units::Phase;
 
 /// Mid-scale of the 12-bit ADC: the origin of the fit's integer moment coordinates and the
 /// nominal offsets.
-pub const ORIGIN_CODE: i32 = 2048;
+pub const ORIGIN_CODE: i32 = AdcCode::MID.to_bits() as i32;
 
 /// Normalisation coefficients (immutable, `Copy`): see the module docs for the formats.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -100,7 +100,7 @@ impl LissajousCoefficients {
         m_ba_q34: i32,
         m_bb_q34: i32,
     ) -> Option<Self> {
-        const MAX_OFFSET_Q16: i32 = (ADC_FULL_SCALE_CODE as i32) << 16;
+        const MAX_OFFSET_Q16: i32 = (AdcCode::FULL_SCALE.to_bits() as i32) << 16;
         if offset_a_q16 < 0
             || offset_a_q16 > MAX_OFFSET_Q16
             || offset_b_q16 < 0
@@ -132,11 +132,11 @@ impl LissajousCoefficients {
         (self.m_aa_q34, self.m_ba_q34, self.m_bb_q34)
     }
 
-    /// Normalises one pair of ADC codes (codes above full scale are clamped to it).
+    /// Normalises one pair of ADC codes.
     #[inline]
-    pub fn normalise(&self, a_code: u16, b_code: u16) -> NormalisedLevels {
-        let a = a_code.min(ADC_FULL_SCALE_CODE) as i64;
-        let b = b_code.min(ADC_FULL_SCALE_CODE) as i64;
+    pub fn normalise(&self, a_code: AdcCode, b_code: AdcCode) -> NormalisedLevels {
+        let a = a_code.to_bits() as i64;
+        let b = b_code.to_bits() as i64;
         // Offsets and codes in [0, 4095 * 2^16] (checked by `new`): |x|, |y| < 2^28, each
         // product < 2^59, the sum < 2^60: no overflow in i64.
         let x = (a << 16) - self.offset_a_q16 as i64;
@@ -160,20 +160,21 @@ mod tests {
     #[test]
     fn normalise_fixed_point() {
         let c = LissajousCoefficients::NOMINAL;
-        let n = c.normalise(2048 + 2047, 2048);
+        let code = |c| AdcCode::new(c).unwrap();
+        let n = c.normalise(AdcCode::FULL_SCALE, AdcCode::MID);
         assert!((n.cos_q30 - (1 << 30)).abs() <= 2);
         assert_eq!(n.sin_q30, 0);
         assert!((n.cos_f32() - 1.0).abs() < 1e-6);
-        let n = c.normalise(2048, 1);
+        let n = c.normalise(AdcCode::MID, code(1));
         assert!((n.sin_q30 + (1 << 30)).abs() <= 1 << 20, "{n:?}");
         // Offsets outside the ADC range are refused; extreme matrices and codes saturate.
         assert!(LissajousCoefficients::new(-1, 0, 1, 1, 1).is_none());
         assert!(LissajousCoefficients::new(0, (4095 << 16) + 1, 1, 1, 1).is_none());
         let wild = LissajousCoefficients::new(0, 4095 << 16, i32::MAX, i32::MIN, i32::MAX).unwrap();
-        let n = wild.normalise(u16::MAX, 0);
+        let n = wild.normalise(AdcCode::FULL_SCALE, AdcCode::ZERO);
         assert_eq!(n.cos_q30, i32::MAX);
         assert_eq!(n.sin_q30, i32::MIN);
-        let n = wild.normalise(0, u16::MAX);
+        let n = wild.normalise(AdcCode::ZERO, AdcCode::FULL_SCALE);
         assert_eq!((n.cos_q30, n.sin_q30), (0, 0));
     }
 
@@ -192,9 +193,10 @@ mod tests {
                 (rng.next() >> 34) as i32,
             )
             .unwrap();
-            let (a, b) = ((rng.next() % 4096) as u16, (rng.next() % 4096) as u16);
-            let x = a as f64 * 65536.0 - c.offset_a_q16 as f64;
-            let y = b as f64 * 65536.0 - c.offset_b_q16 as f64;
+            let mut code = || AdcCode::new((rng.next() % 4096) as u16).unwrap();
+            let (a, b) = (code(), code());
+            let x = a.to_f64() * 65536.0 - c.offset_a_q16 as f64;
+            let y = b.to_f64() * 65536.0 - c.offset_b_q16 as f64;
             let want_c = x * c.m_aa_q34 as f64 / (1u64 << 20) as f64;
             let want_s = (x * c.m_ba_q34 as f64 + y * c.m_bb_q34 as f64) / (1u64 << 20) as f64;
             let n = c.normalise(a, b);

@@ -12,7 +12,7 @@
 
 use super::levels::ORIGIN_CODE;
 use crate::math::powi_f64;
-use crate::sample::ADC_FULL_SCALE_CODE;
+use crate::sample::AdcCode;
 
 /// Largest window: the `i64` fourth-moment sums cannot overflow below 2^63 / 2048^4 = 2^19.
 pub const MAX_WINDOW_SAMPLES: u32 = 1 << 18;
@@ -83,15 +83,14 @@ impl LissajousAccumulator {
         self.n == 0
     }
 
-    /// Adds one pair of codes (clamped to full scale). Returns `false` (sample ignored) when
+    /// Adds one pair of codes. Returns `false` (sample ignored) when
     /// the window already holds [`MAX_WINDOW_SAMPLES`].
     #[inline]
-    pub fn add(&mut self, a_code: u16, b_code: u16) -> bool {
+    pub fn add(&mut self, a_code: AdcCode, b_code: AdcCode) -> bool {
         if self.n >= MAX_WINDOW_SAMPLES {
             return false;
         }
-        let a = a_code.min(ADC_FULL_SCALE_CODE);
-        let b = b_code.min(ADC_FULL_SCALE_CODE);
+        let (a, b) = (a_code.to_bits(), b_code.to_bits());
         self.min_a = self.min_a.min(a);
         self.max_a = self.max_a.max(a);
         self.min_b = self.min_b.min(b);
@@ -170,10 +169,14 @@ mod tests {
     fn full_window_no_overflow() {
         let mut acc = LissajousAccumulator::new();
         for k in 0..MAX_WINDOW_SAMPLES {
-            let (a, b) = if k % 2 == 0 { (0, 0) } else { (4095, 0) };
-            assert!(acc.add(a, b));
+            let a = if k % 2 == 0 {
+                AdcCode::ZERO
+            } else {
+                AdcCode::FULL_SCALE
+            };
+            assert!(acc.add(a, AdcCode::ZERO));
         }
-        assert!(!acc.add(0, 0));
+        assert!(!acc.add(AdcCode::ZERO, AdcCode::ZERO));
         assert_eq!(acc.len(), MAX_WINDOW_SAMPLES);
         assert_eq!(acc.s_vvvv, 2048i64.pow(4) * MAX_WINDOW_SAMPLES as i64);
         assert_eq!(acc.spans(), (4095, 0));

@@ -6,9 +6,8 @@
 //! `turns: i64` whole fringes plus `fraction` (a [`Phase`], Q32 turns), i.e. psi_H / 2 pi =
 //! `turns + fraction / 2^32`. Resolution 2^-32 fringe; range 2^63 fringes (at the
 //! 590 kHz peak beat rate of the docs/physics.md set, 5e5 years): nothing is lost over days of
-//! running. The difference of two readings, [`FringePhase::delta_q32`], is an `i64` in Q32
-//! fringes (2^32 per fringe, [`crate::units`]), exact for
-//! |delta| < 2^31 fringes (one hour at the peak beat rate; a dither cycle is < 10^3 fringes)
+//! running. The difference of two readings, [`FringePhase::delta`], is a [`PhaseDelta`] (Q32
+//! fringes in an `i64`, [`crate::units`]), exact for |delta| < 2^31 fringes (one hour at the peak beat rate; a dither cycle is < 10^3 fringes)
 //! and saturating beyond.
 //!
 //! The board's wiring (swapped or inverted channels, a down-counting register) is undone
@@ -47,7 +46,7 @@
 
 use super::convention::FringeConvention;
 use super::levels::NormalisedLevels;
-use crate::units::{Phase, TotalPhase, Q32_PER_FRINGE};
+use crate::units::{Phase, PhaseDelta, TotalPhase, Q32_PER_FRINGE};
 
 /// Disagreement beyond which a reading is a glitch: 3/8 turn (more than a quadrant outside).
 pub const GLITCH_DISAGREEMENT_Q32: u32 = 3 << 29;
@@ -106,12 +105,12 @@ impl FringePhase {
         }
     }
 
-    /// `self - earlier` in Q32 fringes (2^32 per fringe), saturating at the `i64` range
-    /// (|delta| >= 2^31 fringes).
+    /// `self - earlier`, saturating at the range of a [`PhaseDelta`] (|delta| >= 2^31
+    /// fringes).
     #[inline]
-    pub fn delta_q32(&self, earlier: &FringePhase) -> i64 {
+    pub fn delta(&self, earlier: &FringePhase) -> PhaseDelta {
         let d = self.as_q32_i128() - earlier.as_q32_i128();
-        d.clamp(i64::MIN as i128, i64::MAX as i128) as i64
+        PhaseDelta::from_q32(d.clamp(i64::MIN as i128, i64::MAX as i128) as i64)
     }
 
     /// `self - earlier` in fringes, rounded once to `f64` (exact below 2^21 fringes).
@@ -311,6 +310,7 @@ mod tests {
     use super::super::levels::LissajousCoefficients;
     use super::*;
     use crate::math::atan2_q32;
+    use crate::sample::AdcCode;
     use std::f64::consts::TAU;
 
     use crate::test_rng::XorShift;
@@ -505,7 +505,7 @@ mod tests {
         let a = r.resolve(&cfg, big, levels(0.1 + TAU / 4.0 * 0.0));
         let b = r.resolve(&cfg, big + 1, levels(TAU / 4.0 + 0.1));
         assert_eq!(a.phase.turns, big / 4);
-        let d = b.phase.delta_q32(&a.phase);
+        let d = b.phase.delta(&a.phase).to_q32();
         assert!((d - (1i64 << 30)).abs() <= 64, "{d}");
         assert!((b.phase.delta_fringes_f64(&a.phase) - 0.25).abs() < 1e-8);
         let far = FringePhase {
@@ -516,8 +516,8 @@ mod tests {
             turns: i64::MIN,
             fraction: Phase::ZERO,
         };
-        assert_eq!(far.delta_q32(&near), i64::MAX);
-        assert_eq!(near.delta_q32(&far), i64::MIN);
+        assert_eq!(far.delta(&near).to_q32(), i64::MAX);
+        assert_eq!(near.delta(&far).to_q32(), i64::MIN);
     }
 
     /// Random counts and levels (including extremes): never panics, the fraction always equals
@@ -566,7 +566,7 @@ mod tests {
     #[test]
     fn chain_from_samples() {
         let mut rng = XorShift(5);
-        let code = |x: f64| (2048.0 + 2047.0 * x).round() as u16;
+        let code = |x: f64| AdcCode::new((2048.0 + 2047.0 * x).round() as u16).unwrap();
         let mut psi: f64 = 1.0;
         let coeffs = LissajousCoefficients::NOMINAL;
         let cfg = FringePhaseConfig {

@@ -1,6 +1,7 @@
 //! Synthetic Lissajous figures for the fringe stage's tests: a true ellipse and its noisy 12-bit
 //! codes along a dithered phase. It imports nothing of the stage, so every file may use it.
 
+use crate::sample::AdcCode;
 use crate::test_rng::XorShift;
 use std::f64::consts::TAU;
 
@@ -23,9 +24,9 @@ impl Truth {
         )
     }
     /// 12-bit quantised, noisy codes.
-    pub fn codes(&self, psi: f64, rng: &mut XorShift) -> (u16, u16) {
+    pub fn codes(&self, psi: f64, rng: &mut XorShift) -> (AdcCode, AdcCode) {
         let (a, b) = self.ideal(psi);
-        let q = |x: f64| x.round().clamp(0.0, 4095.0) as u16;
+        let q = |x: f64| AdcCode::saturating(x.round().max(0.0) as u16);
         (
             q(a + self.noise * rng.gauss()),
             q(b + self.noise * rng.gauss()),

@@ -4,6 +4,7 @@
 use super::ellipse::{fit_window, Ellipse, FitRejection, LissajousConfig};
 use super::levels::{LissajousCoefficients, NormalisedLevels};
 use super::moments::{LissajousAccumulator, MAX_WINDOW_SAMPLES};
+use crate::sample::AdcCode;
 
 /// Per-window fitting with the coefficients in use: the previous ones are kept when a window
 /// is rejected.
@@ -37,8 +38,8 @@ impl LissajousTracker {
     pub fn add(
         &mut self,
         config: &LissajousConfig,
-        a_code: u16,
-        b_code: u16,
+        a_code: AdcCode,
+        b_code: AdcCode,
     ) -> Option<Result<Ellipse, FitRejection>> {
         self.accumulator.add(a_code, b_code);
         let window = config.window_samples.clamp(1, MAX_WINDOW_SAMPLES);
@@ -94,7 +95,7 @@ impl LissajousTracker {
 
     /// Normalises with the coefficients in use.
     #[inline]
-    pub fn normalise(&self, a_code: u16, b_code: u16) -> NormalisedLevels {
+    pub fn normalise(&self, a_code: AdcCode, b_code: AdcCode) -> NormalisedLevels {
         self.coefficients.normalise(a_code, b_code)
     }
 }
@@ -134,7 +135,8 @@ mod tests {
         assert_ne!(fitted, LissajousCoefficients::NOMINAL);
         // Signal lost for a window: rejected, coefficients kept.
         for _ in 0..2048 {
-            tracker.add(&cfg, 2000, 2100);
+            let code = |c| AdcCode::new(c).unwrap();
+            tracker.add(&cfg, code(2000), code(2100));
         }
         assert_eq!(tracker.last_rejection(), Some(FitRejection::SignalLost));
         assert_eq!(tracker.coefficients(), fitted);

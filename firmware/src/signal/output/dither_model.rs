@@ -63,6 +63,7 @@
 //!   output as harmonics of the dither (not at its frequency).
 
 use crate::math::sine_fit::{cos_sin_q31, SineFit, SineSums, MAX_SAMPLES};
+use crate::sample::AdcCode;
 use crate::units::{Phase, Q32_PER_TURN_F32 as Q32_PER_TURN};
 
 /// Windows merged into one fit.
@@ -79,7 +80,7 @@ pub struct DitherModelConfig {
     /// [`crate::math::sine_fit::MAX_SAMPLES`] in all).
     pub window_samples: u32,
     /// The pick-off code of a zero dither angle.
-    pub mid_code: u16,
+    pub mid_code: AdcCode,
     /// Fraction of the measured frequency error corrected per window.
     pub fll_gain: f32,
     /// Largest frequency error at which the model may be used, Hz.
@@ -94,10 +95,10 @@ pub struct DitherModelConfig {
 
 impl DitherModelConfig {
     /// For a pick-off sampled at `sample_hz` by a capture timer at `timer_hz`, centred at
-    /// `mid_code`: windows of 64 samples (6 of them: 9.6 ms at 40 kHz), the frequency loop
+    /// `mid_code` (clipped to the 12-bit range): windows of 64 samples (6 of them: 9.6 ms at 40 kHz), the frequency loop
     /// correcting 1/16 of its error per window, usable within 0.05 Hz, restarted by a seed
     /// 1 Hz off, a dither of at least 50 codes, a latch 16 codes off the model a fault.
-    pub fn for_pickoff(sample_hz: f32, timer_hz: u32, mid_code: u16) -> Self {
+    pub fn for_pickoff(sample_hz: f32, timer_hz: u32, mid_code: AdcCode) -> Self {
         Self {
             sample_hz,
             timer_ticks_per_sample: (timer_hz as f32 / sample_hz + 0.5) as u32,
@@ -124,8 +125,8 @@ pub struct PickoffSample {
     /// The capture timer at the drive tick's update edge (wrapping), the time base of the
     /// output latches' timestamps.
     pub timestamp_ticks: u32,
-    /// The 12-bit code.
-    pub code: u16,
+    /// The conversion.
+    pub code: AdcCode,
 }
 
 /// The modelled dither at an instant, codes relative to the fitted offset.
@@ -253,7 +254,7 @@ impl DitherModel {
         }
         self.last_ticks = Some(sample.timestamp_ticks);
         let (cos_q31, sin_q31) = cos_sin_q31(self.theta);
-        let x = i32::from(sample.code) - i32::from(config.mid_code);
+        let x = sample.code - config.mid_code;
         self.current.push(x, cos_q31 >> 16, sin_q31 >> 16);
         if self.current.len() >= config.window_samples.min(MAX_SAMPLES / WINDOWS as u32) {
             self.close_window(config, step, sample.timestamp_ticks);
@@ -337,9 +338,9 @@ impl DitherModel {
         &mut self,
         config: &DitherModelConfig,
         estimate: &DitherEstimate,
-        code: u16,
+        code: AdcCode,
     ) -> bool {
-        let x = f32::from(code) - f32::from(config.mid_code);
+        let x = code.to_f32() - config.mid_code.to_f32();
         let off = x - (estimate.offset_codes + estimate.in_phase_codes);
         let agrees = off.abs() <= config.max_disagreement_codes;
         let disagrees = !agrees;
@@ -394,7 +395,7 @@ mod tests {
     const MID: u16 = 2048;
 
     fn config() -> DitherModelConfig {
-        DitherModelConfig::for_pickoff(40_000.0, 84_000_000, MID)
+        DitherModelConfig::for_pickoff(40_000.0, 84_000_000, AdcCode::MID)
     }
 
     /// The pick-off of a dither of `amp` codes at `hz`, phase `phase0` rad at t = 0, with
@@ -412,9 +413,9 @@ mod tests {
         fn angle(&self, t: f64) -> f64 {
             self.amp * (TAU * self.hz * t + self.phase0).cos()
         }
-        fn code(&mut self, t: f64) -> u16 {
+        fn code(&mut self, t: f64) -> AdcCode {
             let v = f64::from(MID) + self.offset + self.angle(t) + self.noise * self.rng.gauss();
-            v.round().clamp(0.0, 4095.0) as u16
+            AdcCode::saturating(v.round().max(0.0) as u16)
         }
     }
 
@@ -583,9 +584,9 @@ mod tests {
         let tick = feed(&mut m, &mut p, tick, 0.2);
         let e = m.estimate(&c, stamp(tick - 1)).unwrap();
         let here = (f32::from(MID) + e.offset_codes + e.in_phase_codes) as u16;
-        assert!(!m.disagrees(&c, &e, here));
+        assert!(!m.disagrees(&c, &e, AdcCode::new(here).unwrap()));
         assert!(m.is_valid(&c));
-        assert!(m.disagrees(&c, &e, here + 40));
+        assert!(m.disagrees(&c, &e, AdcCode::new(here + 40).unwrap()));
         assert!(!m.is_valid(&c));
     }
 }

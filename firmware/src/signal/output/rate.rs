@@ -92,7 +92,7 @@ impl RateAverager {
     pub fn push(&mut self, config: &AveragerConfig, cycle: CycleOutput) -> Option<RateReading> {
         let start_phase = self.phase_q32;
         let start_ticks = self.time_ticks;
-        self.phase_q32 = self.phase_q32.wrapping_add(cycle.increment_q32);
+        self.phase_q32 = self.phase_q32.wrapping_add(cycle.increment.to_q32());
         self.time_ticks = self.time_ticks.wrapping_add(cycle.duration_ticks as u64);
         self.note_crossing(start_phase, start_ticks, cycle.duration_ticks);
         self.cycles = self.cycles.saturating_add(1);
@@ -185,7 +185,7 @@ impl RateAverager {
 /// the raw increment). 0 without a usable dither or duration.
 pub fn rate_shift_ticks(record: &CycleRecord, timer_hz: u32) -> i32 {
     let duration_s = record.output.duration_ticks as f32 / timer_hz as f32;
-    let fringes = (record.output.increment_q32 as f64 / Q32_PER_FRINGE) as f32;
+    let fringes = record.output.increment.fringes_f64() as f32;
     let rate_rad_per_s = fringes * core::f32::consts::TAU / duration_s;
     shift_ticks_for_rate(
         rate_rad_per_s,
@@ -198,6 +198,7 @@ pub fn rate_shift_ticks(record: &CycleRecord, timer_hz: u32) -> i32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::units::{PhaseDelta, TotalPhase};
 
     const Q32: f64 = Q32_PER_FRINGE;
     /// The board's capture-timer clock, Hz.
@@ -214,8 +215,8 @@ mod tests {
 
     fn cycle(increment_fringes: f64, ticks: u32) -> CycleOutput {
         CycleOutput {
-            increment_q32: (increment_fringes * Q32).round() as i64,
-            correction_q32: 0,
+            increment: PhaseDelta::from_q32((increment_fringes * Q32).round() as i64),
+            correction: PhaseDelta::ZERO,
             duration_ticks: ticks,
             flags: CycleFlags::empty(),
         }
@@ -316,13 +317,13 @@ mod tests {
         let duration_ticks = (TIMER_HZ as f64 / 389.0).round() as u32;
         CycleRecord {
             output: CycleOutput {
-                increment_q32: (fringes * Q32_PER_FRINGE).round() as i64,
+                increment: PhaseDelta::from_q32((fringes * Q32_PER_FRINGE).round() as i64),
                 duration_ticks,
                 ..Default::default()
             },
-            raw_increment_q32: 0,
+            raw_increment: PhaseDelta::ZERO,
             terms: Default::default(),
-            end_phase_q32: 0,
+            end_phase: TotalPhase::from_q32(0),
             dither_amplitude_rad: amplitude_rad,
             dither_hz,
         }

@@ -28,6 +28,7 @@
 use super::dither_model::DitherModelConfig;
 use super::strip::StripConfig;
 use crate::thermal::state::{ThermalInput, NO_VALUE};
+use crate::units::{PhaseDelta, TotalPhase};
 
 /// The output stage's settings (immutable).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -162,8 +163,8 @@ pub struct OutputRecorder {
     sequence: u64,
     /// Extended time of the last latch, and its raw register value.
     clock: Option<(u64, u32)>,
-    /// The previous latch's stripped phase (Q32 fringes, wrapping), if the chain holds.
-    previous_q32: Option<i64>,
+    /// The previous latch's stripped phase, if the chain holds.
+    previous: Option<TotalPhase>,
     /// Integrated angle of the valid periods, Q32 fringes.
     angle_q32: i128,
     /// The temperature, its rate and the thermal correction in force.
@@ -189,7 +190,7 @@ impl OutputRecorder {
 
     /// Breaks the chain (a resynchronised count): the next record is a restart.
     pub fn restart(&mut self) {
-        self.previous_q32 = None;
+        self.previous = None;
     }
 
     /// The record of the period that the latch at `timestamp_ticks` ends, with the stripped
@@ -199,7 +200,7 @@ impl OutputRecorder {
         &mut self,
         config: &OutputConfig,
         timestamp_ticks: u32,
-        stripped_q32: i64,
+        stripped: TotalPhase,
         status: OutputStatus,
     ) -> OutputRecord {
         let (time_ticks, period_ticks) = match self.clock {
@@ -211,7 +212,7 @@ impl OutputRecorder {
         };
         self.clock = Some((time_ticks, timestamp_ticks));
         let mut status = status.without(OutputStatus::VALID.union(OutputStatus::RESTART));
-        if self.previous_q32.is_none() {
+        if self.previous.is_none() {
             status = status.union(OutputStatus::RESTART);
         }
         let valid = status.contains(OutputStatus::DITHER_LOCKED)
@@ -225,20 +226,20 @@ impl OutputRecorder {
         }
         let before_q16 = (self.angle_q32 >> 16) as i64;
         if valid {
-            if let Some(previous) = self.previous_q32 {
-                let increment = stripped_q32.wrapping_sub(previous);
+            if let Some(previous) = self.previous {
+                let increment = stripped - previous;
                 let corrected = match &thermal.correction {
                     Some(c) => thermal_corrected(increment, period_ticks, config.timer_hz, c),
                     None => increment,
                 };
-                self.angle_q32 += i128::from(corrected);
+                self.angle_q32 += i128::from(corrected.to_q32());
             }
             status = status.union(OutputStatus::VALID);
         }
         // A faulted latch is no reference for the next period either.
         let faulted = status.intersects(OutputStatus::FAULTS.without(OutputStatus::RESTART))
             || !status.contains(OutputStatus::DITHER_LOCKED);
-        self.previous_q32 = if faulted { None } else { Some(stripped_q32) };
+        self.previous = if faulted { None } else { Some(stripped) };
         let angle_q16 = (self.angle_q32 >> 16) as i64;
         let delta = angle_q16 - before_q16;
         let delta_angle_q16 = delta.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
@@ -266,23 +267,23 @@ impl OutputRecorder {
     }
 }
 
-/// An increment (Q32 fringes) over `period_ticks` corrected by the thermal model:
+/// An increment over `period_ticks` corrected by the thermal model:
 /// `(measured - bias dt) / (1 + scale_error)`. The correction itself is small (a bias of
 /// 0.1 deg/h is 2e-4 fringe per ms; 10 ppm of 32768 fringes is 0.3 fringe), so it is formed in
 /// `f32` (relative error 6e-8 of the correction) and subtracted from the exact increment.
 fn thermal_corrected(
-    increment_q32: i64,
+    increment: PhaseDelta,
     period_ticks: u32,
     timer_hz: u32,
     correction: &crate::thermal::model::ThermalCorrection,
-) -> i64 {
+) -> PhaseDelta {
     let q32 = crate::units::Q32_PER_FRINGE as f32;
     let bias_q32 = correction.bias_fringes_per_s * q32 * (period_ticks as f32 / timer_hz as f32);
     let s = correction.scale_error;
-    let debiased = increment_q32 as f32 - bias_q32;
+    let debiased = increment.to_q32() as f32 - bias_q32;
     // (m - b) / (1 + s) = m - b - (m - b) s / (1 + s)
     let total = bias_q32 + debiased * (s / (1.0 + s));
-    increment_q32.wrapping_sub(total as i64)
+    increment - PhaseDelta::from_q32(total as i64)
 }
 
 #[cfg(test)]
@@ -292,7 +293,11 @@ mod tests {
 
     fn config() -> OutputConfig {
         OutputConfig {
-            model: DitherModelConfig::for_pickoff(40_000.0, 84_000_000, 2048),
+            model: DitherModelConfig::for_pickoff(
+                40_000.0,
+                84_000_000,
+                crate::sample::AdcCode::MID,
+            ),
             strip: StripConfig::for_pickoff(0.4, 1.8655),
             timer_hz: 84_000_000,
             scale_factor_arcsec: 1.8655,
@@ -308,13 +313,13 @@ mod tests {
         let c = config();
         let mut r = OutputRecorder::new();
         let step = (1.25 * Q32_PER_FRINGE) as i64 + 12345;
-        let first = r.record(&c, 0, 0, OK);
+        let first = r.record(&c, 0, TotalPhase::from_q32(0), OK);
         assert!(!first.is_valid() && first.status.contains(OutputStatus::RESTART));
         let mut sum = 0i64;
         let mut phase = 0i64;
         for i in 1..=10u32 {
             phase += step;
-            let rec = r.record(&c, i * 84_000, phase, OK);
+            let rec = r.record(&c, i * 84_000, TotalPhase::from_q32(phase), OK);
             assert!(rec.is_valid(), "{rec:?}");
             assert_eq!(rec.sequence, u64::from(i));
             sum += i64::from(rec.delta_angle_q16);
@@ -322,7 +327,7 @@ mod tests {
         }
         // 1.25 fringes per ms at SF 1.8655: 1.25e3 * 1.8655 deg/h.
         phase += step;
-        let rec = r.record(&c, 11 * 84_000, phase, OK);
+        let rec = r.record(&c, 11 * 84_000, TotalPhase::from_q32(phase), OK);
         let expected = (step as f64 / Q32_PER_FRINGE) * 1e3 * 1.8655;
         // The increment is rounded to Q16: 2^-16 of 1.25 fringes, 1.2e-5.
         assert!((f64::from(rec.rate_deg_per_h) / expected - 1.0).abs() < 2e-5);
@@ -331,15 +336,15 @@ mod tests {
         let bad = r.record(
             &c,
             12 * 84_000,
-            phase,
+            TotalPhase::from_q32(phase),
             OK.union(OutputStatus::COUNTER_GLITCH),
         );
         assert!(!bad.is_valid() && bad.delta_angle_q16 == 0 && bad.angle_q16 == held);
         phase += step;
-        let next = r.record(&c, 13 * 84_000, phase, OK);
+        let next = r.record(&c, 13 * 84_000, TotalPhase::from_q32(phase), OK);
         assert!(!next.is_valid() && next.status.contains(OutputStatus::RESTART));
         phase += step;
-        let good = r.record(&c, 14 * 84_000, phase, OK);
+        let good = r.record(&c, 14 * 84_000, TotalPhase::from_q32(phase), OK);
         assert!(good.is_valid());
         assert_eq!(good.angle_q16, held + i64::from(good.delta_angle_q16));
     }
@@ -349,8 +354,13 @@ mod tests {
     fn an_unlocked_drive_invalidates() {
         let c = config();
         let mut r = OutputRecorder::new();
-        r.record(&c, 0, 0, OK);
-        let rec = r.record(&c, 84_000, 1 << 32, OutputStatus::empty());
+        r.record(&c, 0, TotalPhase::from_q32(0), OK);
+        let rec = r.record(
+            &c,
+            84_000,
+            TotalPhase::from_q32(1 << 32),
+            OutputStatus::empty(),
+        );
         assert!(!rec.is_valid() && rec.delta_angle_q16 == 0);
     }
 
@@ -360,13 +370,18 @@ mod tests {
     fn a_timing_fault_invalidates_and_holds_the_angle() {
         let c = config();
         let mut r = OutputRecorder::new();
-        r.record(&c, 0, 0, OK);
-        let good = r.record(&c, 84_000, 1 << 32, OK);
+        r.record(&c, 0, TotalPhase::from_q32(0), OK);
+        let good = r.record(&c, 84_000, TotalPhase::from_q32(1 << 32), OK);
         assert!(good.is_valid());
-        let bad = r.record(&c, 168_000, 2 << 32, OK.union(OutputStatus::TIMING_FAULT));
+        let bad = r.record(
+            &c,
+            168_000,
+            TotalPhase::from_q32(2 << 32),
+            OK.union(OutputStatus::TIMING_FAULT),
+        );
         assert!(!bad.is_valid() && bad.delta_angle_q16 == 0 && bad.angle_q16 == good.angle_q16);
         assert!(bad.status.contains(OutputStatus::TIMING_FAULT));
-        let next = r.record(&c, 252_000, 3 << 32, OK);
+        let next = r.record(&c, 252_000, TotalPhase::from_q32(3 << 32), OK);
         assert!(!next.is_valid() && next.status.contains(OutputStatus::RESTART));
     }
 
@@ -388,10 +403,10 @@ mod tests {
             sensor_fault: false,
             correction: Some(correction),
         });
-        r.record(&c, 0, 0, OK);
+        r.record(&c, 0, TotalPhase::from_q32(0), OK);
         // 1000 fringes per 1 ms period.
         let step = 1000i64 << 32;
-        let rec = r.record(&c, 84_000, step, OK);
+        let rec = r.record(&c, 84_000, TotalPhase::from_q32(step), OK);
         let want = (1000.0 - 0.25e-3) / (1.0 + 40e-6);
         assert!(
             (rec.delta_angle_fringes() - want).abs() < 2.0 / 65536.0,
@@ -404,7 +419,7 @@ mod tests {
             sensor_fault: true,
             ..ThermalInput::NONE
         });
-        let rec = r.record(&c, 168_000, 2 * step, OK);
+        let rec = r.record(&c, 168_000, TotalPhase::from_q32(2 * step), OK);
         assert_eq!(rec.delta_angle_q16, 1000 << 16, "uncorrected");
         assert!(rec.is_valid());
         assert!(rec.status.contains(OutputStatus::THERMAL_SENSOR_FAULT));
@@ -418,10 +433,10 @@ mod tests {
         let c = config();
         let mut r = OutputRecorder::new();
         let mut raw = u32::MAX - 100_000;
-        let mut last = r.record(&c, raw, 0, OK).time_ticks;
+        let mut last = r.record(&c, raw, TotalPhase::from_q32(0), OK).time_ticks;
         for _ in 0..5 {
             raw = raw.wrapping_add(84_000);
-            let rec = r.record(&c, raw, 0, OK);
+            let rec = r.record(&c, raw, TotalPhase::from_q32(0), OK);
             assert_eq!(rec.time_ticks, last + 84_000);
             assert_eq!(rec.period_ticks, 84_000);
             last = rec.time_ticks;

@@ -47,7 +47,8 @@
 //! supervisor has even noticed; the record is then invalid (`record.rs`).
 
 use super::dither_model::DitherEstimate;
-use crate::units::Q32_PER_FRINGE;
+use crate::sample::AdcCode;
+use crate::units::{PhaseDelta, TotalPhase, Q32_PER_FRINGE};
 
 /// Settings of the stripper (immutable).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -88,8 +89,10 @@ impl StripConfig {
     }
 
     /// True when `code` is at a rail of the 12-bit converter.
-    pub fn at_rail(&self, code: u16) -> bool {
-        code < self.rail_margin_codes || code > 4095 - self.rail_margin_codes
+    pub fn at_rail(&self, code: AdcCode) -> bool {
+        let code = code.to_bits();
+        code < self.rail_margin_codes
+            || code > AdcCode::FULL_SCALE.to_bits() - self.rail_margin_codes
     }
 }
 
@@ -131,9 +134,9 @@ pub struct DitherStripper {
     sr0: f32,
     updates: u32,
     std_rel: f32,
-    /// The previous latch: phase (Q32 fringes, wrapping) and the modelled dither there (in
-    /// phase, in quadrature), while the chain of latches holds.
-    previous: Option<(i64, f32, f32)>,
+    /// The previous latch: its phase and the modelled dither there (in phase, in quadrature),
+    /// while the chain of latches holds.
+    previous: Option<(TotalPhase, f32, f32)>,
     /// The recent stripped increment, fringes (the innovation gate's prediction: an average
     /// with gain 1/2, so it follows a changing rate within two latches).
     recent_increment: Option<f32>,
@@ -151,8 +154,8 @@ const MIN_TWO_TAP_DETERMINANT: f32 = 0.02;
 /// One stripped latch.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Stripped {
-    /// The phase without the dither, Q32 fringes (wrapping like the phase).
-    pub phase_q32: i64,
+    /// The phase without the dither (wrapping like the phase).
+    pub phase: TotalPhase,
     /// The increment since the previous latch broke the innovation gate: the pick-off and the
     /// count disagree about the dither.
     pub implausible: bool,
@@ -189,7 +192,7 @@ impl DitherStripper {
         self.k * dither.in_phase_codes + self.k_quadrature * dither.quadrature_codes
     }
 
-    /// The stripped phase at one latch: `phase_q32 - K p - K_q q` with the modelled dither
+    /// The stripped phase at one latch: `phase - K p - K_q q` with the modelled dither
     /// there, and whether the increment since the previous latch passes the innovation gate.
     /// No model, or `usable` false (a fault in the period), leaves the fit alone and breaks the
     /// chain of increments (the phase is then returned unstripped: the record is invalid); an
@@ -197,7 +200,7 @@ impl DitherStripper {
     pub fn strip(
         &mut self,
         config: &StripConfig,
-        phase_q32: i64,
+        phase: TotalPhase,
         dither: Option<&DitherEstimate>,
         usable: bool,
     ) -> Stripped {
@@ -205,14 +208,14 @@ impl DitherStripper {
             self.previous = None;
             self.recent_increment = None;
             return Stripped {
-                phase_q32,
+                phase,
                 implausible: false,
             };
         };
         let mut implausible = false;
         let dither_fringes = self.dither_fringes(dither);
         if let Some((phase0, p0, q0)) = self.previous {
-            let d_psi = (phase_q32.wrapping_sub(phase0) as f64 / Q32_PER_FRINGE) as f32;
+            let d_psi = (phase - phase0).fringes_f64() as f32;
             let (x1, x2) = (dither.in_phase_codes - p0, dither.quadrature_codes - q0);
             let increment = d_psi - (self.k * x1 + self.k_quadrature * x2);
             if let Some(recent) = self.recent_increment {
@@ -235,9 +238,10 @@ impl DitherStripper {
                 });
             }
         }
-        self.previous = Some((phase_q32, dither.in_phase_codes, dither.quadrature_codes));
+        self.previous = Some((phase, dither.in_phase_codes, dither.quadrature_codes));
+        let dither_q32 = (dither_fringes as f64 * Q32_PER_FRINGE) as i64;
         Stripped {
-            phase_q32: phase_q32.wrapping_sub((dither_fringes as f64 * Q32_PER_FRINGE) as i64),
+            phase: phase - PhaseDelta::from_q32(dither_q32),
             implausible,
         }
     }
@@ -343,9 +347,14 @@ mod tests {
             let m = model(1125.0, 0.0, t);
             let psi = rate_fringes_per_s * t + k_true * m.in_phase_codes as f64;
             let out = s
-                .strip(&cfg, (psi * Q32_PER_FRINGE) as i64, Some(&m), true)
-                .phase_q32;
-            let err = out as f64 / Q32_PER_FRINGE - rate_fringes_per_s * t;
+                .strip(
+                    &cfg,
+                    TotalPhase::from_q32((psi * Q32_PER_FRINGE) as i64),
+                    Some(&m),
+                    true,
+                )
+                .phase;
+            let err = out.to_q32() as f64 / Q32_PER_FRINGE - rate_fringes_per_s * t;
             if i > 2000 {
                 worst = worst.max(err.abs());
                 n += 1;
@@ -367,11 +376,31 @@ mod tests {
     fn a_fault_or_no_model_is_not_learned_from() {
         let cfg = config(0.2);
         let mut s = DitherStripper::new(&cfg);
-        s.strip(&cfg, 0, Some(&model(1000.0, 0.0, 0.0)), true);
-        s.strip(&cfg, 1 << 40, Some(&model(1000.0, 0.0, 1e-3)), false);
-        s.strip(&cfg, 1 << 41, Some(&model(1000.0, 0.0, 2e-3)), true);
-        s.strip(&cfg, 1 << 42, None, true);
-        s.strip(&cfg, 1 << 43, Some(&model(1000.0, 0.0, 4e-3)), true);
+        s.strip(
+            &cfg,
+            TotalPhase::from_q32(0),
+            Some(&model(1000.0, 0.0, 0.0)),
+            true,
+        );
+        s.strip(
+            &cfg,
+            TotalPhase::from_q32(1 << 40),
+            Some(&model(1000.0, 0.0, 1e-3)),
+            false,
+        );
+        s.strip(
+            &cfg,
+            TotalPhase::from_q32(1 << 41),
+            Some(&model(1000.0, 0.0, 2e-3)),
+            true,
+        );
+        s.strip(&cfg, TotalPhase::from_q32(1 << 42), None, true);
+        s.strip(
+            &cfg,
+            TotalPhase::from_q32(1 << 43),
+            Some(&model(1000.0, 0.0, 4e-3)),
+            true,
+        );
         assert_eq!(s.status(&cfg).updates, 0);
         assert_eq!(s.status(&cfg).k, 0.2);
         assert!(!s.status(&cfg).converged);
@@ -390,7 +419,12 @@ mod tests {
             let m = model(1125.0, 0.0, t);
             let psi = 0.2144 * m.in_phase_codes as f64;
             let seen = if lost { model(0.0, 0.0, t) } else { m };
-            let out = s.strip(&cfg, (psi * Q32_PER_FRINGE) as i64, Some(&seen), true);
+            let out = s.strip(
+                &cfg,
+                TotalPhase::from_q32((psi * Q32_PER_FRINGE) as i64),
+                Some(&seen),
+                true,
+            );
             assert!(lost || !out.implausible, "latch {i}");
             flagged += usize::from(out.implausible);
         }
@@ -415,10 +449,15 @@ mod tests {
             let psi = 2.5 * t + k_nominal * dither_codes;
             let m = model(gain * 1125.0, lag_s, t);
             let out = s
-                .strip(&cfg, (psi * Q32_PER_FRINGE) as i64, Some(&m), true)
-                .phase_q32;
+                .strip(
+                    &cfg,
+                    TotalPhase::from_q32((psi * Q32_PER_FRINGE) as i64),
+                    Some(&m),
+                    true,
+                )
+                .phase;
             if i > 2000 {
-                let err = out as f64 / Q32_PER_FRINGE - 2.5 * t;
+                let err = out.to_q32() as f64 / Q32_PER_FRINGE - 2.5 * t;
                 worst = worst.max(err.abs());
             }
         }
@@ -431,7 +470,8 @@ mod tests {
     #[test]
     fn rails_are_detected() {
         let cfg = config(0.2);
-        assert!(cfg.at_rail(0) && cfg.at_rail(1) && cfg.at_rail(4095) && cfg.at_rail(4094));
-        assert!(!cfg.at_rail(2) && !cfg.at_rail(4093) && !cfg.at_rail(2048));
+        let at_rail = |c| cfg.at_rail(AdcCode::new(c).unwrap());
+        assert!(at_rail(0) && at_rail(1) && at_rail(4095) && at_rail(4094));
+        assert!(!at_rail(2) && !at_rail(4093) && !at_rail(2048));
     }
 }

@@ -46,7 +46,7 @@ use super::terms::{
     sine_dither_accel_rad_per_s2, traversal_terms, traversal_time_s, LevelPair, LockinTerms,
 };
 use crate::sample::TurnaroundKind;
-use crate::units::{TotalPhase, Q32_PER_FRINGE};
+use crate::units::{PhaseDelta, TotalPhase, Q32_PER_FRINGE};
 
 /// Flags raised during a cycle (bit set; OR-ed over an averaging window).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -91,11 +91,11 @@ impl CycleFlags {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CycleOutput {
-    /// Beat-phase increment over the cycle, Q32 fringes: compensated by the compensation stage
-    /// (the raw increment as the assembler hands it over).
-    pub increment_q32: i64,
-    /// The lock-in correction subtracted from it, Q32 fringes (0 with compensation off).
-    pub correction_q32: i64,
+    /// Beat-phase increment over the cycle: compensated by the compensation stage (the raw
+    /// increment as the assembler hands it over).
+    pub increment: PhaseDelta,
+    /// The lock-in correction subtracted from it (zero with compensation off).
+    pub correction: PhaseDelta,
     /// Cycle duration in capture-timer ticks.
     pub duration_ticks: u32,
     /// What went wrong during the cycle (the union of its turnarounds' flags).
@@ -163,14 +163,14 @@ impl CycleConfig {
 pub struct CycleRecord {
     /// The increment, its correction (none until the compensation stage), duration and flags.
     pub output: CycleOutput,
-    /// Measured increment before compensation, Q32 fringes.
-    pub raw_increment_q32: i64,
+    /// Measured increment before compensation.
+    pub raw_increment: PhaseDelta,
     /// P1 and P2 of the cycle (latch split: 1/8, 1/2, 3/4, 1/2, 1/8 of its five traversals).
     pub terms: LockinTerms,
-    /// Total phase at the cycle's end, Q32 fringes (wrapping): the 1-2-1 average of the
-    /// phases latched at the "-" turnaround before its closing "+" and at the "+" turnarounds
-    /// on either side of it. The raw increments are the differences of these.
-    pub end_phase_q32: i64,
+    /// Total phase at the cycle's end: the 1-2-1 average of the phases latched at the "-"
+    /// turnaround before its closing "+" and at the "+" turnarounds on either side of it. The
+    /// raw increments are the differences of these.
+    pub end_phase: TotalPhase,
     /// Measured dither amplitude (beat phase, rad) and frequency (Hz) at the closing turnaround.
     pub dither_amplitude_rad: f32,
     /// Measured dither frequency at the closing turnaround, Hz.
@@ -180,7 +180,7 @@ pub struct CycleRecord {
 impl CycleRecord {
     /// The raw increment in rad of beat phase.
     pub fn raw_increment_rad(&self) -> f64 {
-        self.raw_increment_q32 as f64 * core::f64::consts::TAU / Q32_PER_FRINGE
+        self.raw_increment.rad_f64()
     }
     /// Cycle duration in seconds.
     pub fn duration_s(&self, config: &CycleConfig) -> f64 {
@@ -362,19 +362,19 @@ impl CycleAssembler {
         }
         let terms = open.terms + plus.terms.scaled(WEIGHTS[4]);
         let flags = open.flags.union(plus.flags);
-        let raw_increment_q32 = end_phase - open.start_phase;
+        let raw_increment = end_phase - open.start_phase;
         self.last_end = Some((end_phase, end_ticks));
         Some(CycleRecord {
             output: CycleOutput {
                 // Uncompensated: the compensation stage subtracts its correction.
-                increment_q32: raw_increment_q32,
-                correction_q32: 0,
+                increment: raw_increment,
+                correction: PhaseDelta::ZERO,
                 duration_ticks: end_ticks.wrapping_sub(open.start_ticks),
                 flags,
             },
-            raw_increment_q32,
+            raw_increment,
             terms,
-            end_phase_q32: end_phase.to_q32(),
+            end_phase,
             dither_amplitude_rad: self.dither_amplitude_rad,
             dither_hz: self.dither_hz,
         })
@@ -430,8 +430,8 @@ impl CycleAssembler {
         reading: &TurnaroundReading,
     ) -> Option<f32> {
         let (previous, before) = (self.previous?, self.before_previous?);
-        let excursion_q32 = (reading.phase - previous.phase).unsigned_abs()
-            + (previous.phase - before.phase).unsigned_abs();
+        let excursion_q32 = (reading.phase - previous.phase).to_q32().unsigned_abs()
+            + (previous.phase - before.phase).to_q32().unsigned_abs();
         // Sum of two half-cycle excursions = 4 x amplitude.
         let amplitude_rad =
             (excursion_q32 as f64 / Q32_PER_FRINGE * core::f64::consts::TAU / 4.0) as f32;

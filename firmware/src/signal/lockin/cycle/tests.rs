@@ -25,10 +25,10 @@ fn increments_amplitude_and_frequency() {
             "cycle {c}"
         );
         assert_eq!(
-            record.output.increment_q32, record.raw_increment_q32,
+            record.output.increment, record.raw_increment,
             "not compensated here"
         );
-        assert_eq!(record.output.correction_q32, 0);
+        assert_eq!(record.output.correction, PhaseDelta::ZERO);
         if c > 0 {
             assert!(record.output.flags.is_empty(), "{:?}", record.output.flags);
             assert!((record.dither_amplitude_rad as f64 / amp - 1.0).abs() < 1e-5);
@@ -77,7 +77,7 @@ fn increments_ignore_the_amplitude_change() {
                 .windows(3)
                 .step_by(2)
                 .map(|w| {
-                    let naive = (w[2].phase - w[0].phase) as f64 / Q32_PER_FRINGE;
+                    let naive = (w[2].phase - w[0].phase).fringes_f64();
                     (naive - 46.8 / DITHER_HZ / core::f64::consts::TAU).abs()
                         * core::f64::consts::TAU
                 })
@@ -166,9 +166,9 @@ fn a_pause_is_bridged_by_the_next_cycle() {
         }
         cycles.extend(a.on_turnaround(&config, *r));
     }
-    let first_end = cycles[0].end_phase_q32;
-    let last_end = cycles.last().unwrap().end_phase_q32;
-    let summed: i64 = cycles[1..].iter().map(|c| c.raw_increment_q32).sum();
+    let first_end = cycles[0].end_phase;
+    let last_end = cycles.last().unwrap().end_phase;
+    let summed: PhaseDelta = cycles[1..].iter().map(|c| c.raw_increment).sum();
     assert_eq!(summed, last_end - first_end, "no angle lost over the pause");
     assert_eq!(
         cycles
