@@ -13,7 +13,7 @@ use hal_sim::thermal::{GyroThermal, ThermalCoefficients, LIMITS};
 use rlg_sim::characterize::{self, Plan};
 use rlg_sim::dither_run::{self, DitherRunOptions};
 use rlg_sim::experiment::WARMUP_SECONDS;
-use rlg_sim::range::Range;
+use host_cli::range::Range;
 use std::path::PathBuf;
 
 pub use rlg_sim::experiment::PAPER_RANGE_DEG_H;

@@ -10,7 +10,7 @@
 //! free oscillation the drive sustains), the resonance f0 at that instant, and the frequency the
 //! firmware drives and its state.
 
-use crate::range::Range;
+use host_cli::range::Range;
 use firmware::dither::{DitherConfig, DitherState, FaultKind};
 use firmware::profile::BoardProfile;
 use hal_sim::board::{BoardConfig, SimBoard};

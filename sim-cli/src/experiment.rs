@@ -15,7 +15,7 @@
 //! - [`measure_rate`]: one input rate with the compensation on, giving the uncompensated and the
 //!   compensated output of the same cycles, each averaged over whole output periods.
 
-use crate::range::Range;
+use host_cli::range::Range;
 use firmware::calibration::fit::FitResult;
 use firmware::calibration::session::{CalibrationSession, SessionState};
 use firmware::calibration::validation::{AcceptanceLimits, Refusal};

@@ -23,7 +23,7 @@ pub mod output;
 #[cfg(test)]
 pub mod synthetic;
 
-use crate::range::Range;
+use host_cli::range::Range;
 use estimator::{AllanVariance, NoiseType};
 use fit::NoiseFit;
 use input::RateRecord;
