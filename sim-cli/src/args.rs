@@ -10,10 +10,10 @@ use firmware::profile::BoardProfile;
 use hal_sim::dither::resonator::TemperatureProfile;
 use hal_sim::params::GyroParams;
 use hal_sim::thermal::{GyroThermal, ThermalCoefficients, LIMITS};
+use host_cli::range::Range;
 use rlg_sim::characterize::{self, Plan};
 use rlg_sim::dither_run::{self, DitherRunOptions};
 use rlg_sim::experiment::WARMUP_SECONDS;
-use host_cli::range::Range;
 use std::path::PathBuf;
 
 pub use rlg_sim::experiment::PAPER_RANGE_DEG_H;
