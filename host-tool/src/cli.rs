@@ -9,6 +9,7 @@
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use firmware::protocol::SERIAL_BAUD;
+use host_cli::exit;
 use rlg_cal::ranges;
 use std::path::PathBuf;
 
@@ -48,15 +49,35 @@ Examples:
 Long runs (stream, calibrate, record, thermal, sweep) check their output files, the key and the
 board (`id`) before they start. Ctrl-C (or SIGTERM) stops them cleanly: a stream keeps every frame received
 in its CSV and draws its SVG, a calibration is aborted on the board (`cal abort`), a sweep keeps
-the azimuths done; the summary is printed and the exit status is 130.
+the azimuths done; the summary is printed (exit status below).";
 
-Exit status:
-  0    success
-  1    the board answered ERR, or a run failed (fit refused, calibration made no progress)
-  2    usage error (bad arguments, an output file that cannot be created, no key for a
-       protected step)
-  3    connection failed, no answer within the timeout, or a corrupted answer (bad CRC)
-  130  stopped by Ctrl-C or SIGTERM";
+/// The exit statuses `rlg-cal` gives (`host_cli::exit`), in its words.
+const EXIT_STATUSES: [(u8, &str); 5] = [
+    (
+        exit::SUCCESS,
+        "success, also when the reader of stdout goes away (`| head`)",
+    ),
+    (
+        exit::FAILED,
+        "the board answered ERR, or a run failed (fit refused, calibration made no progress)",
+    ),
+    (
+        exit::USAGE,
+        "usage error (bad arguments, an output file that cannot be created, no key for a \
+         protected step)",
+    ),
+    (
+        exit::CONNECTION,
+        "connection failed, no answer within the timeout, a corrupted answer (bad CRC), or the \
+         board received a garbled command (ERR 6/7/8)",
+    ),
+    (exit::INTERRUPTED, "stopped by Ctrl-C or SIGTERM"),
+];
+
+/// The text after the options in `rlg-cal --help`.
+fn after_help() -> String {
+    format!("{AFTER_HELP}\n\n{}", exit::help(&EXIT_STATUSES))
+}
 
 /// Host tool for the ring-laser-gyro readout board's calibration protocol.
 ///
@@ -64,7 +85,7 @@ Exit status:
 /// to stdout (`key=value` lines, or one JSON object per command with `--json`), progress and
 /// errors to stderr.
 #[derive(Debug, Parser)]
-#[command(name = "rlg-cal", version, propagate_version = true, after_help = AFTER_HELP)]
+#[command(name = "rlg-cal", version, propagate_version = true, after_help = after_help())]
 pub struct Cli {
     #[command(flatten)]
     pub connection: ConnectionArgs,

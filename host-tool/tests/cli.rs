@@ -55,6 +55,7 @@ fn help_documents_commands_and_exit_codes() {
         "sweep",
         "serve-sim",
         "Exit status",
+        "0    success, also when the reader of stdout goes away",
         "3    connection",
         "130  stopped by Ctrl-C",
         "RLG_TCP",
