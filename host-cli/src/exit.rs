@@ -96,7 +96,7 @@ const HELP_WIDTH: usize = 96;
 
 /// The "Exit status:" section of a CLI's help: one line per `(status, meaning)`, the status
 /// from the constants of this module and the meaning in the CLI's words, wrapped under
-/// itself at [`HELP_WIDTH`] columns.
+/// itself at `HELP_WIDTH` columns.
 pub fn help(statuses: &[(u8, &str)]) -> String {
     const INDENT: &str = "       ";
     let mut text = String::from("Exit status:");
