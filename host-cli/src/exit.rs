@@ -9,6 +9,9 @@
 //! | 3 | the connection: none, no answer within the timeout, a corrupted answer (`rlg-cal`) |
 //! | 130 | stopped by Ctrl-C or SIGTERM ([`crate::interrupt`]), after what was done is kept |
 //!
+//! Each CLI's help lists the statuses it gives, each in its own words, from these constants
+//! ([`help`]), so the numbers are written here only.
+//!
 //! A command returns `Result<(), Failure>`; `main` hands it to [`exit`], which prints the
 //! message with the program's name and gives the status. clap's own usage errors exit 2 too.
 //! An error type of a library that knows its own status (`rlg-cal`'s client errors) travels
@@ -18,6 +21,8 @@
 use std::fmt;
 use std::process::ExitCode;
 
+/// Exit status of a success, and of a run whose reader of stdout went away.
+pub const SUCCESS: u8 = 0;
 /// Exit status of a run that failed (and of a board that refused a command).
 pub const FAILED: u8 = 1;
 /// Exit status of a usage error: bad arguments, an unwritable output, a missing key.
@@ -70,7 +75,7 @@ impl Failure {
             Self::Connect(_) => CONNECTION,
             Self::Interrupted(_) => INTERRUPTED,
             Self::Error { status, .. } => *status,
-            Self::BrokenPipe => 0,
+            Self::BrokenPipe => SUCCESS,
         }
     }
 
@@ -84,6 +89,37 @@ impl Failure {
             Self::BrokenPipe => None,
         }
     }
+}
+
+/// Width of the help's exit-status lines: a meaning longer than this goes on under itself.
+const HELP_WIDTH: usize = 96;
+
+/// The "Exit status:" section of a CLI's help: one line per `(status, meaning)`, the status
+/// from the constants of this module and the meaning in the CLI's words, wrapped under
+/// itself at `HELP_WIDTH` columns.
+pub fn help(statuses: &[(u8, &str)]) -> String {
+    const INDENT: &str = "       ";
+    let mut text = String::from("Exit status:");
+    for (status, meaning) in statuses {
+        let mut line = format!("  {status:<5}");
+        let mut first = true;
+        for word in meaning.split_whitespace() {
+            if !first && line.len() + 1 + word.len() > HELP_WIDTH {
+                text.push('\n');
+                text.push_str(line.trim_end());
+                line = INDENT.to_owned();
+                first = true;
+            }
+            if !first {
+                line.push(' ');
+            }
+            line.push_str(word);
+            first = false;
+        }
+        text.push('\n');
+        text.push_str(&line);
+    }
+    text
 }
 
 /// The end of `main`: the message on stderr as `program: message`, and the exit status.
@@ -130,6 +166,26 @@ mod tests {
             assert_eq!(failure.status(), status, "{failure:?}");
             assert_eq!(failure.message().as_deref(), message, "{failure:?}");
         }
+    }
+
+    /// The statuses' numbers come from the constants; a long meaning wraps under itself.
+    #[test]
+    fn the_help_lists_each_status_with_its_meaning() {
+        let long = "usage error (bad arguments, an output file that cannot be created, no key \
+                    for a protected step, and more words to pass the width)";
+        let text = help(&[(SUCCESS, "success"), (USAGE, long), (INTERRUPTED, "Ctrl-C")]);
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(
+            lines,
+            [
+                "Exit status:",
+                "  0    success",
+                "  2    usage error (bad arguments, an output file that cannot be created, no key for a protected",
+                "       step, and more words to pass the width)",
+                "  130  Ctrl-C",
+            ]
+        );
+        assert!(lines.iter().all(|l| l.len() <= HELP_WIDTH), "{text}");
     }
 
     /// Writing fails: a gone reader is the quiet end, anything else a failed run naming what.

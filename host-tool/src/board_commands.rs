@@ -36,31 +36,18 @@ pub struct Outputs {
     pub svg: Option<Output>,
 }
 
-/// The preconditions that need no board: arguments, output files, the key for a protected
-/// step. Exit 2 on any.
+/// The preconditions that need no board and that clap has not checked (the ranges of the
+/// arguments it has: `ranges.rs`): output files, the key for a protected step. Exit 2 on any.
 pub fn prepare(command: &Command, have_key: bool) -> Result<Outputs, Failure> {
     match command {
-        Command::Stream(args) => {
-            if !(args.seconds > 0.0 && args.seconds.is_finite()) {
-                return Err(Failure::Usage("--seconds must be positive".into()));
-            }
-            Ok(Outputs {
-                csv: Some(create_output(&args.csv)?),
-                svg: create_optional(args.svg.as_deref())?,
-            })
-        }
-        Command::Record(args) => {
-            if !(args.seconds.is_finite() && args.seconds > 0.0 && args.seconds <= 360_000.0) {
-                return Err(Failure::Usage(format!(
-                    "--seconds must be in (0, 360000], got {}",
-                    args.seconds
-                )));
-            }
-            Ok(Outputs {
-                csv: Some(create_output(&args.csv)?),
-                svg: None,
-            })
-        }
+        Command::Stream(args) => Ok(Outputs {
+            csv: Some(create_output(&args.csv)?),
+            svg: create_optional(args.svg.as_deref())?,
+        }),
+        Command::Record(args) => Ok(Outputs {
+            csv: Some(create_output(&args.csv)?),
+            svg: None,
+        }),
         Command::Thermal(args) if args.apply && !have_key => Err(Failure::Usage(
             "thermal --apply needs the unlock key (--key-file or RLG_KEY): `thermal set` is \
              protected"

@@ -9,6 +9,7 @@
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use firmware::protocol::SERIAL_BAUD;
+use host_cli::exit;
 use rlg_cal::ranges;
 use std::path::PathBuf;
 
@@ -48,15 +49,35 @@ Examples:
 Long runs (stream, calibrate, record, thermal, sweep) check their output files, the key and the
 board (`id`) before they start. Ctrl-C (or SIGTERM) stops them cleanly: a stream keeps every frame received
 in its CSV and draws its SVG, a calibration is aborted on the board (`cal abort`), a sweep keeps
-the azimuths done; the summary is printed and the exit status is 130.
+the azimuths done; the summary is printed (exit status below).";
 
-Exit status:
-  0    success
-  1    the board answered ERR, or a run failed (fit refused, calibration made no progress)
-  2    usage error (bad arguments, an output file that cannot be created, no key for a
-       protected step)
-  3    connection failed, no answer within the timeout, or a corrupted answer (bad CRC)
-  130  stopped by Ctrl-C or SIGTERM";
+/// The exit statuses `rlg-cal` gives (`host_cli::exit`), in its words.
+const EXIT_STATUSES: [(u8, &str); 5] = [
+    (
+        exit::SUCCESS,
+        "success, also when the reader of stdout goes away (`| head`)",
+    ),
+    (
+        exit::FAILED,
+        "the board answered ERR, or a run failed (fit refused, calibration made no progress)",
+    ),
+    (
+        exit::USAGE,
+        "usage error (bad arguments, an output file that cannot be created, no key for a \
+         protected step)",
+    ),
+    (
+        exit::CONNECTION,
+        "connection failed, no answer within the timeout, a corrupted answer (bad CRC), or the \
+         board received a garbled command (ERR 6/7/8)",
+    ),
+    (exit::INTERRUPTED, "stopped by Ctrl-C or SIGTERM"),
+];
+
+/// The text after the options in `rlg-cal --help`.
+fn after_help() -> String {
+    format!("{AFTER_HELP}\n\n{}", exit::help(&EXIT_STATUSES))
+}
 
 /// Host tool for the ring-laser-gyro readout board's calibration protocol.
 ///
@@ -64,7 +85,7 @@ Exit status:
 /// to stdout (`key=value` lines, or one JSON object per command with `--json`), progress and
 /// errors to stderr.
 #[derive(Debug, Parser)]
-#[command(name = "rlg-cal", version, propagate_version = true, after_help = AFTER_HELP)]
+#[command(name = "rlg-cal", version, propagate_version = true, after_help = after_help())]
 pub struct Cli {
     #[command(flatten)]
     pub connection: ConnectionArgs,
@@ -75,14 +96,14 @@ pub struct Cli {
     /// sent before protected commands (set, comp, track, store, reload, defaults, calibrate).
     #[arg(long, value_name = "PATH", global = true)]
     pub key_file: Option<PathBuf>,
-    /// How long to wait for an answer, ms.
     #[arg(
         long,
         default_value_t = 2000,
         value_name = "MS",
         global = true,
-        value_parser = ranges::timeout_ms,
-        allow_negative_numbers = true
+        value_parser = ranges::TIMEOUT_MS.parser(),
+        allow_negative_numbers = true,
+        help = ranges::TIMEOUT_MS.help("How long to wait for an answer")
     )]
     pub timeout_ms: u64,
     /// Results as one JSON object per command (for scripts) instead of `key=value` lines.
@@ -97,14 +118,14 @@ pub struct ConnectionArgs {
     /// Serial port or pty (or RLG_PORT).
     #[arg(long, value_name = "PATH", global = true)]
     pub port: Option<String>,
-    /// Baud rate of --port (or RLG_BAUD; default: the board's, `SERIAL_BAUD`).
     #[arg(
         long,
         value_name = "N",
         global = true,
-        value_parser = ranges::baud,
+        value_parser = ranges::BAUD.parser(),
         allow_negative_numbers = true,
-        help = format!("Baud rate of --port (or RLG_BAUD; default: the board's, {SERIAL_BAUD})")
+        help = ranges::BAUD.help_why("Baud rate of --port, or RLG_BAUD",
+            &format!("default: the board's, {SERIAL_BAUD}"))
     )]
     pub baud: Option<u32>,
     /// A board served on TCP (or RLG_TCP); for `serve-sim`, the address to listen on.
@@ -114,14 +135,14 @@ pub struct ConnectionArgs {
     #[arg(long, global = true)]
     #[cfg_attr(not(feature = "sim"), arg(hide = true))]
     pub sim: bool,
-    /// Input rate of the --sim board, deg/h.
     #[arg(
         long,
         default_value_t = 13.888,
         value_name = "DEG_H",
-        value_parser = ranges::rate_deg_h,
+        value_parser = ranges::SIM_RATE_DEG_H.parser(),
         allow_negative_numbers = true,
-        global = true
+        global = true,
+        help = ranges::SIM_RATE_DEG_H.help("Input rate of the --sim board")
     )]
     #[cfg_attr(not(feature = "sim"), arg(hide = true))]
     pub sim_rate: f64,
@@ -180,10 +201,9 @@ impl ConnectionArgs {
         if let Some(path) = port {
             let baud = match (self.baud, env("RLG_BAUD")) {
                 (Some(baud), _) => baud,
-                (None, Some(text)) => text
-                    .trim()
-                    .parse()
-                    .map_err(|_| format!("RLG_BAUD is not a baud rate: {text:?}"))?,
+                (None, Some(text)) => ranges::BAUD
+                    .parse(&text)
+                    .map_err(|e| format!("RLG_BAUD: {e}"))?,
                 (None, None) => SERIAL_BAUD,
             };
             return Ok(Target::Port { path, baud });
@@ -342,11 +362,13 @@ pub enum Command {
 
 #[derive(Debug, Args)]
 pub struct CalibrateArgs {
-    /// Dither cycles in the fit.
-    #[arg(long, default_value_t = 4000, value_parser = ranges::cal_cycles, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 4000, allow_negative_numbers = true,
+        value_parser = ranges::CAL_CYCLES.parser(),
+        help = ranges::CAL_CYCLES.help("Dither cycles in the fit"))]
     pub cycles: u32,
-    /// Cycles discarded first.
-    #[arg(long, default_value_t = 400, value_parser = ranges::warmup_cycles, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 400, allow_negative_numbers = true,
+        value_parser = ranges::WARMUP_CYCLES.parser(),
+        help = ranges::WARMUP_CYCLES.help("Cycles discarded first"))]
     pub warmup: u32,
     /// Apply the fit (`cal accept`) when it passes.
     #[arg(long)]
@@ -354,15 +376,16 @@ pub struct CalibrateArgs {
     /// Then write it to flash (`store`).
     #[arg(long, requires = "accept")]
     pub store: bool,
-    /// Between two `cal status` polls, ms.
-    #[arg(long, default_value_t = 250, value_name = "MS", value_parser = ranges::poll_ms, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 250, value_name = "MS", allow_negative_numbers = true,
+        value_parser = ranges::POLL_MS.parser(),
+        help = ranges::POLL_MS.help("Between two `cal status` polls"))]
     pub poll_ms: u64,
 }
 
 #[derive(Debug, Args)]
 pub struct StreamArgs {
-    /// How long to stream, s.
-    #[arg(long, value_parser = ranges::seconds, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = ranges::SECONDS.parser(),
+        help = ranges::SECONDS.help("How long to stream"))]
     pub seconds: f64,
     /// One row per streamed cycle.
     #[arg(long, value_name = "PATH")]
@@ -370,45 +393,49 @@ pub struct StreamArgs {
     /// Plot of the rate averaged per second.
     #[arg(long, value_name = "PATH")]
     pub svg: Option<PathBuf>,
-    /// Stream every n-th cycle (1 = every cycle; needs about 18 kB/s at 389 Hz).
-    #[arg(long, default_value_t = 1, value_parser = ranges::divider, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true,
+        value_parser = ranges::DIVIDER.parser(),
+        help = ranges::DIVIDER.help_why("Stream every n-th cycle",
+            "1 = every cycle, needs about 18 kB/s at 389 Hz"))]
     pub divider: u16,
-    /// Override the capture-timer frequency the board reports in `id`, Hz.
-    #[arg(long, value_parser = ranges::timer_hz, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = ranges::TIMER_HZ.parser(),
+        help = ranges::TIMER_HZ.help("Override the capture-timer frequency the board reports in `id`"))]
     pub timer_hz: Option<f64>,
 }
 
 /// `rlg-cal record`: the board's fixed-rate output.
 #[derive(Debug, Args)]
 pub struct RecordArgs {
-    /// How long to record, s (0 < s <= 360000).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = ranges::RECORD_SECONDS.parser(),
+        help = ranges::RECORD_SECONDS.help("How long to record"))]
     pub seconds: f64,
     /// One row per output record (t_s,delta_angle_arcsec,valid,sequence,status), lost records
     /// as rows with valid 0 and no angle.
     #[arg(long, value_name = "PATH")]
     pub csv: PathBuf,
-    /// Override the capture-timer frequency the board reports in `id`, Hz.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = ranges::TIMER_HZ.parser(),
+        help = ranges::TIMER_HZ.help("Override the capture-timer frequency the board reports in `id`"))]
     pub timer_hz: Option<f64>,
 }
 
 /// `rlg-cal thermal`: the thermal calibration (docs/protocol.md, `rlg_cal::thermal`).
 #[derive(Debug, Args)]
 pub struct ThermalArgs {
-    /// How long to record, s (the chamber's whole run).
-    #[arg(long, value_parser = ranges::thermal_seconds, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = ranges::THERMAL_SECONDS.parser(),
+        help = ranges::THERMAL_SECONDS.help("How long to record: the chamber's whole run"))]
     pub seconds: f64,
-    /// The gyro's true input at rest, deg/h: the Earth rate on its sensitive axis (it must lie
-    /// outside the dither's dead band, a few deg/h).
-    #[arg(long, value_parser = ranges::rate_deg_h, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = ranges::INPUT_RATE_DEG_H.parser(),
+        help = ranges::INPUT_RATE_DEG_H.help_why("The gyro's true input at rest: the Earth \
+            rate on its sensitive axis", "it must lie outside the dither's dead band, a few deg/h"))]
     pub input_rate_deg_h: f64,
-    /// The rate table's rate when it turns at +R and -R at some temperatures, deg/h; without
-    /// it the scale factor is not calibrated (its terms stay 0).
-    #[arg(long, value_parser = ranges::table_rate_deg_h, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = ranges::TABLE_RATE_DEG_H.parser(),
+        help = ranges::TABLE_RATE_DEG_H.help_why("The rate table's rate when it turns at +R and \
+            -R at some temperatures", "without it the scale factor is not calibrated, its \
+            terms stay 0"))]
     pub table_rate_deg_h: Option<f64>,
-    /// T_ref of the model, C.
-    #[arg(long, default_value_t = 25.0, value_parser = ranges::reference_c, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 25.0, allow_negative_numbers = true,
+        value_parser = ranges::REFERENCE_C.parser(),
+        help = ranges::REFERENCE_C.help("T_ref of the model"))]
     pub reference_c: f64,
     /// Put the fitted model in force on the board (`thermal set`, `thermal apply`), checked.
     #[arg(long)]
@@ -423,40 +450,50 @@ pub struct ThermalArgs {
 
 #[derive(Debug, Args)]
 pub struct SweepArgs {
-    /// Latitude of the rotary table, deg.
-    #[arg(long, default_value_t = 22.2, value_parser = ranges::latitude_deg, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 22.2, allow_negative_numbers = true,
+        value_parser = ranges::LATITUDE_DEG.parser(),
+        help = ranges::LATITUDE_DEG.help("Latitude of the rotary table"))]
     pub latitude: f64,
-    /// Table azimuths, deg (comma-separated).
     #[arg(
         long,
         value_delimiter = ',',
         default_value = "0,30,60,90,120,150,180,210,240,270,300,330",
-        value_parser = ranges::azimuth_deg,
-        allow_negative_numbers = true
+        value_parser = ranges::AZIMUTHS_DEG.parser(),
+        allow_negative_numbers = true,
+        help = ranges::AZIMUTHS_DEG.help("Table azimuths, comma-separated")
     )]
     pub azimuths: Vec<f64>,
-    /// Settling time after the dither drive has locked (the board waits for that first), s:
-    /// the locked amplitude loop takes about 2 s to settle the last 0.2 %.
-    #[arg(long, default_value_t = 3.0, value_parser = ranges::settle_s, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 3.0, allow_negative_numbers = true,
+        value_parser = ranges::SETTLE_S.parser(),
+        help = ranges::SETTLE_S.help_why("Settling time after the dither drive has locked, which \
+            the board waits for first", "the locked amplitude loop takes about 2 s to settle \
+            the last 0.2 %"))]
     pub settle: f64,
-    /// Measuring time per azimuth, s.
-    #[arg(long, default_value_t = 5.0, value_parser = ranges::seconds, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true,
+        value_parser = ranges::SECONDS.parser(),
+        help = ranges::SECONDS.help("Measuring time per azimuth"))]
     pub seconds: f64,
     /// Where the rate is read.
     #[arg(long, value_enum, default_value = "stream")]
     pub rate_from: RateFrom,
-    /// Stream every n-th cycle.
-    #[arg(long, default_value_t = 1, value_parser = ranges::divider, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true,
+        value_parser = ranges::DIVIDER.parser(),
+        help = ranges::DIVIDER.help("Stream every n-th cycle"))]
     pub divider: u16,
     /// Calibrate first (through the protocol), accept and store.
     #[arg(long)]
     pub calibrate: bool,
-    /// Azimuth of the calibration run, deg.
-    #[arg(long, default_value_t = 0.0, value_parser = ranges::azimuth_deg, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true,
+        value_parser = ranges::CAL_AZIMUTH_DEG.parser(),
+        help = ranges::CAL_AZIMUTH_DEG.help("Azimuth of the calibration run"))]
     pub cal_azimuth: f64,
-    #[arg(long, default_value_t = 3000, value_parser = ranges::cal_cycles, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 3000, allow_negative_numbers = true,
+        value_parser = ranges::SWEEP_CAL_CYCLES.parser(),
+        help = ranges::SWEEP_CAL_CYCLES.help("Dither cycles in the calibration's fit"))]
     pub cal_cycles: u32,
-    #[arg(long, default_value_t = 100, value_parser = ranges::warmup_cycles, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 100, allow_negative_numbers = true,
+        value_parser = ranges::SWEEP_CAL_WARMUP_CYCLES.parser(),
+        help = ranges::SWEEP_CAL_WARMUP_CYCLES.help("Cycles the calibration discards first"))]
     pub cal_warmup: u32,
     /// One row per azimuth.
     #[arg(long, value_name = "PATH")]
@@ -475,21 +512,26 @@ pub struct ServeArgs {
     /// port 0 takes any free port, and the address is printed.)
     #[arg(long)]
     pub pty: bool,
-    /// Simulated seconds per wall-clock second.
-    #[arg(long, default_value_t = 1.0, value_parser = ranges::speed, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true,
+        value_parser = ranges::SPEED.parser(),
+        help = ranges::SPEED.help("Simulated seconds per wall-clock second"))]
     pub speed: f64,
-    /// Constant input rate, deg/h (unless --azimuth is given).
-    #[arg(long, default_value_t = 13.888, value_parser = ranges::rate_deg_h, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 13.888, allow_negative_numbers = true,
+        value_parser = ranges::SERVE_RATE_DEG_H.parser(),
+        help = ranges::SERVE_RATE_DEG_H.help("Constant input rate, unless --azimuth is given"))]
     pub rate: f64,
-    /// Rotary table: Earth rate at this azimuth, deg (with --latitude).
-    #[arg(long, value_parser = ranges::azimuth_deg, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = ranges::AZIMUTH_DEG.parser(),
+        help = ranges::AZIMUTH_DEG.help("Rotary table: Earth rate at this azimuth, with --latitude"))]
     pub azimuth: Option<f64>,
-    #[arg(long, default_value_t = 22.2, value_parser = ranges::latitude_deg, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 22.2, allow_negative_numbers = true,
+        value_parser = ranges::LATITUDE_DEG.parser(),
+        help = ranges::LATITUDE_DEG.help("Latitude of the rotary table, with --azimuth"))]
     pub latitude: f64,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Stop after this many wall-clock seconds (default: run until killed).
-    #[arg(long, value_parser = ranges::seconds, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = ranges::SECONDS.parser(),
+        help = ranges::SECONDS.help_why("Stop after this many wall-clock seconds",
+            "default: run until killed"))]
     pub seconds: Option<f64>,
     /// A file holding the simulated board's key, 32 hex digits on its first line (default:
     /// $RLG_SIM_BOARD_KEY; neither: the board starts unprovisioned, as a new board).
@@ -525,6 +567,7 @@ mod tests {
     }
 
     /// `--port` talks at the board's rate unless told otherwise: the firmware's constant.
+    /// `RLG_BAUD` has the range of `--baud`.
     #[test]
     fn the_baud_rate_defaults_to_the_boards() {
         let cli = parse(&["--port", "/dev/ttyUSB0", "status"]);
@@ -538,6 +581,11 @@ mod tests {
         );
         let from_env = cli.connection.resolve(&env_of(&[("RLG_BAUD", "115200")]));
         assert!(matches!(from_env, Ok(Target::Port { baud: 115_200, .. })));
+        let outside = cli.connection.resolve(&env_of(&[("RLG_BAUD", "0")]));
+        assert_eq!(
+            outside,
+            Err("RLG_BAUD: 0 is outside 1200..=4000000 Bd".into())
+        );
         let cli = parse(&["status", "--port", "/dev/x", "--baud", "9600"]);
         let line_wins = cli.connection.resolve(&env_of(&[("RLG_BAUD", "115200")]));
         assert!(matches!(line_wins, Ok(Target::Port { baud: 9600, .. })));

@@ -10,13 +10,45 @@ use firmware::profile::BoardProfile;
 use hal_sim::dither::resonator::TemperatureProfile;
 use hal_sim::params::GyroParams;
 use hal_sim::thermal::{GyroThermal, ThermalCoefficients, LIMITS};
+use host_cli::exit;
+use host_cli::range::Range;
 use rlg_sim::characterize::{self, Plan};
 use rlg_sim::dither_run::{self, DitherRunOptions};
 use rlg_sim::experiment::WARMUP_SECONDS;
-use rlg_sim::range::Range;
 use std::path::PathBuf;
 
 pub use rlg_sim::experiment::PAPER_RANGE_DEG_H;
+
+/// The exit statuses `rlg-sim` gives (`host_cli::exit`), in its words.
+const EXIT_STATUSES: [(u8, &str); 4] = [
+    (
+        exit::SUCCESS,
+        "success, also when the reader of stdout goes away (`| head`)",
+    ),
+    (
+        exit::FAILED,
+        "a run failed (e.g. the calibration fit is refused, a file not written)",
+    ),
+    (
+        exit::USAGE,
+        "usage error (bad arguments, an output file that cannot be created)",
+    ),
+    (
+        exit::INTERRUPTED,
+        "stopped by Ctrl-C or SIGTERM, after what was done is written",
+    ),
+];
+
+/// `rlg-sim --help`'s description, with the exit statuses.
+fn long_about() -> String {
+    format!(
+        "Simulates a mechanically dithered ring laser gyro (the phase equation with lock-in, \
+         sine dither, photodiodes, counter) and runs the board firmware's signal chain on it: \
+         fringe counting, turnaround sampling, P1/P2, calibration fit and dynamic lock-in \
+         compensation.\n\n{}",
+        exit::help(&EXIT_STATUSES)
+    )
+}
 
 #[derive(Parser, Debug)]
 #[command(
@@ -24,11 +56,7 @@ pub use rlg_sim::experiment::PAPER_RANGE_DEG_H;
     version,
     propagate_version = true,
     about = "Simulated ring laser gyro with the readout firmware's own signal chain in the loop",
-    long_about = "Simulates a mechanically dithered ring laser gyro (the phase equation with lock-in, \
-sine dither, photodiodes, counter) and runs the board firmware's signal chain on it: fringe \
-counting, turnaround sampling, P1/P2, calibration fit and dynamic lock-in compensation.\n\n\
-Exit status: 0 on success, 1 when a run fails (e.g. the calibration fit is refused), 2 on bad \
-arguments."
+    long_about = long_about()
 )]
 pub struct Cli {
     #[command(subcommand)]

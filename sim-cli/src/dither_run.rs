@@ -10,7 +10,6 @@
 //! free oscillation the drive sustains), the resonance f0 at that instant, and the frequency the
 //! firmware drives and its state.
 
-use crate::range::Range;
 use firmware::dither::{DitherConfig, DitherState, FaultKind};
 use firmware::profile::BoardProfile;
 use hal_sim::board::{BoardConfig, SimBoard};
@@ -19,6 +18,7 @@ use hal_sim::drive_loop::FirmwareDrive;
 use hal_sim::gyro::Gyro;
 use hal_sim::input::InputProfile;
 use hal_sim::params::{DitherModel, GyroParams};
+use host_cli::range::Range;
 
 /// One dither run.
 #[derive(Clone, Debug, PartialEq)]

@@ -15,7 +15,6 @@
 //! - [`measure_rate`]: one input rate with the compensation on, giving the uncompensated and the
 //!   compensated output of the same cycles, each averaged over whole output periods.
 
-use crate::range::Range;
 use firmware::calibration::fit::FitResult;
 use firmware::calibration::session::{CalibrationSession, SessionState};
 use firmware::calibration::validation::{AcceptanceLimits, Refusal};
@@ -32,6 +31,7 @@ use hal_sim::gyro::Speed;
 use hal_sim::harness::{DriveSource, Harness, HarnessOptions};
 use hal_sim::input::InputProfile;
 use hal_sim::params::GyroParams;
+use host_cli::range::Range;
 
 /// Earth rate projected on the paper's horizontal axis: 15 deg/h x cos(22.2 deg).
 pub const PAPER_RANGE_DEG_H: f64 = 13.888;

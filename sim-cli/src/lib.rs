@@ -9,7 +9,6 @@ pub mod allan;
 pub mod characterize;
 pub mod dither_run;
 pub mod experiment;
-pub mod range;
 pub mod record_run;
 pub mod report;
 pub mod thermal;

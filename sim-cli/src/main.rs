@@ -5,9 +5,8 @@
 //! deviation and the noise terms of a recorded rate (`rlg_sim::allan`); `rlg-sim
 //! characterize` runs the IEEE Std 647 procedures and writes their report
 //! (`rlg_sim::characterize`); `rlg-sim completions <shell>` prints a shell completion script.
-//! Results go to stdout, diagnostics and errors to stderr; exit status 0 on success (and when
-//! the reader of stdout goes away, as `head` does), 1 on a failed run, 2 on bad arguments, 130
-//! on Ctrl-C (`host_cli::exit`).
+//! Results go to stdout, diagnostics and errors to stderr; the exit statuses are
+//! `host_cli::exit`'s, listed in `rlg-sim --help` (`args::Cli`).
 
 mod args;
 mod characterize_cmd;

@@ -241,14 +241,22 @@ fn numeric_flags_take_negatives_where_legal_and_state_their_ranges() {
             "-10",
             "-10 is outside 0.001..=36000 s",
         ),
-        ("--amplitude-jitter", "nan", "nan is outside 0..=0.1"),
+        (
+            "--amplitude-jitter",
+            "nan",
+            "nan is not a finite number in 0..=0.1",
+        ),
         ("--points", "0", "0 is outside 1..=10000"),
         (
             "--rate-max-deg-h",
             "-2e6",
             "-2e6 is outside -1e6..=1e6 deg/h",
         ),
-        ("--warmup-seconds", "inf", "inf is outside 0..=60 s"),
+        (
+            "--warmup-seconds",
+            "inf",
+            "inf is not a finite number in 0..=60 s",
+        ),
     ] {
         let (out, took) = rlg_sim(&["sweep", flag, value]);
         let stderr = text(&out.stderr);

@@ -1,6 +1,7 @@
 //! The conventions `rlg-sim` shares with `rlg-cal` (host-cli): a reader of stdout that goes
 //! away ends the run quietly with exit 0, `completions <shell>` prints a script that knows
-//! every subcommand, and `--version` answers at the top and in each subcommand.
+//! every subcommand, `--version` answers at the top and in each subcommand, and `--help`
+//! lists the exit statuses.
 
 mod support;
 
@@ -124,4 +125,24 @@ fn version_everywhere() {
             "{args:?}"
         );
     }
+}
+
+/// `rlg-sim --help` lists every exit status it gives, each with its meaning; `-h` is the
+/// short form without them.
+#[test]
+fn help_lists_the_exit_statuses() {
+    let out = rlg_sim(&["--help"]).0;
+    assert_eq!(out.status.code(), Some(0));
+    let help = text(&out.stdout);
+    for line in [
+        "Exit status:",
+        "  0    success, also when the reader of stdout goes away",
+        "  1    a run failed",
+        "  2    usage error",
+        "  130  stopped by Ctrl-C or SIGTERM",
+    ] {
+        assert!(help.contains(line), "{line:?} in {help}");
+    }
+    let short = text(&rlg_sim(&["-h"]).0.stdout);
+    assert!(!short.contains("Exit status"), "{short}");
 }

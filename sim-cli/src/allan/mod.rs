@@ -23,9 +23,9 @@ pub mod output;
 #[cfg(test)]
 pub mod synthetic;
 
-use crate::range::Range;
 use estimator::{AllanVariance, NoiseType};
 use fit::NoiseFit;
+use host_cli::range::Range;
 use input::RateRecord;
 
 /// Valid two-sided confidence levels of the intervals (`--confidence`).

@@ -35,10 +35,10 @@ pub mod summary;
 pub mod thermal;
 
 use crate::experiment::{BoardSetup, WARMUP_SECONDS};
-use crate::range::Range;
 use firmware::calibration::validation::chow_dead_band_rad_per_s;
 use firmware::signal::compensation::CompensationSettings;
 use hal_sim::params::GyroParams;
+use host_cli::range::Range;
 
 /// One configuration of the board characterised.
 #[derive(Clone, Debug, PartialEq)]

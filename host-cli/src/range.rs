@@ -4,6 +4,12 @@
 //! range is printed from the same numbers) and the library's own checks of the same setting
 //! ([`Range::check`], for callers that build the options in code).
 //!
+//! Every refusal names the range, e.g. `error: invalid value '-5' for '--seconds <SECONDS>': -5
+//! is outside 0 < x <= 86400 s`. A whole number the flag's type cannot hold (`-1` for an
+//! unsigned count, twenty digits) is outside the range like any other, not a parse error; `inf`
+//! and `NaN` are refused as not finite. A ranged flag also takes `allow_negative_numbers =
+//! true`, so that `-5` reaches the parser instead of being taken for an unknown flag.
+//!
 //! Trade-off: clap's derive takes help text from doc comments, which cannot hold a computed
 //! number, so a ranged flag's help is an expression (`help = RANGE.help("...")`) instead of a
 //! doc comment. Ranges that depend on another flag (a run's end, a maximum above a minimum) stay
@@ -123,6 +129,21 @@ impl<T: Copy + PartialOrd + Display> Range<T> {
     }
 }
 
+/// True for `inf`, `infinity` and `NaN` in any case and with a sign: words, not a number too
+/// large for `f64` (`1e400` is a number outside every range).
+fn names_a_non_finite(text: &str) -> bool {
+    text.parse::<f64>().is_ok_and(|x| !x.is_finite())
+        && text
+            .bytes()
+            .any(|b| b.is_ascii_alphabetic() && !b.eq_ignore_ascii_case(&b'e'))
+}
+
+/// True for an optional sign and decimal digits only: a whole number, whatever its size.
+fn is_whole(text: &str) -> bool {
+    let digits = text.strip_prefix(['-', '+']).unwrap_or(text);
+    !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())
+}
+
 /// `value` as Display writes it, except a power of ten from 1e6 on, written as such (`1e6`).
 fn short<T: Display>(value: T) -> String {
     let text = value.to_string();
@@ -140,20 +161,23 @@ fn short<T: Display>(value: T) -> String {
 
 impl<T: Copy + PartialOrd + Display + FromStr> Range<T> {
     /// Parses `text` and checks it; the message (clap puts the flag before it) gives the range.
+    /// What is refused, and how:
+    /// - a number outside, also one the type cannot hold (`-1` for an unsigned flag, twenty
+    ///   digits): `is outside`;
+    /// - `inf`, `NaN` (any case), for any flag: `is not a finite number`;
+    /// - a fraction for a whole-number flag (`2.5`, `1e3`): `is not a whole number`;
+    /// - anything else: `is not a number`.
     pub fn parse(&self, text: &str) -> Result<T, String> {
-        match text.trim().parse::<T>() {
-            Ok(value) if self.contains(value) => Ok(value),
-            Ok(_) => Err(format!("{text} is outside {}", self.describe())),
-            // Not a `T`, but a number: a whole one is outside an unsigned type's range (`-1`).
-            Err(_) => match text.trim().parse::<f64>() {
-                Ok(x) if x.fract() == 0.0 => Err(format!("{text} is outside {}", self.describe())),
-                Ok(_) => Err(format!(
-                    "{text} is not a whole number in {}",
-                    self.describe()
-                )),
-                Err(_) => Err(format!("{text} is not a number in {}", self.describe())),
-            },
-        }
+        let trimmed = text.trim();
+        let refusal = match trimmed.parse::<T>() {
+            Ok(value) if self.contains(value) => return Ok(value),
+            _ if names_a_non_finite(trimmed) => "is not a finite number in",
+            Ok(_) => "is outside",
+            Err(_) if is_whole(trimmed) => "is outside",
+            Err(_) if trimmed.parse::<f64>().is_ok() => "is not a whole number in",
+            Err(_) => "is not a number in",
+        };
+        Err(format!("{text} {refusal} {}", self.describe()))
     }
 
     /// The clap value parser of the flag: [`Range::parse`].
@@ -188,8 +212,14 @@ mod tests {
     #[test]
     fn refusals_give_the_range_and_negative_values_are_numbers() {
         assert_eq!(HZ.parse("-5").unwrap_err(), "-5 is outside 200..=1500 Hz");
-        assert_eq!(HZ.parse("nan").unwrap_err(), "nan is outside 200..=1500 Hz");
-        assert_eq!(HZ.parse("inf").unwrap_err(), "inf is outside 200..=1500 Hz");
+        assert_eq!(
+            HZ.parse("nan").unwrap_err(),
+            "nan is not a finite number in 200..=1500 Hz"
+        );
+        assert_eq!(
+            HZ.parse("inf").unwrap_err(),
+            "inf is not a finite number in 200..=1500 Hz"
+        );
         assert_eq!(
             HZ.parse("fast").unwrap_err(),
             "fast is not a number in 200..=1500 Hz"
@@ -215,6 +245,67 @@ mod tests {
         assert_eq!(
             HZ.help_why("Dither frequency", "the board's scheduler range"),
             "Dither frequency (200..=1500 Hz; the board's scheduler range)"
+        );
+    }
+
+    const BAUD: Range<u32> = Range::closed("--baud", 1_200, 4_000_000, "Bd");
+    const TIMEOUT_MS: Range<u64> = Range::closed("--timeout-ms", 1, 600_000, "ms");
+    const RATE_DEG_H: Range<f64> = Range::symmetric("--rate", 100_000.0, "deg/h");
+
+    /// Whole numbers the type cannot hold are outside the range (not a parse error); a
+    /// non-finite value is refused as such for any flag, a number too large for `f64` as
+    /// outside; a leading minus is a number wherever the range allows it.
+    #[test]
+    fn integers_beyond_the_type_and_non_finite_values() {
+        assert_eq!(BAUD.parse("460800"), Ok(460_800));
+        assert_eq!(BAUD.parse(" 1200 "), Ok(1_200));
+        assert_eq!(
+            BAUD.parse("99999999999999999999").unwrap_err(),
+            "99999999999999999999 is outside 1200..=4000000 Bd"
+        );
+        assert_eq!(
+            BAUD.parse("-99999999999999999999999999999999999999999")
+                .unwrap_err(),
+            "-99999999999999999999999999999999999999999 is outside 1200..=4000000 Bd"
+        );
+        assert_eq!(
+            BAUD.parse("+0").unwrap_err(),
+            "+0 is outside 1200..=4000000 Bd"
+        );
+        assert_eq!(
+            TIMEOUT_MS.parse("-1").unwrap_err(),
+            "-1 is outside 1..=600000 ms"
+        );
+        assert_eq!(
+            TIMEOUT_MS.parse("2s").unwrap_err(),
+            "2s is not a number in 1..=600000 ms"
+        );
+        assert_eq!(
+            TIMEOUT_MS.parse("1e3").unwrap_err(),
+            "1e3 is not a whole number in 1..=600000 ms"
+        );
+        assert_eq!(
+            TIMEOUT_MS.parse("inf").unwrap_err(),
+            "inf is not a finite number in 1..=600000 ms"
+        );
+        for word in ["NaN", "-inf", "+Infinity", "INF"] {
+            assert_eq!(
+                SECONDS.parse(word).unwrap_err(),
+                format!("{word} is not a finite number in 0 < x <= 3600 s")
+            );
+        }
+        assert_eq!(
+            SECONDS.parse("-5").unwrap_err(),
+            "-5 is outside 0 < x <= 3600 s"
+        );
+        assert_eq!(RATE_DEG_H.parse("-13.888"), Ok(-13.888));
+        assert_eq!(
+            RATE_DEG_H.parse("1e300").unwrap_err(),
+            "1e300 is outside -100000..=100000 deg/h"
+        );
+        assert_eq!(
+            RATE_DEG_H.parse("1e400").unwrap_err(),
+            "1e400 is outside -100000..=100000 deg/h"
         );
     }
 }
