@@ -22,6 +22,7 @@ pub mod decimal;
 pub mod endpoint;
 pub mod execute;
 pub mod key;
+pub mod le_bytes;
 pub mod line;
 pub mod link;
 pub mod output_frame;

@@ -48,25 +48,9 @@ fn to_bytes(r: &OutputRecord) -> [u8; OUTPUT_PAYLOAD] {
 }
 
 fn from_bytes(b: &[u8; OUTPUT_PAYLOAD]) -> OutputRecord {
-    // The fields' offsets lie inside the payload (a fixed layout): `get` never misses.
-    let u64_at = |i: usize| {
-        u64::from_le_bytes(
-            b.get(i..)
-                .and_then(|r| r.first_chunk::<8>())
-                .copied()
-                .unwrap_or_default(),
-        )
-    };
-    let (sequence, time_ticks, angle) = (u64_at(0), u64_at(8), u64_at(24));
-    let u32_at = |i: usize| {
-        u32::from_le_bytes(
-            b.get(i..)
-                .and_then(|r| r.first_chunk::<4>())
-                .copied()
-                .unwrap_or_default(),
-        )
-    };
-    let (period_ticks, delta, rate) = (u32_at(16), u32_at(20), u32_at(32));
+    use super::le_bytes::{u32_at, u64_at};
+    let (sequence, time_ticks, angle) = (u64_at(b, 0), u64_at(b, 8), u64_at(b, 24));
+    let (period_ticks, delta, rate) = (u32_at(b, 16), u32_at(b, 20), u32_at(b, 32));
     OutputRecord {
         sequence,
         time_ticks,

@@ -79,31 +79,15 @@ impl StreamRecord {
     }
 
     fn from_bytes(b: &[u8; FRAME_PAYLOAD]) -> Self {
-        // The fields' offsets lie inside the payload (a fixed layout): `get` never misses.
-        let u32_at = |i: usize| {
-            u32::from_le_bytes(
-                b.get(i..)
-                    .and_then(|r| r.first_chunk::<4>())
-                    .copied()
-                    .unwrap_or_default(),
-            )
-        };
-        let i64_at = |i: usize| {
-            i64::from_le_bytes(
-                b.get(i..)
-                    .and_then(|r| r.first_chunk::<8>())
-                    .copied()
-                    .unwrap_or_default(),
-            )
-        };
+        use super::le_bytes::{i64_at, u32_at};
         Self {
-            sequence: u32_at(0),
-            end_phase_q32: i64_at(4),
-            raw_increment_q32: i64_at(12),
-            compensated_increment_q32: i64_at(20),
-            p1_s: f32::from_bits(u32_at(28)),
-            p2_s: f32::from_bits(u32_at(32)),
-            duration_ticks: u32_at(36),
+            sequence: u32_at(b, 0),
+            end_phase_q32: i64_at(b, 4),
+            raw_increment_q32: i64_at(b, 12),
+            compensated_increment_q32: i64_at(b, 20),
+            p1_s: f32::from_bits(u32_at(b, 28)),
+            p2_s: f32::from_bits(u32_at(b, 32)),
+            duration_ticks: u32_at(b, 36),
             flags: b[40],
         }
     }
