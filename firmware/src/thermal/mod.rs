@@ -24,6 +24,7 @@
 //! [`state::ThermalInput`] into the readout (`Readout::set_thermal`), whose output latch applies
 //! it to the next records. hal-sim runs the same code against its simulated TMP117.
 
+pub mod bus_recovery;
 pub mod fit;
 pub mod model;
 pub mod rate;
