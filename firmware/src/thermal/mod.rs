@@ -10,6 +10,8 @@
 //!
 //! - [`tmp117`]: the driver, generic over `embedded_hal::i2c::I2c` (embedded-hal 1.0), and why
 //!   it is not the `tmp117` crate;
+//! - [`bus_recovery`]: the I2C bus clear (up to nine clocks while SDA is low, then START and
+//!   STOP), over embedded-hal's pin traits; the board runs it on I2C1's pins;
 //! - [`sensor`]: when to poll, and the faults (NACK, stuck bus, frozen reading) with the time
 //!   each takes to show;
 //! - [`rate`]: the temperature's rate;
