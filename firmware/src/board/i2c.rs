@@ -18,19 +18,39 @@
 //! answers (SDA or SCL held low, no I2C at all as under QEMU, whose netduinoplus2 does not
 //! model the I2C peripheral) ends in `ErrorKind::Bus` instead of a hang; `AF` is
 //! `NoAcknowledge`, `BERR` `Bus`, `ARLO` `ArbitrationLoss`. After any error the peripheral is
-//! reset (`CR1.SWRST`) and set up again, so the next transfer starts clean (errata ES0182
-//! 2.9.x: the analog filter may leave `BUSY` set after a glitch; the software reset clears it).
-//! A slave holding SDA low through a reset of the MCU is freed by the TMP117's own 30 ms
-//! time-out; the nine-clock recovery through GPIO is a bring-up item (docs/bringup.md).
+//! reset (`CR1.SWRST`) and set up again, so the next transfer starts clean.
+//!
+//! **Bus clear.** A slave that was sending when the MCU reset (or a transfer broke off) holds
+//! SDA low and waits for clocks. Before the peripheral is first enabled, and after a `Bus` or
+//! `ArbitrationLoss` error (on this one-master bus either means a line was low when the
+//! controller released it), the controller is switched off (`PE` = 0), PB6/PB7 become GPIO
+//! open-drain outputs (MODER = 01, OTYPER = 1, released through BSRR before the mode changes so
+//! no line glitches low; levels read from IDR, RM0090 8.4) and `thermal::bus_recovery` runs at
+//! 100 kHz: up to nine SCL pulses while SDA is low, then a START and a STOP; then the pins go
+//! back to AF4 and the peripheral is reset and set up. The START/STOP toggles both lines also on
+//! a free bus, which is the workaround of the erratum "I2C analog filter may provide wrong
+//! value, locking BUSY flag and preventing master mode entry" (ES0182): the filter output
+//! follows its line only after a transition, and `SWRST` alone does not clear `BUSY` then. The
+//! sequence is bounded (`thermal::bus_recovery`: 25 us on a free bus, 115 us after nine
+//! pulses, 105 us with SCL held low, as under QEMU, whose GPIO inputs read 0; about 1 ms more
+//! with a slave stretching every clock to the bound) and runs only where the transfers do, in
+//! the main loop. The outcome is logged at start-up (`I2C1 bus clear: ...` when the bus was
+//! not free); after an error the transfer's own error is what the driver reports. The TMP117
+//! also frees SDA by itself after its 30 ms bus time-out.
 //!
 //! **Where it runs.** Only in the main loop (`board::app`), never in the readout's interrupts:
 //! a poll is ~95 us (one register) or ~190 us (two), preempted by every interrupt; the
 //! controller stretches SCL while it waits, which the part accepts, so the interrupts see no
 //! added latency (the main loop's own work per pass grows by at most 190 us every 50 ms).
 
+use core::convert::Infallible;
+
+use embedded_hal::delay::DelayNs;
+use embedded_hal::digital::{self, InputPin, OutputPin};
 use embedded_hal::i2c::{ErrorKind, ErrorType, NoAcknowledgeSource, Operation, SevenBitAddress};
 
 use super::{pac, Port};
+use crate::thermal::bus_recovery::{self, Recovery, RecoveryTiming};
 
 /// RCC APB1ENR bit of I2C1 (RM0090 7.3.13).
 const APB1_I2C1: u32 = 1 << 21;
@@ -40,6 +60,15 @@ const PCLK1_MHZ: u16 = 42;
 const CCR_400KHZ: u16 = 35;
 /// Fast-mode rise time: 300 ns at 42 MHz, + 1.
 const TRISE_FAST: u16 = 13;
+/// I2C1's lines on port B and their alternate function.
+const SCL_PIN: u32 = 6;
+const SDA_PIN: u32 = 7;
+const AF_I2C1: u32 = 4;
+// GPIO register offsets (RM0090 8.4).
+const MODER: usize = 0x00;
+const OTYPER: usize = 0x04;
+const IDR: usize = 0x10;
+const BSRR: usize = 0x18;
 /// Upper bound of one wait's polls (about 1 ms at 168 MHz; a byte at 400 kHz is 22.5 us).
 pub const WAIT_LOOPS: u32 = 20_000;
 
@@ -81,10 +110,9 @@ impl I2c1 {
         // SAFETY: read-modify-write of enable bits during start-up, one context.
         rcc.apb1enr()
             .modify(|r, w| unsafe { w.bits(r.bits() | APB1_I2C1) });
-        for pin in [6, 7] {
-            Port::B.alternate(pin, 4);
-            // OTYPER (offset 0x04): open drain.
-            Port::B.modify(0x04, 0, 1 << pin);
+        match clear_bus() {
+            Recovery::Free => defmt::debug!("I2C1 bus free"),
+            outcome => defmt::warn!("I2C1 bus clear: {}", outcome),
         }
         let me = Self { i2c };
         me.configure();
@@ -249,10 +277,78 @@ impl embedded_hal::i2c::I2c<SevenBitAddress> for I2c1 {
         operations: &mut [Operation<'_>],
     ) -> Result<(), Self::Error> {
         let result = self.run(address, operations);
-        if result.is_err() {
+        if let Err(I2cError(kind)) = result {
             self.cr1_set(STOP);
+            if matches!(kind, ErrorKind::Bus | ErrorKind::ArbitrationLoss) {
+                // SAFETY: PE off before the pins leave the peripheral (the erratum's sequence).
+                self.i2c.cr1().write(|w| unsafe { w.bits(0) });
+                let _ = clear_bus();
+            }
             self.configure();
         }
         result
     }
+}
+
+/// PB6 or PB7 as an open-drain GPIO line for the bus clear: set high = released (BSRR),
+/// level from IDR.
+struct BusLine(u32);
+
+impl digital::ErrorType for BusLine {
+    type Error = Infallible;
+}
+
+impl OutputPin for BusLine {
+    fn set_low(&mut self) -> Result<(), Infallible> {
+        Port::B.write(BSRR, 1 << (self.0 + 16));
+        Ok(())
+    }
+
+    fn set_high(&mut self) -> Result<(), Infallible> {
+        Port::B.write(BSRR, 1 << self.0);
+        Ok(())
+    }
+}
+
+impl InputPin for BusLine {
+    fn is_high(&mut self) -> Result<bool, Infallible> {
+        Ok(Port::B.read(IDR) & (1 << self.0) != 0)
+    }
+
+    fn is_low(&mut self) -> Result<bool, Infallible> {
+        self.is_high().map(|high| !high)
+    }
+}
+
+/// A busy wait of at least `ns`, rounded up to whole microseconds of SYSCLK cycles
+/// (`asm::delay` waits at least its count; flash wait states only lengthen it).
+struct CycleDelay;
+
+impl DelayNs for CycleDelay {
+    fn delay_ns(&mut self, ns: u32) {
+        cortex_m::asm::delay(
+            ns.div_ceil(1000)
+                .saturating_mul(super::SYSCLK_HZ / 1_000_000),
+        );
+    }
+}
+
+/// The bus clear through GPIO (see the module docs); I2C1 must be off (`PE` = 0). Leaves
+/// PB6/PB7 in AF4, open drain.
+fn clear_bus() -> Recovery {
+    for pin in [SCL_PIN, SDA_PIN] {
+        Port::B.write(BSRR, 1 << pin);
+        Port::B.modify(OTYPER, 0, 1 << pin);
+        Port::B.modify(MODER, 0b11 << (2 * pin), 0b01 << (2 * pin));
+    }
+    let Ok(outcome) = bus_recovery::recover(
+        &mut BusLine(SCL_PIN),
+        &mut BusLine(SDA_PIN),
+        &mut CycleDelay,
+        &RecoveryTiming::STANDARD,
+    );
+    for pin in [SCL_PIN, SDA_PIN] {
+        Port::B.alternate(pin, AF_I2C1);
+    }
+    outcome
 }

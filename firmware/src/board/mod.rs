@@ -17,7 +17,7 @@
 //! | [`dither`] | TIM4, DAC1, ADC3 | the dither drive's 40 kHz tick: pick-off sample and DAC update on one timer edge, `crate::dither` in the handler |
 //! | [`usart`] | USART1 | the calibration protocol's serial link (RXNE/TXE interrupts, bounded queues) |
 //! | [`flash`] | FLASH | sectors 10-11 as an `embedded_storage` `NorFlash`; OTP programming |
-//! | [`i2c`] | I2C1 (PB6, PB7) | the gyro block's TMP117 at 400 kHz, behind `embedded_hal::i2c::I2c`; polled in the main loop |
+//! | [`i2c`] | I2C1 (PB6, PB7) | the gyro block's TMP117 at 400 kHz, behind `embedded_hal::i2c::I2c`; polled in the main loop; bus clear through GPIO at start-up and after a bus error |
 //! | [`otp`] | OTP block 0 | serial number and the 128-bit key (`key provision`) |
 //! | [`backup`] | PWR, backup SRAM | the wrong-key count across resets |
 //! | [`watchdog`] | IWDG | reset if the main loop stops |
@@ -147,8 +147,9 @@ pub trait Shared {
 }
 
 /// A GPIO port by base address. The ports' register blocks are different PAC types with one
-/// layout, so pin set-up goes through the addresses (RM0090 8.4: MODER 0x00, OSPEEDR 0x08,
-/// PUPDR 0x0C, AFRL 0x20, AFRH 0x24). Used only during start-up, from one context.
+/// layout, so pin set-up goes through the addresses (RM0090 8.4: MODER 0x00, OTYPER 0x04,
+/// OSPEEDR 0x08, PUPDR 0x0C, IDR 0x10, BSRR 0x18, AFRL 0x20, AFRH 0x24). Used during start-up,
+/// and by I2C1's bus clear in the main loop (`i2c`: PB6/PB7 only); no handler touches a port.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Port(usize);
 
@@ -156,6 +157,16 @@ impl Port {
     pub const A: Self = Self(0x4002_0000);
     pub const B: Self = Self(0x4002_0400);
     pub const C: Self = Self(0x4002_0800);
+
+    fn read(self, offset: usize) -> u32 {
+        // SAFETY: a GPIO register of this port; reading has no side effect.
+        unsafe { ((self.0 + offset) as *const u32).read_volatile() }
+    }
+
+    fn write(self, offset: usize, value: u32) {
+        // SAFETY: a GPIO register of this port (BSRR: a write sets or resets only its pins).
+        unsafe { ((self.0 + offset) as *mut u32).write_volatile(value) };
+    }
 
     fn modify(self, offset: usize, clear: u32, set: u32) {
         let reg = (self.0 + offset) as *mut u32;

@@ -10,6 +10,8 @@
 //!
 //! - [`tmp117`]: the driver, generic over `embedded_hal::i2c::I2c` (embedded-hal 1.0), and why
 //!   it is not the `tmp117` crate;
+//! - [`bus_recovery`]: the I2C bus clear (up to nine clocks while SDA is low, then START and
+//!   STOP), over embedded-hal's pin traits; the board runs it on I2C1's pins;
 //! - [`sensor`]: when to poll, and the faults (NACK, stuck bus, frozen reading) with the time
 //!   each takes to show;
 //! - [`rate`]: the temperature's rate;
@@ -24,6 +26,7 @@
 //! [`state::ThermalInput`] into the readout (`Readout::set_thermal`), whose output latch applies
 //! it to the next records. hal-sim runs the same code against its simulated TMP117.
 
+pub mod bus_recovery;
 pub mod fit;
 pub mod model;
 pub mod rate;
