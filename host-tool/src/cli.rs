@@ -374,7 +374,7 @@ pub enum Command {
     Sweep(SweepArgs),
     /// Serves a simulated board on TCP or a pty, in (scaled) real time.
     #[cfg_attr(not(feature = "sim"), command(hide = true))]
-    ServeSim(ServeArgs),
+    ServeSim(Box<ServeArgs>),
     /// The shell completion script for bash, elvish, fish, powershell or zsh, on stdout.
     Completions(host_cli::completions::CompletionsArgs),
 }
