@@ -2,7 +2,8 @@
 //! lock-in threshold Omega_L, photodiode phase eps and the pick-off's gain, on one temperature
 //! profile of the block ([`TemperatureProfile`]: constant, ramps, steps, a warm-up transient),
 //! which also moves the driven resonator's f0 and Q ([`GyroParams::with_temperature`]) and is
-//! what the simulated TMP117 reads ([`crate::tmp117`]).
+//! what the simulated TMP117 reads ([`crate::tmp117`]); the profile as the CLIs' users type it
+//! is [`profile_text`].
 //!
 //! With `x = T - T_ref` and `Tdot` in °C/min (docs/physics.md section 13 gives the defaults'
 //! sources):
@@ -30,6 +31,8 @@
 //!
 //! A flat profile at `T_ref` changes nothing: the results are bit for bit those of a gyro
 //! without thermal effects (the default).
+
+pub mod profile_text;
 
 use crate::dither::resonator::TemperatureProfile;
 use crate::input::{InputProfile, PiecewiseRate};

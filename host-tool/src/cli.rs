@@ -13,6 +13,17 @@ use host_cli::exit;
 use rlg_cal::ranges;
 use std::path::PathBuf;
 
+#[cfg(feature = "sim")]
+use hal_sim::thermal::{profile_text, ThermalCoefficients};
+
+/// A temperature profile of the simulated gyro block (`--sim-temperature-profile`,
+/// `serve-sim --temperature-profile`), parsed by hal-sim's one parser; in a build without the
+/// simulated board, the text (the simulated board's subcommands and `--sim` are refused then).
+#[cfg(feature = "sim")]
+pub type ProfileArg = hal_sim::dither::resonator::TemperatureProfile;
+#[cfg(not(feature = "sim"))]
+pub type ProfileArg = String;
+
 const AFTER_HELP: &str = "\
 Connections (one of, before or after the subcommand):
   --port /dev/ttyUSB0                  a serial port (default 460800 Bd, the board's), or a pty
@@ -146,6 +157,14 @@ pub struct ConnectionArgs {
     )]
     #[cfg_attr(not(feature = "sim"), arg(hide = true))]
     pub sim_rate: f64,
+    #[arg(long, value_name = "PROFILE", global = true)]
+    #[cfg_attr(feature = "sim", arg(
+        value_parser = |s: &str| profile_text::parse_flag("--sim-temperature-profile", s),
+        help = profile_text::help(&format!("The --sim board's block temperature, from its \
+            power-up (each call powers it up; default: {} C, where no thermal effect acts)",
+            ThermalCoefficients::DEFAULT.reference_c))))]
+    #[cfg_attr(not(feature = "sim"), arg(hide = true))]
+    pub sim_temperature_profile: Option<ProfileArg>,
     /// The --sim board's state file (or RLG_SIM_STATE): read at start, written at exit. What
     /// lasts: the flash (stored calibrations, boot count) and the settings in force (a, b,
     /// compensation on/off, dither amplitude and noise). What does not: the unlock, a
@@ -355,7 +374,7 @@ pub enum Command {
     Sweep(SweepArgs),
     /// Serves a simulated board on TCP or a pty, in (scaled) real time.
     #[cfg_attr(not(feature = "sim"), command(hide = true))]
-    ServeSim(ServeArgs),
+    ServeSim(Box<ServeArgs>),
     /// The shell completion script for bash, elvish, fish, powershell or zsh, on stdout.
     Completions(host_cli::completions::CompletionsArgs),
 }
@@ -529,6 +548,13 @@ pub struct ServeArgs {
     pub latitude: f64,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    #[arg(long, value_name = "PROFILE")]
+    #[cfg_attr(feature = "sim", arg(
+        value_parser = |s: &str| profile_text::parse_flag("--temperature-profile", s),
+        help = profile_text::help(&format!("The gyro block's temperature, from the board's \
+            power-up, with the simulator's default thermal coefficients (default: {} C, where \
+            none acts)", ThermalCoefficients::DEFAULT.reference_c))))]
+    pub temperature_profile: Option<ProfileArg>,
     #[arg(long, allow_negative_numbers = true, value_parser = ranges::SECONDS.parser(),
         help = ranges::SECONDS.help_why("Stop after this many wall-clock seconds",
             "default: run until killed"))]

@@ -4,6 +4,7 @@
 
 use crate::cli::{ConnectionArgs, RateFrom, ServeArgs, SweepArgs};
 use hal_sim::flash::CalibrationFlash;
+use hal_sim::thermal::ThermalCoefficients;
 use host_cli::output_file::create_optional;
 use host_cli::{interrupt, Failure};
 use rlg_cal::client::ClientError;
@@ -132,21 +133,34 @@ pub fn serve(args: &ServeArgs, connection: &ConnectionArgs) -> Result<(), Failur
         .transpose()
         .map_err(Failure::Usage)?;
     let board_key = sim::board_key(from_file.as_deref()).map_err(Failure::Usage)?;
-    let device = sim::boot(input, args.seed, CalibrationFlash::default(), 0, board_key)
-        .map_err(|e| Failure::Run(e.to_string()))?;
+    let gyro = sim::gyro(args.seed, args.temperature_profile);
+    let device = sim::boot_gyro(
+        gyro,
+        input.profile(),
+        CalibrationFlash::default(),
+        0,
+        board_key,
+    )
+    .map_err(|e| Failure::Run(e.to_string()))?;
     let options = ServeOptions {
         speed: args.speed,
         max_duration: args.seconds.map(Duration::from_secs_f64),
     };
     let stop = interrupt::install();
-    let announce = |where_: &str| {
-        // The address for a program that reads it; nobody reading is no reason to stop.
-        let _ = host_cli::outln!("{where_}");
-        let _ = std::io::stdout().flush();
-        eprintln!(
-            "rlg-cal: a simulated board is served on {where_}: {}, running at {} times real time; \
-             {}. Ctrl-C stops it.",
+    let announce =
+        |where_: &str| {
+            // The address for a program that reads it; nobody reading is no reason to stop.
+            let _ = host_cli::outln!("{where_}");
+            let _ = std::io::stdout().flush();
+            eprintln!(
+            "rlg-cal: a simulated board is served on {where_}: {}, {}, running at {} times real \
+             time; {}. Ctrl-C stops it.",
             describe(&input),
+            if args.temperature_profile.is_some() {
+                "its block on the --temperature-profile given".to_owned()
+            } else {
+                format!("its block at {} C", ThermalCoefficients::DEFAULT.reference_c)
+            },
             args.speed,
             if board_key.is_some() {
                 "its key is the one given (--board-key-file or RLG_SIM_BOARD_KEY)"
@@ -154,7 +168,7 @@ pub fn serve(args: &ServeArgs, connection: &ConnectionArgs) -> Result<(), Failur
                 "it has no key yet: `key provision <32 hex digits>` sets one, once"
             }
         );
-    };
+        };
     let served = if let Some(address) = &connection.tcp {
         let listener = TcpListener::bind(address)
             .map_err(|e| Failure::Connect(format!("cannot listen on {address}: {e}")))?;

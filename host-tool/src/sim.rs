@@ -1,6 +1,7 @@
 //! The simulated board behind the in-process link, the server and the sweep: hal-sim's
 //! [`SimDevice`] (the firmware's protocol, readout and store against the simulated gyro) with
-//! the docs/physics.md gyro (noise off) and the simulated board's identity.
+//! the docs/physics.md gyro (noise off), its block at a temperature profile if one is given
+//! ([`gyro`]), and the simulated board's identity.
 //!
 //! The simulated board has no fixed key: it boots with the key given in a file
 //! (`serve-sim --board-key-file`) or the environment variable [`BOARD_KEY_ENV`], or unprovisioned
@@ -9,6 +10,7 @@
 
 use firmware::protocol::key::Key;
 use hal_sim::device::{SimDevice, SIM_IDENTITY};
+use hal_sim::dither::resonator::TemperatureProfile;
 use hal_sim::flash::CalibrationFlash;
 use hal_sim::input::InputProfile;
 use hal_sim::params::GyroParams;
@@ -93,8 +95,21 @@ impl SimInput {
     }
 }
 
+/// The simulated gyro with `seed`, its block at `temperature` from power-up (hal-sim's default
+/// thermal coefficients; `None`: at their T_ref, where none acts).
+pub fn gyro(seed: u64, temperature: Option<TemperatureProfile>) -> GyroParams {
+    let params = GyroParams {
+        seed,
+        ..GyroParams::default()
+    };
+    match temperature {
+        Some(profile) => params.with_temperature(profile),
+        None => params,
+    }
+}
+
 /// Powers up a simulated board on `flash` (its calibration survives power cycles) with `key`
-/// in its OTP (`None`: unprovisioned).
+/// in its OTP (`None`: unprovisioned), its block at T_ref.
 pub fn boot(
     input: SimInput,
     seed: u64,
@@ -102,11 +117,7 @@ pub fn boot(
     boot_count: u32,
     key: Option<Key>,
 ) -> io::Result<SimDevice> {
-    let params = GyroParams {
-        seed,
-        ..GyroParams::default()
-    };
-    boot_gyro(params, input.profile(), flash, boot_count, key)
+    boot_gyro(gyro(seed, None), input.profile(), flash, boot_count, key)
 }
 
 /// [`boot`] with any gyro (e.g. its block on a temperature profile) and input.

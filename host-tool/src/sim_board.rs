@@ -3,7 +3,7 @@
 //! command, and saved again, so that a series of calls acts as one board.
 
 use crate::board_commands::{Device, Session};
-use crate::cli::Cli;
+use crate::cli::{Cli, ConnectionArgs};
 use hal_sim::flash::CalibrationFlash;
 use host_cli::Failure;
 use rlg_cal::client::{Client, ClientError};
@@ -25,12 +25,8 @@ pub fn run(
         Some(path) => load_state(path)?,
         None => None,
     };
-    let mut client = boot_sim(
-        cli.connection.sim_rate,
-        saved.as_ref(),
-        session.key.as_deref(),
-    )?
-    .with_timeout(timeout);
+    let mut client =
+        boot_sim(&cli.connection, saved.as_ref(), session.key.as_deref())?.with_timeout(timeout);
     let result = Device::new(&mut client, session).run(&cli.command);
     if let Some(path) = &state {
         save_state(path, client, saved.map_or(0, |s| s.boot_count))?;
@@ -54,12 +50,14 @@ fn load_state(path: &Path) -> Result<Option<SimState>, Failure> {
 }
 
 /// A simulated board that has been on for a moment: its dither drive locked and settled, the
-/// readout with a first rate; booted on the saved flash and given the saved settings. Its key
+/// readout with a first rate, the temperature sensor with its first results; at the input rate
+/// and block temperature of `connection`'s `--sim-*` flags, booted on the saved flash and given
+/// the saved settings. Its key
 /// (the in-process board has none of its own): `RLG_SIM_BOARD_KEY`, else the client's key,
 /// else a fresh random one (the board then refuses every unlock, as a board would whose key
 /// one does not know).
 fn boot_sim(
-    rate_deg_per_h: f64,
+    connection: &ConnectionArgs,
     saved: Option<&SimState>,
     client_key: Option<&str>,
 ) -> Result<Client<SimLink>, Failure> {
@@ -72,8 +70,11 @@ fn boot_sim(
         .map_err(Failure::Usage)?
         .or_else(|| client_key.and_then(firmware::protocol::key::Key::parse_hex))
         .unwrap_or_else(sim::fresh_key);
-    let input = SimInput::Constant { rate_deg_per_h };
-    let device = sim::boot(input, 1, flash, boot_count, Some(board_key))
+    let input = SimInput::Constant {
+        rate_deg_per_h: connection.sim_rate,
+    };
+    let gyro = sim::gyro(1, connection.sim_temperature_profile);
+    let device = sim::boot_gyro(gyro, input.profile(), flash, boot_count, Some(board_key))
         .map_err(|e| Failure::Connect(e.to_string()))?;
     let mut client = Client::new(SimLink::new(device));
     let connect = |e: ClientError| Failure::Connect(e.to_string());

@@ -621,3 +621,123 @@ fn thermal_refuses_bad_flags_and_a_log_without_a_span() {
     assert!(log.starts_with("t_s,delta_angle_arcsec,valid,temperature_c,rate_c_min\n"));
     assert!(log.lines().count() > 2500, "{} rows", log.lines().count());
 }
+
+/// The value of `key` in key=value output lines, as a number (`None`: absent or `none`).
+fn number_field(out: &str, key: &str) -> Option<f64> {
+    out.lines()
+        .find_map(|l| l.strip_prefix(key)?.strip_prefix('='))
+        .and_then(|v| v.parse().ok())
+}
+
+/// The simulated TMP117 reads the block 0.02 °C high (hal-sim's `SENSOR_OFFSET_C`), with about
+/// one LSB (1/128 °C) of noise: a result within the part's ±0.1 °C accuracy of the profile.
+const SENSOR_ACCURACY_C: f64 = 0.1;
+
+/// `--sim-temperature-profile constant:40`: the board's `thermal` answers the block's 40 °C
+/// (the sensor's first results come 125 ms after boot, long before the board is handed over
+/// with its drive locked); without the flag the block is at 25 °C. A bad profile is a usage
+/// error naming the flag.
+#[test]
+fn the_sim_board_reads_the_block_on_its_temperature_profile() {
+    for (profile, expected_c) in [(Some("constant:40"), 40.0), (None, 25.0)] {
+        let mut args = vec!["--sim"];
+        if let Some(p) = profile {
+            args.extend(["--sim-temperature-profile", p]);
+        }
+        args.extend(["send", "thermal"]);
+        let (code, out, err) = run(&args);
+        assert_eq!(code, 0, "{err}");
+        let temp_c = number_field(&out, "temp_c").unwrap_or_else(|| panic!("{out}"));
+        // Measured: 40.0312 and 25.0312 (0.02 offset, rounded to 1/128 °C).
+        assert!(
+            (temp_c - expected_c).abs() < SENSOR_ACCURACY_C,
+            "{profile:?}: {out}"
+        );
+        assert!(
+            (temp_c - expected_c - 0.02).abs() < 0.04,
+            "{profile:?}: {out}"
+        );
+    }
+    let (code, _, err) = run(&[
+        "--sim",
+        "--sim-temperature-profile",
+        "constant:200",
+        "send",
+        "thermal",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains(
+            "--sim-temperature-profile \"constant:200\": temperature 200 outside -55..=150 C"
+        ),
+        "{err}"
+    );
+}
+
+/// `serve-sim --temperature-profile ramp:-50:150:120`: a second process reads the block
+/// warming at 2 °C/s through `thermal`, as an integrator would. The rate is the board's slope
+/// over its last 16 sensor results (2 s of board time, 1 s at --speed 2: the test polls until
+/// it is known); it is 120 °C/min within 3 (the slope of 16 results of 1/128 °C, measured
+/// 119.9). Later answers rise by 1 °C, at most at the ramp's 2 °C/s over the board time
+/// between them: the speed times the wall clock from the first question, plus that answer's
+/// age (less if the simulation falls behind on a busy machine).
+#[test]
+fn a_served_board_follows_its_temperature_profile() {
+    const SPEED: f64 = 2.0;
+    const RAMP_C_PER_S: f64 = 2.0;
+    let (mut server, address) = serve_sim(&[
+        "--tcp",
+        "127.0.0.1:0",
+        "--temperature-profile",
+        "ramp:-50:150:120",
+    ]);
+    let thermal = || {
+        let (code, out, err) = run(&["--tcp", &address, "send", "thermal"]);
+        assert_eq!(code, 0, "{err}");
+        out
+    };
+    let started = std::time::Instant::now();
+    let (first, asked) = loop {
+        let asked = std::time::Instant::now();
+        let out = thermal();
+        if number_field(&out, "rate_c_min").is_some() {
+            break (out, asked);
+        }
+        assert!(started.elapsed().as_secs() < 10, "no rate yet: {out}");
+        std::thread::sleep(std::time::Duration::from_millis(200));
+    };
+    let temp = |out: &str| number_field(out, "temp_c").unwrap_or_else(|| panic!("{out}"));
+    let t1 = temp(&first);
+    // Up to 10 s of wall clock for 1 °C more (0.25 s at full speed; the server lives 15 s).
+    let (t2, wall_s) = loop {
+        std::thread::sleep(std::time::Duration::from_millis(250));
+        let t2 = temp(&thermal());
+        let wall_s = asked.elapsed().as_secs_f64();
+        if t2 - t1 >= 1.0 || wall_s > 10.0 {
+            break (t2, wall_s);
+        }
+    };
+    server.kill().unwrap();
+    let _ = server.wait();
+    assert!(-50.0 < t1 && t2 < 150.0, "{first}\n{t2}");
+    let rate = number_field(&first, "rate_c_min").unwrap();
+    assert!((rate - 120.0).abs() < 3.0, "{first}");
+    // The first answer's result may be a conversion (125 ms) and a poll (50 ms) old.
+    let most = RAMP_C_PER_S * (SPEED * wall_s + 0.175) + SENSOR_ACCURACY_C;
+    assert!(
+        t2 - t1 >= 1.0 && t2 - t1 < most,
+        "{t1} -> {t2} in {wall_s} s"
+    );
+    let (code, _, err) = run(&[
+        "serve-sim",
+        "--tcp",
+        "127.0.0.1:0",
+        "--temperature-profile",
+        "ramp:0:10",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--temperature-profile \"ramp:0:10\": unknown kind or wrong number of fields"),
+        "{err}"
+    );
+}

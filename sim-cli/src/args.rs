@@ -9,7 +9,7 @@ use clap::{Args, Parser, Subcommand};
 use firmware::profile::BoardProfile;
 use hal_sim::dither::resonator::TemperatureProfile;
 use hal_sim::params::GyroParams;
-use hal_sim::thermal::{GyroThermal, ThermalCoefficients, LIMITS};
+use hal_sim::thermal::{profile_text, GyroThermal, ThermalCoefficients, LIMITS};
 use host_cli::exit;
 use host_cli::range::Range;
 use rlg_sim::characterize::{self, Plan};
@@ -272,11 +272,8 @@ pub struct GyroArgs {
 /// --thermal-reference-c, where none of them acts.
 #[derive(Args, Debug, Clone)]
 pub struct ThermalArgs {
-    /// The block's temperature over the run: constant:<C> | ramp:<from C>:<to C>:<C per min>
-    /// | steps:<C>,<C>,...:<hold s> | warmup:<from C>:<to C>:<tau s> | knots:<t s>/<C>,...
-    /// (temperatures -55..=150 C, ramps 0.01..=600 C/min, holds and tau 1..=360000 s; times
-    /// from the start of the simulation).
-    #[arg(long, value_parser = rlg_sim::thermal::profile_arg::parse)]
+    #[arg(long, value_parser = |s: &str| profile_text::parse_flag("--temperature-profile", s),
+        help = profile_text::help("The block's temperature over the run"))]
     pub temperature_profile: Option<hal_sim::dither::resonator::TemperatureProfile>,
     #[arg(long, default_value_t = ThermalCoefficients::DEFAULT.reference_c, allow_negative_numbers = true,
         value_parser = THERMAL_REFERENCE_C.parser(), help = THERMAL_REFERENCE_C.help("T_ref: the temperature at which every thermal effect is zero"))]

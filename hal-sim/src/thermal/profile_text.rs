@@ -1,4 +1,6 @@
-//! `--temperature-profile`: the gyro block's temperature over a run, as the user types it.
+//! The gyro block's temperature profile as a user types it on a command line (`rlg-sim
+//! --temperature-profile`, `rlg-cal serve-sim --temperature-profile`, `rlg-cal
+//! --sim-temperature-profile`): one parser, one syntax and one set of ranges for every CLI.
 //!
 //! ```text
 //! constant:<C>                        the block held at C
@@ -11,8 +13,11 @@
 //! Temperatures within [`TEMPERATURE_RANGE_C`] (the TMP117's range), ramps within
 //! [`RAMP_RATE_RANGE_C_PER_MIN`], holds and time constants within [`DURATION_RANGE_S`]. Times
 //! are the simulation's, from its start (so a profile includes the run's warm-up).
+//!
+//! Plain Rust, no CLI library: each CLI hands [`parse_flag`] to its own argument parser, with
+//! the flag's name for the message, and [`help`] as the flag's help.
 
-use hal_sim::dither::resonator::TemperatureProfile;
+use crate::dither::resonator::TemperatureProfile;
 use std::ops::RangeInclusive;
 
 /// Temperatures a profile may reach, °C (the TMP117's operating range).
@@ -64,15 +69,31 @@ fn duration(text: &str, what: &str) -> Result<f64, String> {
     }
 }
 
-/// Parses a profile (see the module docs); the message says what is wrong and the syntax.
-pub fn parse(text: &str) -> Result<TemperatureProfile, String> {
-    parse_inner(text).map_err(|e| format!("--temperature-profile {text:?}: {e} ({SYNTAX})"))
+/// What the flag's help says: the syntax and the ranges.
+pub fn help(what: &str) -> String {
+    format!(
+        "{what}: {SYNTAX} (temperatures {}..={} C, ramps {}..={} C/min, holds and tau {}..={} s; \
+         times from the start of the simulation)",
+        TEMPERATURE_RANGE_C.start(),
+        TEMPERATURE_RANGE_C.end(),
+        RAMP_RATE_RANGE_C_PER_MIN.start(),
+        RAMP_RATE_RANGE_C_PER_MIN.end(),
+        DURATION_RANGE_S.start(),
+        DURATION_RANGE_S.end()
+    )
 }
 
-fn parse_inner(text: &str) -> Result<TemperatureProfile, String> {
+/// Parses the value of `flag` (see the module docs); the message names the flag and the value,
+/// says what is wrong and gives the syntax.
+pub fn parse_flag(flag: &str, text: &str) -> Result<TemperatureProfile, String> {
+    parse(text).map_err(|e| format!("{flag} {text:?}: {e} ({SYNTAX})"))
+}
+
+/// Parses a profile (see the module docs); the message says what is wrong.
+pub fn parse(text: &str) -> Result<TemperatureProfile, String> {
     let (kind, rest) = text.split_once(':').ok_or("no kind")?;
     let fields: Vec<&str> = rest.split(':').collect();
-    let profile = |r: Result<TemperatureProfile, hal_sim::param_error::ParamError>| {
+    let profile = |r: Result<TemperatureProfile, crate::param_error::ParamError>| {
         r.map_err(|e| format!("{e:?}"))
     };
     match (kind, fields.as_slice()) {
@@ -162,7 +183,8 @@ mod tests {
         assert_eq!((knots.at(5.0), knots.at(30.0)), (30.0, 35.0));
     }
 
-    /// Every malformed or out-of-range profile is refused with a message naming the flag.
+    /// Every malformed or out-of-range profile is refused with a message naming the flag and
+    /// the value.
     #[test]
     fn bad_profiles_are_refused() {
         for bad in [
@@ -181,8 +203,10 @@ mod tests {
             "knots:5-20",
             "sine:1:2",
         ] {
-            let e = parse(bad).unwrap_err();
-            assert!(e.starts_with("--temperature-profile"), "{bad}: {e}");
+            let e = parse_flag("--temperature-profile", bad).unwrap_err();
+            let named = format!("--temperature-profile {bad:?}: ");
+            assert!(e.starts_with(&named), "{bad}: {e}");
+            assert!(e.ends_with(&format!("({SYNTAX})")), "{bad}: {e}");
         }
     }
 }
