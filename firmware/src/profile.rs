@@ -26,6 +26,9 @@ pub struct BoardProfile {
     /// Kernel clock of the capture timer (TIM2) and the encoder timer (TIM5), Hz: the unit of
     /// every turnaround timestamp.
     pub timer_hz: u32,
+    /// Core clock (SYSCLK, HCLK), Hz: the self-test's reference for `timer_hz`, the delays
+    /// counted in core cycles, the 1 ms tick.
+    pub core_clock_hz: u32,
     /// Width of the encoder timer's count register.
     pub counter_width: CounterWidth,
     /// Pick-off comparator + input filter + resynchronisation: edge to capture, timer ticks.
@@ -80,6 +83,7 @@ impl BoardProfile {
     pub const F405: Self = Self {
         name: "rlg-readout-f405",
         timer_hz: 84_000_000,
+        core_clock_hz: 168_000_000,
         counter_width: CounterWidth::Bits32,
         pickoff_delay_ticks: 18,
         aperture_delay_ticks: 70,

@@ -77,8 +77,8 @@ pub use crate::rt::pac;
 pub const TIMER_HZ: u32 = crate::profile::BoardProfile::F405.timer_hz;
 /// APB2 clock (USART1, ADC interface).
 pub const PCLK2_HZ: u32 = 84_000_000;
-/// Core clock.
-pub const SYSCLK_HZ: u32 = 168_000_000;
+/// Core clock (the PLL's 168 MHz, `clocks.rs`), as the board profile states it.
+pub const SYSCLK_HZ: u32 = crate::profile::BoardProfile::F405.core_clock_hz;
 
 /// One value owned by exactly one execution context (an interrupt handler or the main loop)
 /// after it has been set once during start-up, before that context's interrupt is enabled.

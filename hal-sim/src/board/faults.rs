@@ -97,7 +97,11 @@ impl BoardFaults {
         report.set(Check::Timers, check_timers(advance));
         report.set(
             Check::TimerClock,
-            check_timer_clock(advance, BoardProfile::F405.timer_hz, 168_000_000),
+            check_timer_clock(
+                advance,
+                BoardProfile::F405.timer_hz,
+                BoardProfile::F405.core_clock_hz,
+            ),
         );
         let latch = !self.stopped(Trigger::LatchCompare);
         let tick = !self.stopped(Trigger::DriveTick);
