@@ -12,7 +12,7 @@ pub const CASES: &[Case] = &[
     Case::exact("f32_ieee_basic", f32_ieee_basic),
     Case::abs_tol("micromath_trig", 1e-6, micromath_trig),
     // The signal chain (firmware::signal): the turnaround front end ... The names are the
-    // keys of golden.rs and predate issue 11's stages: fringe_count is signal::count,
+    // keys of golden.rs: fringe_count is signal::count,
     // fractional_fringe math::atan2_q32, lissajous and fringe_phase signal::fringe,
     // turnaround_schedule signal::turnaround, lockin_terms and cycle signal::lockin.
     Case::exact("signal::fringe_count", frontend::fringe_count),
@@ -28,6 +28,10 @@ pub const CASES: &[Case] = &[
     Case::exact("readout (whole chain)", signal::readout_chain),
     Case::exact("readout output stage", signal::output_stage),
     Case::exact("signal::dither_model", signal::dither_model),
+    Case::exact(
+        "output thermal correction and frames",
+        signal::thermal_output,
+    ),
     // Calibration (firmware::calibration).
     Case::exact("calibration::fit", calibration::calibration_fit),
     Case::exact("calibration::tracking", calibration::calibration_tracking),

@@ -69,6 +69,8 @@ pub const GOLDEN: &[Golden] = &[
     Golden { name: "readout output stage", words: 43379, digest: 0x95dfa59c534ba78a, f32_bits: &[] },
     // signal::dither_model (bit-identical)
     Golden { name: "signal::dither_model", words: 1682, digest: 0xecdc88f05af16d18, f32_bits: &[] },
+    // output thermal correction and frames (bit-identical)
+    Golden { name: "output thermal correction and frames", words: 19512, digest: 0xe006e5b852be9a2f, f32_bits: &[] },
     // calibration::fit (bit-identical)
     Golden { name: "calibration::fit", words: 951, digest: 0x7c27fe47192c1138, f32_bits: &[] },
     // calibration::tracking (bit-identical)

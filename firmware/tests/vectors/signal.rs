@@ -441,3 +441,109 @@ pub fn dither_model(out: &mut Outputs) {
         }
     }
 }
+
+/// The thermal part of the output (`thermal::model`, `signal::output::record`,
+/// `protocol::thermal_frame`): a model with random coefficients gives the correction at random
+/// temperatures and rates (the f32 polynomials); records are made under it, some with the
+/// sensor failed or the model off (the corrected increments, the status bits, the temperature
+/// words), and the thermal frames the stream puts before them (which records get one, and
+/// their bytes) must agree bit for bit on both sides.
+pub fn thermal_output(out: &mut Outputs) {
+    use firmware::profile::BoardProfile;
+    use firmware::protocol::thermal_frame::{encode_thermal_frame, ThermalFramer, THERMAL_FRAME};
+    use firmware::signal::output::record::{OutputRecorder, OutputStatus};
+    use firmware::thermal::model::{ThermalCorrection, ThermalModel};
+    use firmware::thermal::state::{ThermalInput, NO_VALUE};
+    use firmware::units::TotalPhase;
+    let mut rng = Rng::new(0x5eed_0027);
+    let config = BoardProfile::F405.readout_config(389.0).output;
+    let model = ThermalModel {
+        reference_c: 25.0,
+        min_c: -20.0,
+        max_c: 60.0,
+        bias_deg_h: [
+            rng.f32_in(-0.1, 0.1),
+            rng.f32_in(-0.01, 0.01),
+            rng.f32_in(-1e-4, 1e-4),
+            rng.f32_in(-1e-6, 1e-6),
+        ],
+        bias_deg_h_per_c_per_min: rng.f32_in(-0.01, 0.01),
+        scale_ppm: [
+            rng.f32_in(-10.0, 10.0),
+            rng.f32_in(-1.0, 1.0),
+            rng.f32_in(-0.01, 0.01),
+        ],
+    };
+    let mut recorder = OutputRecorder::new();
+    let mut framer = ThermalFramer::default();
+    let mut frame = [0u8; THERMAL_FRAME];
+    let (mut timestamp_ticks, mut phase_q32) = (0u32, 0i64);
+    let (mut temperature_q7, mut rate_centi_c_per_min) = (25 * 128, 0i16);
+    let (mut corrected, mut frames) = (0u32, 0u32);
+    for k in 0..2000 {
+        // The sensor's results change the temperature and its rate now and then (8 results a
+        // second against 1000 records), so most records need no thermal frame.
+        if rng.one_in(64) {
+            temperature_q7 += rng.i32_in(-2, 3) as i16;
+            rate_centi_c_per_min = rng.i32_in(-200, 200) as i16;
+        }
+        let sensor_fault = rng.one_in(50);
+        let temp_c = f32::from(temperature_q7) / 128.0;
+        let rate_c_per_min = f32::from(rate_centi_c_per_min) / 100.0;
+        let correction = (!sensor_fault && k % 500 < 400)
+            .then(|| ThermalCorrection::of(&model, temp_c, rate_c_per_min, 1.8655));
+        if let Some(c) = correction {
+            out.f32(c.bias_fringes_per_s);
+            out.f32(c.scale_error);
+        }
+        recorder.set_thermal(ThermalInput {
+            temperature_q7: if sensor_fault {
+                NO_VALUE
+            } else {
+                temperature_q7
+            },
+            rate_centi_c_per_min: if sensor_fault {
+                NO_VALUE
+            } else {
+                rate_centi_c_per_min
+            },
+            sensor_fault,
+            correction,
+        });
+        // 1 kHz latches with a little jitter; the stripped phase at about 1 fringe/s.
+        timestamp_ticks = timestamp_ticks.wrapping_add((84_000 + rng.i32_in(-1100, 1100)) as u32);
+        phase_q32 += 4_294_967 + i64::from(rng.i32_in(-50_000, 50_000));
+        let r = recorder.record(
+            &config,
+            timestamp_ticks,
+            TotalPhase::from_q32(phase_q32),
+            OutputStatus::DITHER_LOCKED,
+        );
+        out.u64(r.sequence);
+        out.i32(r.delta_angle_q16);
+        out.i64(r.angle_q16);
+        out.f32(r.rate_deg_per_h);
+        out.u32(u32::from(r.status.0));
+        out.i32(i32::from(r.temperature_q7));
+        out.i32(i32::from(r.temperature_rate_centi_c_per_min));
+        corrected += u32::from(r.status.0 & OutputStatus::THERMAL_CORRECTED.0 != 0);
+        if let Some(f) = framer.before(&r) {
+            frames += 1;
+            let n = encode_thermal_frame(&f, &mut frame);
+            out.u64(f.from_sequence);
+            for &byte in frame.get(..n).unwrap_or(&[]) {
+                out.u32(u32::from(byte));
+            }
+        }
+    }
+    // The case covers what it says: corrected and uncorrected records (expected 2000 x 0.8
+    // x 49/50 = 1568; 1558 with this seed) and thermal frames for some records only (about 31
+    // changes of the values, two per sensor fault, a refresh: 126 with this seed).
+    assert!(
+        (1450..1650).contains(&corrected),
+        "{corrected} corrected records"
+    );
+    assert!((80..200).contains(&frames), "{frames} thermal frames");
+    out.u32(corrected);
+    out.u32(frames);
+}
