@@ -90,3 +90,81 @@ pub fn tone_amplitude(series: &[f64], rate_hz: f64, f_hz: f64) -> f64 {
         })
         .fold(0.0, f64::max)
 }
+
+/// What [`static_and_tracked`] measures.
+pub struct StaticAndTracked {
+    /// The static compensation's rate over the measurement, deg/h.
+    pub static_deg_h: f64,
+    /// The tracked compensation's rate over the measurement, deg/h.
+    pub tracked_deg_h: f64,
+    /// The tracked coefficients (a, b), rad/s, at the first latch from `snapshot_s` on.
+    pub tracked_at_snapshot: (f64, f64),
+}
+
+/// Runs `harness` to `end_s` with two compensations of the same half cycles: a static one (a
+/// [`firmware::readout::Readout`] started with `start`, fed by `replay_into`) and the
+/// harness's own readout, whose coefficients the tracking loop stages at every cycle. Both
+/// rates are averaged over whole periods from `measure_from_s` on. `each_tracked_cycle` sees
+/// every closed cycle's latch time and the loop after it.
+#[allow(clippy::too_many_arguments)]
+pub fn static_and_tracked(
+    harness: &mut hal_sim::harness::Harness,
+    start: firmware::signal::compensation::CompensationSettings,
+    loop_config: &firmware::calibration::tracking::TrackingLoopConfig,
+    scale_factor_arcsec: f64,
+    end_s: f64,
+    measure_from_s: f64,
+    snapshot_s: f64,
+    mut each_tracked_cycle: impl FnMut(f64, &firmware::calibration::tracking::TrackingLoop),
+) -> StaticAndTracked {
+    use firmware::calibration::tracking::TrackingLoop;
+    use firmware::readout::Readout;
+    use firmware::signal::compensation::CompensationSettings;
+    use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
+    let config = *harness.config();
+    let mut fixed = Readout::new(&config, start);
+    let mut tracking = TrackingLoop::new(loop_config, start.coefficients);
+    let averager = AveragerConfig {
+        window_cycles: u32::MAX,
+        mode: AveragingMode::WholePeriods,
+        timer_hz: harness.board().config().timer_hz,
+        scale_factor_arcsec,
+    };
+    let (mut fixed_rate, mut tracked_rate) = (RateAverager::new(), RateAverager::new());
+    let mut tracked_at_snapshot = None;
+    harness.run_until(end_s, |h, half| {
+        let t = half.latch_s();
+        let measuring = t > measure_from_s;
+        if let Some(c) = h.replay_into(&mut fixed) {
+            if measuring {
+                fixed_rate.push(&averager, c.output);
+            }
+        }
+        if let Some(c) = &half.record {
+            if let Some(coefficients) =
+                tracking.on_cycle(loop_config, c, c.duration_s(&config.cycle))
+            {
+                h.readout_mut().stage_compensation(CompensationSettings {
+                    coefficients,
+                    enabled: true,
+                });
+            }
+            if measuring {
+                tracked_rate.push(&averager, c.output);
+            }
+            each_tracked_cycle(t, &tracking);
+        }
+        if tracked_at_snapshot.is_none() && t >= snapshot_s {
+            tracked_at_snapshot = Some(
+                tracking
+                    .tracker()
+                    .coefficients_rad_per_s(&loop_config.tracking),
+            );
+        }
+    });
+    StaticAndTracked {
+        static_deg_h: fixed_rate.flush(&averager).rate_deg_per_h,
+        tracked_deg_h: tracked_rate.flush(&averager).rate_deg_per_h,
+        tracked_at_snapshot: tracked_at_snapshot.expect("the run reaches the snapshot"),
+    }
+}

@@ -19,11 +19,9 @@
 
 mod common;
 
-use common::{paper_gyro, TAU};
+use common::{paper_gyro, static_and_tracked, TAU};
 use firmware::calibration::tracking::{TrackingLoop, TrackingLoopConfig};
-use firmware::readout::Readout;
 use firmware::signal::compensation::{Coefficients, CompensationSettings};
-use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use hal_sim::dither::resonator::TemperatureProfile;
 use hal_sim::harness::HarnessOptions;
 use hal_sim::input::InputProfile;
@@ -77,39 +75,17 @@ fn tracking_holds_across_a_temperature_ramp() {
         .compensation(start)
         .build()
         .unwrap();
-    let config = *harness.config();
-    let mut fixed = Readout::new(&config, start);
     let loop_config = TrackingLoopConfig::with_memory(MEMORY_CYCLES);
-    let mut tracking = TrackingLoop::new(&loop_config, start.coefficients);
-    let averager = AveragerConfig {
-        window_cycles: u32::MAX,
-        mode: AveragingMode::WholePeriods,
-        timer_hz: harness.board().config().timer_hz,
-        scale_factor_arcsec: params.scale_factor_arcsec,
-    };
-    let (mut fixed_rate, mut tracked_rate) = (RateAverager::new(), RateAverager::new());
-    let mut tracked_at_ramp_end = None;
     let mut worst_during_ramp: f64 = 0.0;
-    harness.run_until(100.0, |h, half| {
-        let t = half.latch_s();
-        let measuring = t > 85.0;
-        if let Some(c) = h.replay_into(&mut fixed) {
-            if measuring {
-                fixed_rate.push(&averager, c.output);
-            }
-        }
-        if let Some(c) = &half.record {
-            if let Some(coefficients) =
-                tracking.on_cycle(&loop_config, c, c.duration_s(&config.cycle))
-            {
-                h.readout_mut().stage_compensation(CompensationSettings {
-                    coefficients,
-                    enabled: true,
-                });
-            }
-            if measuring {
-                tracked_rate.push(&averager, c.output);
-            }
+    let run = static_and_tracked(
+        &mut harness,
+        start,
+        &loop_config,
+        params.scale_factor_arcsec,
+        100.0,
+        85.0,
+        78.0,
+        |t, tracking| {
             // Along the ramp (after the tracker's memory): the tracked coefficients against
             // the truth of the moment.
             if (10.0..75.0).contains(&t) {
@@ -120,23 +96,16 @@ fn tracking_holds_across_a_temperature_ramp() {
                 let omega_l = at.hypot(bt);
                 worst_during_ramp = worst_during_ramp.max((a - at).hypot(b - bt) / omega_l);
             }
-        }
-        if tracked_at_ramp_end.is_none() && t >= 78.0 {
-            tracked_at_ramp_end = Some(
-                tracking
-                    .tracker()
-                    .coefficients_rad_per_s(&loop_config.tracking),
-            );
-        }
-    });
+        },
+    );
     let (a_end, b_end) = truth_at(&params, 60.0);
     let omega_l = a_end.hypot(b_end);
-    let (a_t, b_t) = tracked_at_ramp_end.unwrap();
+    let (a_t, b_t) = run.tracked_at_snapshot;
     let tracked_coefficients = (a_t - a_end).hypot(b_t - b_end) / omega_l;
     let static_coefficients = (a0 - a_end).hypot(b0 - b_end) / omega_l;
     let thermal = thermal_error_deg_h(60.0, INSIDE_DEG_H);
-    let static_err = (fixed_rate.flush(&averager).rate_deg_per_h - INSIDE_DEG_H - thermal).abs();
-    let tracked_err = (tracked_rate.flush(&averager).rate_deg_per_h - INSIDE_DEG_H - thermal).abs();
+    let static_err = (run.static_deg_h - INSIDE_DEG_H - thermal).abs();
+    let tracked_err = (run.tracked_deg_h - INSIDE_DEG_H - thermal).abs();
     eprintln!(
         "ramp 25 -> 60 °C: coefficients off by {:.3} % of Omega_L tracked (worst along the ramp \
          {:.3} %), {:.3} % static; inside the band at 60 °C: error {tracked_err:.4} deg/h \

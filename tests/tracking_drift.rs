@@ -18,11 +18,9 @@
 
 mod common;
 
-use common::{paper_gyro, TAU};
-use firmware::calibration::tracking::{TrackingLoop, TrackingLoopConfig};
-use firmware::readout::Readout;
+use common::{paper_gyro, static_and_tracked, TAU};
+use firmware::calibration::tracking::TrackingLoopConfig;
 use firmware::signal::compensation::{Coefficients, CompensationSettings};
-use firmware::signal::output::{AveragerConfig, AveragingMode, RateAverager};
 use hal_sim::harness::HarnessOptions;
 use hal_sim::input::InputProfile;
 use hal_sim::params::AmplitudeModulation;
@@ -117,59 +115,28 @@ fn scenario(jitter: AmplitudeModulation) -> Outcome {
     options.board.eps_drift_rad_per_s = EPS_DRIFT_RAD / DRIFT_END_S;
     options.board.eps_drift_until_s = DRIFT_END_S;
     let mut harness = options.build().unwrap();
-    let config = *harness.config();
-    let mut fixed = Readout::new(&config, start);
     // A memory of 500 cycles (1.3 s): this test compresses hours of drift into 60 s; the lag is
     // memory x drift per cycle (2.2 rad/s), the estimation noise about as much.
     let loop_config = TrackingLoopConfig::with_memory(500.0);
-    let mut tracking = TrackingLoop::new(&loop_config, start.coefficients);
-
-    let averager_config = AveragerConfig {
-        window_cycles: u32::MAX,
-        mode: AveragingMode::WholePeriods,
-        timer_hz: harness.board().config().timer_hz,
-        scale_factor_arcsec: params.scale_factor_arcsec,
-    };
-    let (mut fixed_rate, mut tracked_rate) = (RateAverager::new(), RateAverager::new());
-    let mut tracked_at_drift_end = None;
-    harness.run_until(END_S, |h, half| {
-        let t = half.latch_s();
-        let measuring = t > MEASURE_FROM_S;
-        if let Some(c) = h.replay_into(&mut fixed) {
-            if measuring {
-                fixed_rate.push(&averager_config, c.output);
-            }
-        }
-        if let Some(c) = &half.record {
-            if let Some(coefficients) =
-                tracking.on_cycle(&loop_config, c, c.duration_s(&config.cycle))
-            {
-                h.readout_mut().stage_compensation(CompensationSettings {
-                    coefficients,
-                    enabled: true,
-                });
-            }
-            if measuring {
-                tracked_rate.push(&averager_config, c.output);
-            }
-        }
-        if tracked_at_drift_end.is_none() && t >= DRIFT_END_S {
-            tracked_at_drift_end = Some(
-                tracking
-                    .tracker()
-                    .coefficients_rad_per_s(&loop_config.tracking),
-            );
-        }
-    });
+    let run = static_and_tracked(
+        &mut harness,
+        start,
+        &loop_config,
+        params.scale_factor_arcsec,
+        END_S,
+        MEASURE_FROM_S,
+        DRIFT_END_S,
+        |_, _| {},
+    );
 
     let (a_end, b_end) = truth(
         omega_l * (1.0 + LOCK_IN_DRIFT),
         params.eps_rad + EPS_DRIFT_RAD,
     );
-    let (a_t, b_t) = tracked_at_drift_end.unwrap();
+    let (a_t, b_t) = run.tracked_at_snapshot;
     let coefficient_error = (a_t - a_end).hypot(b_t - b_end) / omega_l;
-    let fixed_err = (fixed_rate.flush(&averager_config).rate_deg_per_h - INSIDE_DEG_H).abs();
-    let tracked_err = (tracked_rate.flush(&averager_config).rate_deg_per_h - INSIDE_DEG_H).abs();
+    let fixed_err = (run.static_deg_h - INSIDE_DEG_H).abs();
+    let tracked_err = (run.tracked_deg_h - INSIDE_DEG_H).abs();
     eprintln!(
         "jitter {:?}: inside the band: static error {fixed_err:.4} deg/h, tracked \
          {tracked_err:.4} deg/h; tracked coefficients off by {:.3} % of Omega_L (static: {:.1} %)",
