@@ -10,6 +10,7 @@
 
 mod args;
 mod characterize_cmd;
+mod flag_ranges;
 
 use args::{
     AllanArgs, BoardArgs, CalibrationArgs, Cli, Command, DitherArgs, GyroArgs, RecordArgs,
