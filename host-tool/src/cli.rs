@@ -6,6 +6,9 @@
 //! here by hand rather than by clap's `env` so that `serve-sim` and `sweep`, which run their
 //! own board, never pick up a connection from the environment. The baud rate defaults to the
 //! board's own ([`SERIAL_BAUD`], the firmware's constant).
+//!
+//! Size (over 600 lines): every subcommand's flags, with their ranges and help, read together; the
+//! ranges are in `ranges.rs`, what each subcommand does in `board_commands.rs`.
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use firmware::protocol::SERIAL_BAUD;

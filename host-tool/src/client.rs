@@ -22,6 +22,9 @@
 //! - The key is sent, never shown: answers and errors carry the command as [`shown_command`]
 //!   gives it (`unlock <key>`), so no message on stderr, no `--json` object and no log holds
 //!   the key.
+//!
+//! Size (over 600 lines): the line framing, the answer checks and the stream handling share the
+//! link's buffer and its time-out.
 
 use crate::link::Link;
 use firmware::protocol::line::MAX_LINE;

@@ -1,5 +1,8 @@
 //! The `rlg-cal` binary: help, exit codes, files written, and a served board driven by a
 //! second `rlg-cal` process over loopback TCP and a pty.
+//!
+//! Size (over 600 lines): every test drives the binary through the helpers at the top of this file
+//! (`rlg_cal`, `run`, `scratch`, `key_file`).
 
 use std::io::{BufRead, BufReader};
 use std::net::TcpListener;

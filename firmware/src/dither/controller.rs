@@ -14,6 +14,9 @@
 //! turn (a peak of the drive; at resonance a zero crossing of the pick-off, the dither's rate
 //! peak) the half cycle closes: the fit, the supervisor, the loops, and the new DDS
 //! parameters, which take effect with the code returned by that same call.
+//!
+//! Size (over 600 lines): one state machine whose tick, commands and status read the same fields;
+//! its parts (window, loops, start-up, supervisor, noise) already live in files of their own.
 
 use super::amplitude::{AmplitudeLoop, PlantGainProbe};
 use super::config::DitherConfig;

@@ -4,6 +4,9 @@
 //! resonator; this model only shows that the loops, the start-up and the supervisor behave as
 //! designed, and measures them. (Over 600 lines: one test per behaviour of the controller, on
 //! the one bench this file defines; the measured figures in `super`'s docs come from here.)
+//!
+//! Size (over 600 lines): every scenario runs the test model and the bench defined at the top of
+//! this file; split by scenario, each file would need them from a support module.
 
 use super::*;
 use crate::profile::BoardProfile;

@@ -1,6 +1,9 @@
 //! The service against plain-memory ports and a RAM flash: what the board and the simulator both
 //! rely on (one answer per line, settings staged into the readout, an erasing store inside the
 //! pause and no pause without an erase, dropped frames counted, status folding).
+//!
+//! Size (over 600 lines): every test runs on the plain-memory ports (`TestPorts`) and RAM flash
+//! defined at the top of this file.
 
 use super::ports::{Clock, DitherAccess, ReadoutAccess, Secrets, SerialTx};
 use super::*;

@@ -1,5 +1,8 @@
 //! The two-sector log: where a record goes, how the newest is found again, and what a store
 //! may erase (see the module docs of [`crate::storage`] for the power-fail argument).
+//!
+//! Size (over 600 lines): the scan, the append and the erase decision share one walk over the
+//! sectors; the record format is in `record/`.
 
 use embedded_storage::nor_flash::{NorFlash, ReadNorFlash};
 

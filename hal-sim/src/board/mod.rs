@@ -42,6 +42,9 @@
 //! latch searches the pick-off up to one dither period ahead and the exact latch needs the next
 //! turnaround: keep the drive known [`Gyro::drive_lead_s`] ahead of [`SimBoard::time_s`]
 //! before each [`SimBoard::next_half_cycle`] (the harness does, [`crate::harness`]).
+//!
+//! Size (over 600 lines): the step that puts every peripheral's events in time order works on the
+//! whole board's state; the peripherals live in files of their own.
 
 mod config;
 mod faults;

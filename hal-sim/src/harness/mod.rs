@@ -61,6 +61,9 @@
 //! - The readout's settings come from the board's profile ([`BoardConfig::readout_config`],
 //!   i.e. `firmware::profile::BoardProfile::F405` with the simulated board's timer and counter):
 //!   the firmware is configured for the board it runs on, never by a copy of its constants.
+//!
+//! Size (over 600 lines): the options, the step and the replay share the harness's state; the board
+//! it drives is `crate::board`.
 
 use crate::board::{
     BoardConfig, BoardError, LatchRecord, LatchTiming, OutputLatch, SimBoard, Trigger,

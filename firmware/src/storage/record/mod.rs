@@ -87,6 +87,9 @@
 //! [`CalibrationRecord::eps_rad`]). Without a fit (coefficients set by hand, or a reset) the fit
 //! bytes are zero and flag bit 0 is clear; without dither setpoints (never set, or a reset) the
 //! dither bytes are zero and flag bit 2 is clear.
+//!
+//! Size (over 600 lines): the offsets of every format version and their decoders stay together, so
+//! each offset is read against its neighbours; the field types are in `fields.rs`.
 
 mod fields;
 
