@@ -39,6 +39,7 @@ STORE_TIMEOUT_S = 2.5            # "Limits": a store may stall the board for a s
 CYCLE_PAYLOAD = 41               # "Streaming": the cycle frame's payload
 OUTPUT_PAYLOAD = 38              # "The fixed-rate output": the output frame's payload (at least)
 THERMAL_PAYLOAD = 12             # "The fixed-rate output": the thermal frame's payload
+THERMAL_FRAME_CHUNK = 17         # "The fixed-rate output": its bytes before the delimiter
 NO_TEMPERATURE = -32768          # the thermal frame's i16 fields: no value
 Q32 = 2.0 ** 32
 Q16 = 2.0 ** 16
@@ -111,9 +112,9 @@ def decode_cycle(chunk: bytes) -> dict:
 
 
 def is_thermal(chunk: bytes) -> bool:
-    """The output stream carries two frames; a receiver tells them by length (the thermal frame's
-    payload and CRC are 16 bytes, an output record's at least 42)."""
-    return len(cobs_decode(chunk)) == THERMAL_PAYLOAD + 4
+    """The output stream carries two frames; a receiver tells them by length before the
+    delimiter (17 bytes for a thermal frame, 43 or more for an output record)."""
+    return len(chunk) == THERMAL_FRAME_CHUNK
 
 
 def decode_thermal(chunk: bytes) -> dict:
